@@ -1,0 +1,109 @@
+"""Drive signals: Fig. 3.14 sawtooth, Fig. 4.5 inputs, Fig. 4.3 slew-adapted input."""
+
+import numpy as np
+import pytest
+
+from turntable_env.amplifier import Amplifier
+from turntable_env.drive import (
+    DriveSignal,
+    one_directional,
+    sawtooth,
+    slew_adapted,
+    two_directional,
+)
+
+
+def test_fig_3_14_example():
+    """100 V, 1 Hz, start 1 s, stop 4 s, maximum at a = 0.95."""
+    t = np.array([0.5, 1.0, 1.475, 1.95, 1.975, 2.0, 2.95, 3.95, 4.0, 4.5])
+    y = sawtooth(t, 100.0, 1.0, 0.95, start=1.0, stop=4.0)
+    assert y[0] == 0.0 and y[1] == 0.0
+    assert y[2] == pytest.approx(50.0)  # halfway up the slow flank
+    assert y[3] == pytest.approx(100.0)  # maximum at a
+    assert y[4] == pytest.approx(50.0)  # halfway down the flyback
+    assert y[5] == pytest.approx(0.0, abs=1e-9)
+    assert y[6] == pytest.approx(100.0) and y[7] == pytest.approx(100.0)
+    assert y[8] == 0.0 and y[9] == 0.0
+
+
+@pytest.mark.parametrize(("a", "f"), [(0.5, 10.0), (0.95, 100.0), (0.99, 2000.0)])
+def test_sawtooth_periodic_and_bounded(a, f):
+    t = np.linspace(0, 5 / f, 5001)
+    y = sawtooth(t, 2.0, f, a)
+    y2 = sawtooth(t + 1 / f, 2.0, f, a)
+    assert np.allclose(y, y2, atol=1e-9)
+    assert y.min() >= 0.0 and y.max() <= 2.0 + 1e-12
+    # slow flank slope A f / a, flyback slope −A f/(1−a)
+    assert np.max(np.diff(y) / np.diff(t)) == pytest.approx(2.0 * f / a, rel=1e-6)
+    assert np.min(np.diff(y) / np.diff(t)) == pytest.approx(-2.0 * f / (1 - a), rel=0.05)
+
+
+def test_one_directional_counts_periods_and_sign_sets_direction():
+    t = np.arange(0, 0.2, 1e-6)
+    y = one_directional(t, -2.0, 100.0, 0.95, n_periods=9)
+    peaks = np.sum((y[1:-1] < y[:-2]) & (y[1:-1] <= y[2:]) & (y[1:-1] < -1.99))
+    assert peaks == 9
+    assert y.max() <= 0.0
+    assert np.all(y[t >= 0.09] == 0.0)
+
+
+@pytest.mark.parametrize("reverse", ["sign", "mirror"])
+def test_two_directional_goes_forward_then_back(reverse):
+    f, n = 100.0, 5
+    t = (np.arange(50000) + 0.5) * 1e-6  # the first n periods, sampled between grid points
+    fwd = two_directional(t, 2.0, f, 0.95, n_per_direction=n, reverse=reverse)
+    back = two_directional(t + n / f, 2.0, f, 0.95, n_per_direction=n, reverse=reverse)
+    assert np.all(two_directional(t + 2 * n / f, 2.0, f, 0.95, n_per_direction=n) == 0.0)
+    if reverse == "sign":
+        assert fwd.min() >= 0.0 and back.max() <= 0.0
+        assert np.allclose(back, -fwd, atol=1e-9)
+    else:
+        assert fwd.min() >= 0.0 and back.min() >= 0.0
+        # the way back has the slow flank falling: mean slope sign inverted
+        d = np.diff(back)
+        assert np.sum(d < 0) > np.sum(d > 0)
+
+
+def test_slew_adapted_overshoots_then_settles():
+    f, a, k, hold = 100.0, 0.95, 1.0, 15e-6
+    t = np.array([0.0095 - 1e-7, 0.0095 + 1e-6, 0.0095 + 14e-6, 0.0095 + 16e-6, 0.0099])
+    y = slew_adapted(t, 2.0, f, a, k, hold)
+    assert y[0] == pytest.approx(2.0, rel=1e-4)
+    assert y[1] == -2.0 and y[2] == -2.0  # Fig. 4.3: 1 V → −1 V …
+    assert y[3] == 0.0 and y[4] == 0.0  # … → 0 V
+
+
+def test_drive_signal_uses_amplifier_hold_time():
+    amp = Amplifier()
+    d = DriveSignal(amplitude=2.0, frequency=100.0, a=0.95, n_periods=3, slew_adaptation=1.0)
+    hold = amp.adapted_hold_time(2.0, 0.0, 1.0)
+    assert hold == pytest.approx(amp.tau * np.log(2.0))  # no slew limit: τ ln((1+k)/k)
+    t = 0.0095 + np.array([0.5, 0.999, 1.001]) * hold
+    u = d.input_voltage(t, amp)
+    assert list(u) == [-2.0, -2.0, 0.0]
+    assert d.duration == pytest.approx(0.03)
+    two = DriveSignal(amplitude=2.0, n_periods=2, pattern="two")
+    assert two.duration == pytest.approx(0.04)
+    assert two.input_voltage(np.array([0.0295]))[0] == pytest.approx(-2.0, rel=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("call", "field"),
+    [
+        (lambda: sawtooth(np.zeros(3), 1.0, 1.0, a=1.0), "a"),
+        (lambda: sawtooth(np.zeros(3), 1.0, 1.0, a=0.0), "a"),
+        (lambda: sawtooth(np.zeros(3), 1.0, -5.0), "frequency"),
+        (lambda: sawtooth(np.zeros(3), float("nan"), 1.0), "amplitude"),
+        (lambda: sawtooth(np.array([0.0, np.inf]), 1.0, 1.0), "t"),
+        (lambda: sawtooth(np.zeros(3), 1.0, 1.0, start=2.0, stop=1.0), "stop"),
+        (lambda: one_directional(np.zeros(3), 1.0, 1.0, n_periods=0), "n_periods"),
+        (lambda: two_directional(np.zeros(3), 1.0, 1.0, reverse="up"), "reverse"),
+        (lambda: slew_adapted(np.zeros(3), 1.0, 100.0, 0.95, hold_time=1e-3), "hold_time"),
+        (lambda: DriveSignal(pattern="three"), "pattern"),
+        (lambda: DriveSignal(slew_adaptation=-1.0), "slew_adaptation"),
+        (lambda: DriveSignal(a=1.2), "a"),
+    ],
+)
+def test_drive_rejects_bad_input(call, field):
+    with pytest.raises(ValueError, match=field):
+        call()

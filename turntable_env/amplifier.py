@@ -1,0 +1,292 @@
+"""High-voltage amplifier (RHK HVA 900, §4.1.1–4.1.2) driving the capacitive piezo quadrants.
+
+Measured behaviour (§4.1.2): gain 45, input ±10 V, at most 25 mA output; the
+time to reach the end value is the same for every step, so the slew rate is
+proportional to the step: 0.9 V/µs for a 1 V input step (45 V out), 2.7 V/µs
+for 3 V; the datasheet's 12 V/µs holds only at the full 900 V swing.
+
+Model: a linear first-order stage — the linear system whose settling time does
+not depend on the step — followed by two saturations:
+
+    dV_out/dt = clip((G·u − V_out)/τ, −R, +R),   R = min(SR_max, I_max/C_load)
+
+τ is derived from the measured 0.9 V/µs, slew rate taken, as on a datasheet,
+between 10 % and 90 % of the transition: SR₁₀₋₉₀ = 0.8·ΔV/(τ ln 9), hence
+τ = 0.8·G·(1 V)/(0.9 V/µs · ln 9) = 18.2 µs. SR_max = 12 V/µs (datasheet);
+the current limit I_max/C_load enters through the quadrants' capacitance
+ε₁₁A_e/h (Eq. 2.2). The input is clipped to ±10 V. ``ideal=True`` gives the
+instant source the thesis's simulation assumed (V_out = G·u).
+
+The slew-adapted input (Fig. 4.3) jumps past the end value, to
+V_end − k·(V_start − V_end), and back to V_end when the output gets there;
+:meth:`Amplifier.adapted_hold_time` is that time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from .quantities import Quantity
+from .validation import (
+    check_array_finite,
+    check_finite,
+    check_nonnegative,
+    check_positive,
+    check_time_array,
+)
+
+__all__ = ["Amplifier", "AmplifierResponse", "measure_slew_rate"]
+
+LN9 = math.log(9.0)
+
+
+@njit(cache=True)
+def _first_order_slew(t, u, v0, gain, tau, rate, u_max):
+    """Exact response of the slew-limited first-order stage to a zero-order-hold input."""
+    n = t.shape[0]
+    out = np.empty(n)
+    v = v0
+    out[0] = v
+    for i in range(n - 1):
+        ui = min(max(u[i], -u_max), u_max)
+        target = gain * ui
+        dt = t[i + 1] - t[i]
+        e = target - v
+        ae = abs(e)
+        sgn = 1.0 if e >= 0.0 else -1.0
+        if ae > rate * tau:
+            t_lin = (ae - rate * tau) / rate
+            if dt <= t_lin:
+                v = v + sgn * rate * dt
+            else:
+                v = target - sgn * rate * tau * math.exp(-(dt - t_lin) / tau)
+        else:
+            v = target - e * math.exp(-dt / tau)
+        out[i + 1] = v
+    return out
+
+
+@dataclass(frozen=True)
+class AmplifierResponse:
+    """Amplifier time response; time is axis 0.
+
+    Attributes:
+        time: [s]; input: commanded input [V]; output: output voltage [V];
+        current: output current C_load·dV/dt [A] (per output).
+    """
+
+    time: np.ndarray
+    input: np.ndarray
+    output: np.ndarray
+    current: np.ndarray
+
+    def to_pandas(self) -> Any:
+        import pandas as pd
+
+        return pd.DataFrame(
+            {"input_V": self.input, "output_V": self.output, "current_A": self.current},
+            index=pd.Index(self.time, name="time_s"),
+        )
+
+    def plot(self, ax: Any = None) -> Any:
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots()
+        ax.plot(self.time * 1e6, self.output, label="output [V]")
+        ax.set_xlabel("time [µs]")
+        ax.set_ylabel("amplifier output [V]")
+        ax.legend()
+        return ax
+
+
+@dataclass(frozen=True)
+class Amplifier:
+    """HVA 900 model (see module docstring).
+
+    Args:
+        gain: voltage gain G [-] (45).
+        input_limit: |u| limit [V] (10).
+        current_limit: I_max [A] (25 mA).
+        slew_per_input_volt: measured 10–90 % slew rate for a 1 V input step [V/s] (0.9 V/µs).
+        slew_rate_max: datasheet slew rate at full swing [V/s] (12 V/µs).
+        ideal: instant source V_out = G·u (the thesis's simulation).
+    """
+
+    gain: float = 45.0
+    input_limit: float = 10.0
+    current_limit: float = 25e-3
+    slew_per_input_volt: float = 0.9e6
+    slew_rate_max: float = 12e6
+    ideal: bool = False
+
+    def __post_init__(self) -> None:
+        check_positive("gain", self.gain)
+        check_positive("input_limit", self.input_limit)
+        check_positive("current_limit", self.current_limit)
+        check_positive("slew_per_input_volt", self.slew_per_input_volt)
+        check_positive("slew_rate_max", self.slew_rate_max)
+        if not isinstance(self.ideal, bool):
+            raise ValueError(f"ideal={self.ideal!r}: must be a bool")
+
+    @property
+    def tau(self) -> float:
+        """Time constant τ = 0.8·G/(SR₁V·ln 9) [s] of the linear stage (18.2 µs)."""
+        return 0.8 * self.gain / (self.slew_per_input_volt * LN9)
+
+    def rate_limit(self, load_capacitance: float) -> float:
+        """R = min(SR_max, I_max/C_load) [V/s]; C_load = 0 means unloaded."""
+        c = check_nonnegative("load_capacitance", load_capacitance)
+        if c == 0.0:
+            return self.slew_rate_max
+        return min(self.slew_rate_max, self.current_limit / c)
+
+    def simulate(
+        self,
+        time: np.ndarray,
+        input_voltage: np.ndarray,
+        load_capacitance: float = 0.0,
+        initial_output: float | None = None,
+    ) -> AmplifierResponse:
+        """Output voltage for a zero-order-hold input sampled at ``time`` [s].
+
+        Args:
+            time: strictly increasing sample times [s].
+            input_voltage: commanded input [V], same length (clipped to ±input_limit).
+            load_capacitance: capacitance on this output [F] (driven quadrants + cable).
+            initial_output: output at time[0] [V]; defaults to G·u[0] (settled).
+        """
+        t = check_time_array("time", time)
+        u = check_array_finite("input_voltage", input_voltage)
+        if u.shape != t.shape:
+            raise ValueError(f"input_voltage: shape {u.shape} must equal time's {t.shape}")
+        c = check_nonnegative("load_capacitance", load_capacitance)
+        uc = np.clip(u, -self.input_limit, self.input_limit)
+        if self.ideal:
+            out = self.gain * uc
+        else:
+            v0 = (
+                self.gain * uc[0]
+                if initial_output is None
+                else check_finite("initial_output", initial_output)
+            )
+            out = _first_order_slew(
+                t, u, v0, self.gain, self.tau, self.rate_limit(c), self.input_limit
+            )
+        current = c * np.gradient(out, t) if t.size > 1 else np.zeros_like(out)
+        return AmplifierResponse(t, u, out, current)
+
+    def step_response(
+        self,
+        step_from: float,
+        step_to: float,
+        duration: float = 200e-6,
+        dt: float = 1e-8,
+        load_capacitance: float = 0.0,
+    ) -> AmplifierResponse:
+        """Response to an input step from ``step_from`` to ``step_to`` [V] at t = 0 [s]."""
+        a = check_finite("step_from", step_from)
+        b = check_finite("step_to", step_to)
+        t = np.arange(0.0, check_positive("duration", duration), check_positive("dt", dt))
+        u = np.full(t.shape, b)
+        return self.simulate(
+            t,
+            u,
+            load_capacitance,
+            initial_output=self.gain * np.clip(a, -self.input_limit, self.input_limit),
+        )
+
+    def adapted_hold_time(
+        self, v_start: float, v_end: float, k: float, load_capacitance: float = 0.0
+    ) -> float:
+        """Time [s] the adapted input stays past the end value (Fig. 4.3).
+
+        The input jumps from ``v_start`` to v_end − k(v_start − v_end) [V input]; the output
+        reaches G·v_end after this time, when the input steps to ``v_end``. k = 0 (no
+        adaptation) gives ``inf``; an ideal amplifier gives 0.
+        """
+        a = check_finite("v_start", v_start)
+        b = check_finite("v_end", v_end)
+        kk = check_nonnegative("k", k)
+        if self.ideal or a == b:
+            return 0.0
+        if kk == 0.0:
+            return math.inf
+        u_over = b - kk * (a - b)
+        if abs(u_over) > self.input_limit:
+            raise ValueError(
+                f"k={k!r}: the adapted input {u_over:.3g} V exceeds the input limit "
+                f"±{self.input_limit} V"
+            )
+        dist = self.gain * abs(a - b)  # output travel to the end value [V]
+        e0 = self.gain * abs(a - u_over)  # initial error [V]
+        r = self.rate_limit(load_capacitance)
+        tau = self.tau
+        if e0 > r * tau:
+            d_lin = e0 - r * tau
+            if dist <= d_lin:
+                return dist / r
+            return d_lin / r + tau * math.log(r * tau / (e0 - dist))
+        return tau * math.log(e0 / (e0 - dist))
+
+    def describe(self, prefix: str = "amplifier") -> list[Quantity]:
+        g, d = "given", "derived"
+        return [
+            Quantity(f"{prefix}.gain", self.gain, "-", g, "HVA 900, §4.1.1"),
+            Quantity(f"{prefix}.input_limit", self.input_limit, "V", g, "±10 V input, §4.1.1"),
+            Quantity(f"{prefix}.current_limit", self.current_limit, "A", g, "25 mA, §4.1.1"),
+            Quantity(
+                f"{prefix}.slew_per_input_volt",
+                self.slew_per_input_volt,
+                "V/s",
+                g,
+                "0.9 V/us for a 1 V input step, §4.1.2 (10-90 %)",
+            ),
+            Quantity(
+                f"{prefix}.slew_rate_max",
+                self.slew_rate_max,
+                "V/s",
+                g,
+                "12 V/us datasheet at 900 V, §4.1.2",
+            ),
+            Quantity(f"{prefix}.tau", self.tau, "s", d, "0.8*G/(SR_1V*ln 9)"),
+            Quantity(f"{prefix}.ideal", self.ideal, "-", g, "instant source if true"),
+        ]
+
+
+def measure_slew_rate(
+    time: np.ndarray,
+    output: np.ndarray,
+    v_from: float,
+    v_to: float,
+    low: float = 0.1,
+    high: float = 0.9,
+) -> float:
+    """Slew rate [V/s] of one transition from ``v_from`` to ``v_to`` between the
+    ``low`` and ``high`` fractions of the swing (10–90 % by default), from the first
+    crossings, linearly interpolated. Raises ValueError if a level is never reached."""
+    t = check_time_array("time", time)
+    y = check_array_finite("output", output)
+    a = check_finite("v_from", v_from)
+    b = check_finite("v_to", v_to)
+    if a == b:
+        raise ValueError(f"v_to={v_to!r}: must differ from v_from")
+    s = (y - a) / (b - a)  # normalised progress 0 → 1
+
+    def crossing(level: float) -> float:
+        idx = np.nonzero(s >= level)[0]
+        if idx.size == 0:
+            raise ValueError(f"output never reaches {level:.0%} of the swing {a} -> {b} V")
+        i = int(idx[0])
+        if i == 0:
+            return float(t[0])
+        f = (level - s[i - 1]) / (s[i] - s[i - 1])
+        return float(t[i - 1] + f * (t[i] - t[i - 1]))
+
+    t_lo, t_hi = crossing(low), crossing(high)
+    return (high - low) * abs(b - a) / (t_hi - t_lo)

@@ -1,0 +1,239 @@
+"""Drive signals: sawtooth (Fig. 3.14), inputs of Fig. 4.5, slew-adapted input (Fig. 4.3).
+
+All functions are vectorised over a time array [s] and return the amplifier
+*input* voltage [V] (the thesis's 2 V signals become 90 V on the tubes).
+
+* :func:`sawtooth` — Fig. 3.14: rises linearly from 0 to the amplitude over the
+  fraction ``a`` of each period, falls back over the rest (flyback), zero
+  outside [start, stop).
+* :func:`one_directional` — Fig. 4.5: ``n_periods`` sawtooth periods; the sign of
+  the amplitude sets the direction.
+* :func:`two_directional` — Fig. 4.5: ``n_per_direction`` periods one way, then
+  as many back (amplitude negated, or the time-mirrored sawtooth), repeated
+  ``n_cycles`` times; the table should return to its start (§4.3).
+* :func:`slew_adapted` — Fig. 4.3: the flyback is an input step that first
+  overshoots to −k·amplitude and returns to 0 after ``hold_time`` (from
+  :meth:`turntable_env.amplifier.Amplifier.adapted_hold_time`).
+* :class:`DriveSignal` — one object that composes these for the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from .amplifier import Amplifier
+from .validation import (
+    check_array_finite,
+    check_finite,
+    check_in_open,
+    check_nonnegative,
+    check_positive,
+)
+
+__all__ = ["DriveSignal", "one_directional", "sawtooth", "slew_adapted", "two_directional"]
+
+
+def _common(t, amplitude, frequency, a):
+    tt = check_array_finite("t", t)
+    amp = check_finite("amplitude", amplitude)
+    f = check_positive("frequency", frequency)
+    aa = check_in_open("a", a, 0.0, 1.0)
+    return tt, amp, f, aa
+
+
+def _check_span(start: float, stop: float) -> tuple[float, float]:
+    """Validated [start, stop) in s; ``stop`` may be ``inf``."""
+    t0 = check_finite("start", start)
+    t1 = float(stop)
+    if math.isnan(t1) or t1 <= t0:
+        raise ValueError(f"stop={stop!r}: must be > start={start!r}")
+    return t0, t1
+
+
+def _window(tt: np.ndarray, start: float, stop: float) -> np.ndarray:
+    return (tt >= start) & (tt < stop)
+
+
+def sawtooth(
+    t: np.ndarray,
+    amplitude: float,
+    frequency: float,
+    a: float = 0.95,
+    start: float = 0.0,
+    stop: float = math.inf,
+) -> np.ndarray:
+    """Sawtooth of Fig. 3.14 [V]: maximum ``amplitude`` at the fraction ``a`` of each period.
+
+    Args:
+        t: time [s]. amplitude: peak [V] (signed). frequency: [Hz].
+        a: position of the maximum in the period, 0 < a < 1.
+        start, stop: the signal is zero outside [start, stop) [s].
+    """
+    tt, amp, f, aa = _common(t, amplitude, frequency, a)
+    t0, t1 = _check_span(start, stop)
+    phase = np.mod((tt - t0) * f, 1.0)
+    y = np.where(phase < aa, phase / aa, (1.0 - phase) / (1.0 - aa))
+    return np.where(_window(tt, t0, t1), amp * y, 0.0)
+
+
+def one_directional(
+    t: np.ndarray,
+    amplitude: float,
+    frequency: float,
+    a: float = 0.95,
+    n_periods: int = 10,
+    start: float = 0.0,
+) -> np.ndarray:
+    """One-directional input of Fig. 4.5: ``n_periods`` sawtooth periods [V]."""
+    n = _check_count("n_periods", n_periods)
+    f = check_positive("frequency", frequency)
+    return sawtooth(t, amplitude, f, a, start, check_finite("start", start) + n / f)
+
+
+def two_directional(
+    t: np.ndarray,
+    amplitude: float,
+    frequency: float,
+    a: float = 0.95,
+    n_per_direction: int = 5,
+    n_cycles: int = 1,
+    start: float = 0.0,
+    reverse: Literal["sign", "mirror"] = "sign",
+) -> np.ndarray:
+    """Two-directional input of Fig. 4.5 [V].
+
+    ``n_per_direction`` periods forward then the same number back, ``n_cycles`` times.
+    ``reverse="sign"`` negates the amplitude for the way back; ``"mirror"`` keeps the
+    polarity and swaps the slow and fast flanks (a → 1 − a).
+    """
+    tt, amp, f, aa = _common(t, amplitude, frequency, a)
+    n = _check_count("n_per_direction", n_per_direction)
+    c = _check_count("n_cycles", n_cycles)
+    t0 = check_finite("start", start)
+    if reverse not in ("sign", "mirror"):
+        raise ValueError(f"reverse={reverse!r}: must be 'sign' or 'mirror'")
+    fwd = sawtooth(tt, amp, f, aa, t0)
+    back = (
+        sawtooth(tt, -amp, f, aa, t0) if reverse == "sign" else sawtooth(tt, amp, f, 1.0 - aa, t0)
+    )
+    k = np.floor((tt - t0) * f)  # period index
+    forward = np.mod(k, 2 * n) < n
+    active = _window(tt, t0, t0 + 2 * n * c / f)
+    return np.where(active, np.where(forward, fwd, back), 0.0)
+
+
+def slew_adapted(
+    t: np.ndarray,
+    amplitude: float,
+    frequency: float,
+    a: float = 0.95,
+    k: float = 1.0,
+    hold_time: float = 20e-6,
+    start: float = 0.0,
+    stop: float = math.inf,
+) -> np.ndarray:
+    """Slew-adapted sawtooth (Fig. 4.3) [V].
+
+    The slow flank is the sawtooth's; at the phase ``a`` the input steps from the
+    amplitude to −k·amplitude, holds for ``hold_time`` [s], then sits at 0 until the
+    next period. k = 1 is the thesis's example (1 V → −1 V → 0 V).
+    """
+    tt, amp, f, aa = _common(t, amplitude, frequency, a)
+    kk = check_nonnegative("k", k)
+    th = check_nonnegative("hold_time", hold_time)
+    if th > (1.0 - aa) / f:
+        raise ValueError(
+            f"hold_time={hold_time!r}: must fit in the flyback interval "
+            f"(1-a)/f = {(1 - aa) / f:.3g} s"
+        )
+    t0, t1 = _check_span(start, stop)
+    phase = np.mod((tt - t0) * f, 1.0)
+    since_flyback = (phase - aa) / f  # s
+    y = np.where(phase < aa, phase / aa, np.where(since_flyback < th, -kk, 0.0))
+    return np.where(_window(tt, t0, t1), amp * y, 0.0)
+
+
+def _check_count(name: str, n: int) -> int:
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise ValueError(f"{name}={n!r}: must be a positive integer")
+    return int(n)
+
+
+@dataclass(frozen=True)
+class DriveSignal:
+    """A stepping drive as the simulator and the environment use it.
+
+    Args:
+        amplitude: amplifier input amplitude [V]; sign = direction (|amplitude| ≤ 10 V).
+        frequency: [Hz].
+        a: ramp ratio, position of the maximum, 0 < a < 1.
+        n_periods: periods per direction.
+        pattern: ``"one"`` (one-directional) or ``"two"`` (forward then back, Fig. 4.5).
+        slew_adaptation: k ≥ 0 of Fig. 4.3; 0 = unadapted (plain sawtooth).
+        start: [s].
+    """
+
+    amplitude: float = 2.0
+    frequency: float = 100.0
+    a: float = 0.95
+    n_periods: int = 10
+    pattern: Literal["one", "two"] = "one"
+    slew_adaptation: float = 0.0
+    start: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_finite("amplitude", self.amplitude)
+        check_positive("frequency", self.frequency)
+        check_in_open("a", self.a, 0.0, 1.0)
+        _check_count("n_periods", self.n_periods)
+        if self.pattern not in ("one", "two"):
+            raise ValueError(f"pattern={self.pattern!r}: must be 'one' or 'two'")
+        check_nonnegative("slew_adaptation", self.slew_adaptation)
+        check_finite("start", self.start)
+
+    @property
+    def duration(self) -> float:
+        """Time from start to the end of the last period [s]."""
+        n = self.n_periods * (2 if self.pattern == "two" else 1)
+        return n / self.frequency
+
+    def input_voltage(
+        self, t: np.ndarray, amplifier: Amplifier | None = None, load_capacitance: float = 0.0
+    ) -> np.ndarray:
+        """Amplifier input [V] at times ``t`` [s]; adapted hold time from ``amplifier``."""
+        tt = check_array_finite("t", t)
+        if self.slew_adaptation == 0.0:
+            if self.pattern == "one":
+                return one_directional(
+                    tt, self.amplitude, self.frequency, self.a, self.n_periods, self.start
+                )
+            return two_directional(
+                tt, self.amplitude, self.frequency, self.a, self.n_periods, 1, self.start
+            )
+        amp = amplifier if amplifier is not None else Amplifier()
+        hold = amp.adapted_hold_time(
+            abs(self.amplitude), 0.0, self.slew_adaptation, load_capacitance
+        )
+        hold = min(hold, (1.0 - self.a) / self.frequency)
+        stop = self.start + self.duration
+        fwd = slew_adapted(
+            tt, self.amplitude, self.frequency, self.a, self.slew_adaptation, hold, self.start, stop
+        )
+        if self.pattern == "one":
+            return fwd
+        back = slew_adapted(
+            tt,
+            -self.amplitude,
+            self.frequency,
+            self.a,
+            self.slew_adaptation,
+            hold,
+            self.start,
+            stop,
+        )
+        k = np.floor((tt - self.start) * self.frequency)
+        return np.where(np.mod(k, 2 * self.n_periods) < self.n_periods, fwd, back)

@@ -1,0 +1,332 @@
+"""Piezo tube as a structural element: stiffness (App. B) and mass properties (App. C.1–C.2).
+
+Implements Eq. B.3–B.4 (area moments), B.6 (bending stiffness K_x = K_y),
+B.8 (elongation stiffness K_z), B.10 (torsional stiffness K_φ), C.2 (mass of the
+tube with its Al₂O₃ ball) and C.11–C.14 (mass moment of inertia lumped at the
+tube top). The variable spatial spring that uses these numbers (Eq. 3.4–3.18)
+belongs to the assembled model.
+
+Thesis inconsistency kept visible: Eq. C.12–C.13 move the cylinder's inertia to
+the top with R_par = (L/2, L/2, 0), i.e. |R_par|² = L²/2 and a factor 7/12·mL²;
+the tube's centre of mass is L/2 *along the axis* from the top, which gives
+1/3·mL². ``parallel_axis="thesis"`` (default) reproduces Table D.1's
+I_tube = (1.500e-8, 1.500e-8, 6.121e-9) kg·m²; ``"physical"`` gives the latter.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from .piezo import PiezoMaterial, PiezoQuadrant
+from .quantities import Quantity
+from .validation import check_positive
+
+__all__ = ["TubeParams", "TubeStiffness"]
+
+
+@dataclass(frozen=True)
+class TubeStiffness:
+    """Diagonal stiffnesses of a tube at its top (the thesis uses diagonal matrices, App. D).
+
+    Attributes:
+        translational: (K_x, K_y, K_z) [N/m] — bending, bending, elongation.
+        rotational: (K_ox, K_oy, K_oz) [N·m/rad] — about x, y (bending) and z (torsion, K_φ).
+    """
+
+    translational: tuple[float, float, float]
+    rotational: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        for i, k in enumerate(self.translational):
+            check_positive(f"translational[{i}]", k)
+        for i, k in enumerate(self.rotational):
+            check_positive(f"rotational[{i}]", k)
+
+    def matrix(self) -> np.ndarray:
+        """6×6 diagonal stiffness diag(K_ox, K_oy, K_oz, K_x, K_y, K_z) in (ω, v) twist order."""
+        return np.diag([*self.rotational, *self.translational])
+
+
+@dataclass(frozen=True)
+class TubeParams:
+    """Geometry and material of one piezo tube with the ball on its top (Table D.1).
+
+    Args:
+        outer_radius: R_o [m]; the Al₂O₃ ball on top has the same radius (App. C.1).
+        inner_radius: R_i [m].
+        length: L [m].
+        density: ρ_tube of the PZT [kg/m³].
+        ball_density: ρ_ball of the Al₂O₃ ball [kg/m³].
+        material: piezo constants (E = 1/s₃₃ᴱ, ν).
+        diameter_convention: the D of Eq. 2.12 (see :mod:`turntable_env.piezo`).
+        parallel_axis: ``"thesis"`` (Eq. C.13, reproduces Table D.1) or ``"physical"``.
+        mass_given: if set, a total mass [kg] given by a table instead of Eq. C.2 (Table D.2).
+        stiffness_given: if set, stiffnesses given by a table instead of App. B (Table D.2).
+        bending_lever_given: if set, the Eq. 3.16 radius given by a table [m] (Table D.2's
+            "R_bending = 2 m") instead of πD/(2√2).
+    """
+
+    outer_radius: float = 3.175e-3
+    inner_radius: float = 2.667e-3
+    length: float = 6.35e-3
+    density: float = 7.8e3
+    ball_density: float = 3.98e3
+    material: PiezoMaterial = field(default_factory=PiezoMaterial)
+    diameter_convention: Literal["mean", "outer"] = "mean"
+    parallel_axis: Literal["thesis", "physical"] = "thesis"
+    mass_given: float | None = None
+    stiffness_given: TubeStiffness | None = None
+    bending_lever_given: float | None = None
+
+    def __post_init__(self) -> None:
+        check_positive("outer_radius", self.outer_radius)
+        check_positive("inner_radius", self.inner_radius)
+        check_positive("length", self.length)
+        check_positive("density", self.density)
+        check_positive("ball_density", self.ball_density)
+        if self.inner_radius >= self.outer_radius:
+            raise ValueError(
+                f"inner_radius={self.inner_radius!r}: must be < outer_radius={self.outer_radius!r}"
+            )
+        if self.parallel_axis not in ("thesis", "physical"):
+            raise ValueError(
+                f"parallel_axis={self.parallel_axis!r}: must be 'thesis' or 'physical'"
+            )
+        if self.mass_given is not None:
+            check_positive("mass_given", self.mass_given)
+        if self.bending_lever_given is not None:
+            check_positive("bending_lever_given", self.bending_lever_given)
+        # constructing the quadrant validates diameter_convention
+        _ = self.quadrant
+
+    # --- piezo ---------------------------------------------------------------------
+    @property
+    def quadrant(self) -> PiezoQuadrant:
+        """The 2-port C element of one electrode quadrant (Eq. 2.2)."""
+        return PiezoQuadrant(
+            material=self.material,
+            length=self.length,
+            outer_radius=self.outer_radius,
+            inner_radius=self.inner_radius,
+            diameter_convention=self.diameter_convention,
+        )
+
+    @property
+    def bending_lever(self) -> float:
+        """Radius used in Eq. 3.16 to turn quadrant elongation into tip rotation [m]."""
+        if self.bending_lever_given is not None:
+            return self.bending_lever_given
+        return self.quadrant.bending_lever
+
+    # --- App. B --------------------------------------------------------------------
+    @property
+    def wall_thickness(self) -> float:
+        """h = R_o − R_i [m]."""
+        return self.outer_radius - self.inner_radius
+
+    @property
+    def polar_area_moment(self) -> float:
+        """I_p = π(R_o⁴ − R_i⁴)/2, Eq. B.3 [m⁴]."""
+        return math.pi * (self.outer_radius**4 - self.inner_radius**4) / 2.0
+
+    @property
+    def area_moment(self) -> float:
+        """I_x = I_y = I_p/2, Eq. B.4 [m⁴]."""
+        return 0.5 * self.polar_area_moment
+
+    @property
+    def K_bending(self) -> float:
+        """K_x = K_y = 3EI_x/L³, Eq. B.6 [N/m] (Table D.1: 2.471e7)."""
+        return 3.0 * self.material.youngs_modulus * self.area_moment / self.length**3
+
+    @property
+    def K_axial(self) -> float:
+        """K_z = EA/L = πE(R_o² − R_i²)/L, Eq. B.8 [N/m] (Table D.1: 7.728e7)."""
+        area = math.pi * (self.outer_radius**2 - self.inner_radius**2)
+        return self.material.youngs_modulus * area / self.length
+
+    @property
+    def K_torsion(self) -> float:
+        """K_φ = GI_p/L, Eq. B.10 [N·m/rad] (Table D.1: 253.6)."""
+        return self.material.shear_modulus * self.polar_area_moment / self.length
+
+    @property
+    def K_rot_bending(self) -> float:
+        """Rotational bending stiffness at the tip under a pure moment, EI_x/L [N·m/rad].
+
+        Not in the thesis (Table D.1 gives only K_x, K_z, K_φ); Euler–Bernoulli.
+        """
+        return self.material.youngs_modulus * self.area_moment / self.length
+
+    @property
+    def stiffness(self) -> TubeStiffness:
+        """Tip stiffnesses: given (Table D.2) or from App. B."""
+        if self.stiffness_given is not None:
+            return self.stiffness_given
+        kb = self.K_bending
+        kr = self.K_rot_bending
+        return TubeStiffness((kb, kb, self.K_axial), (kr, kr, self.K_torsion))
+
+    # --- App. C --------------------------------------------------------------------
+    @property
+    def mass_cylinder(self) -> float:
+        """ρ_tube π(R_o² − R_i²)L, first term of Eq. C.2 [kg]."""
+        return self.density * math.pi * (self.outer_radius**2 - self.inner_radius**2) * self.length
+
+    @property
+    def mass_ball(self) -> float:
+        """ρ_ball (4/3)πR_o³, second term of Eq. C.2 [kg]."""
+        return self.ball_density * 4.0 / 3.0 * math.pi * self.outer_radius**3
+
+    @property
+    def mass(self) -> float:
+        """m_tube,tot, Eq. C.2 (Table D.1: 9.954e-4 kg), or the given mass."""
+        if self.mass_given is not None:
+            return self.mass_given
+        return self.mass_cylinder + self.mass_ball
+
+    @property
+    def inertia(self) -> np.ndarray:
+        """(I_xx, I_yy, I_zz) lumped at the tube top, Eq. C.14 [kg·m²].
+
+        Table D.1: (1.500e-8, 1.500e-8, 6.121e-9). With ``mass_given`` (no ball,
+        no wall data in Table D.2) the cylinder terms of C.13 use the given mass.
+        """
+        ro2, ri2, L = self.outer_radius**2, self.inner_radius**2, self.length
+        if self.mass_given is not None:
+            mc, mb = self.mass_given, 0.0
+        else:
+            mc, mb = self.mass_cylinder, self.mass_ball
+        shift = 7.0 / 12.0 if self.parallel_axis == "thesis" else 1.0 / 3.0
+        i_ball = 0.4 * mb * ro2
+        ixx = 0.25 * mc * (ro2 + ri2) + shift * mc * L**2 + i_ball
+        izz = 0.5 * mc * (ro2 + ri2) + i_ball
+        return np.array([ixx, ixx, izz])
+
+    def describe(self, prefix: str = "tube") -> list[Quantity]:
+        """Every given and derived tube quantity."""
+        g, d = "given", "derived"
+        q = self.quadrant
+        out = [
+            Quantity(f"{prefix}.R_o", self.outer_radius, "m", g, "Table D.1"),
+            Quantity(f"{prefix}.R_i", self.inner_radius, "m", g, "Table D.1"),
+            Quantity(f"{prefix}.L", self.length, "m", g, "Table D.1/D.2"),
+            Quantity(f"{prefix}.rho_tube", self.density, "kg/m^3", g, "Table D.1"),
+            Quantity(f"{prefix}.rho_ball", self.ball_density, "kg/m^3", g, "Table D.1"),
+            Quantity(
+                f"{prefix}.h", self.wall_thickness, "m", d, "h = R_o - R_i (Table D.1: 0.508e-3)"
+            ),
+            Quantity(
+                f"{prefix}.D",
+                q.diameter,
+                "m",
+                d,
+                f"diameter in Eq. 2.12, convention '{self.diameter_convention}'",
+            ),
+            Quantity(f"{prefix}.I_area", self.area_moment, "m^4", d, "Eq. B.4"),
+            Quantity(f"{prefix}.I_polar", self.polar_area_moment, "m^4", d, "Eq. B.3"),
+            Quantity(
+                f"{prefix}.K_x_eqB6", self.K_bending, "N/m", d, "Eq. B.6 (Table D.1: 2.471e7)"
+            ),
+            Quantity(f"{prefix}.K_z_eqB8", self.K_axial, "N/m", d, "Eq. B.8 (Table D.1: 7.728e7)"),
+            Quantity(
+                f"{prefix}.K_phi_eqB10", self.K_torsion, "N*m/rad", d, "Eq. B.10 (Table D.1: 253.6)"
+            ),
+            Quantity(
+                f"{prefix}.K_rot_bending_EI_over_L",
+                self.K_rot_bending,
+                "N*m/rad",
+                d,
+                "EI/L, Euler-Bernoulli (not in thesis)",
+            ),
+            Quantity(
+                f"{prefix}.stiffness_translational",
+                list(self.stiffness.translational),
+                "N/m",
+                g if self.stiffness_given else d,
+                "Table D.2 (K_t)" if self.stiffness_given else "Eq. B.6, B.6, B.8",
+            ),
+            Quantity(
+                f"{prefix}.stiffness_rotational",
+                list(self.stiffness.rotational),
+                "N*m/rad",
+                g if self.stiffness_given else d,
+                "Table D.2 (K_o)" if self.stiffness_given else "EI/L, EI/L, Eq. B.10",
+            ),
+            Quantity(f"{prefix}.m_cylinder", self.mass_cylinder, "kg", d, "Eq. C.2, first term"),
+            Quantity(f"{prefix}.m_ball", self.mass_ball, "kg", d, "Eq. C.2, second term"),
+            Quantity(
+                f"{prefix}.m_tube",
+                self.mass,
+                "kg",
+                g if self.mass_given is not None else d,
+                "Table D.2" if self.mass_given is not None else "Eq. C.2 (Table D.1: 9.954e-4)",
+            ),
+            Quantity(
+                f"{prefix}.I_tube",
+                self.inertia.tolist(),
+                "kg*m^2",
+                d,
+                f"Eq. C.14, parallel axis '{self.parallel_axis}' "
+                "(Table D.1: 1.500e-8, 1.500e-8, 6.121e-9)",
+            ),
+            Quantity(f"{prefix}.C_quadrant", q.capacitance, "F", d, "eps11T*A_e/h, Eq. 2.2"),
+            Quantity(
+                f"{prefix}.C_quadrant_blocked",
+                q.blocked_capacitance,
+                "F",
+                d,
+                "C*(1 - k^2), Eq. 2.2 at z = 0",
+            ),
+            Quantity(
+                f"{prefix}.R_bending_times_V",
+                q.bending_radius_times_voltage,
+                "V*m",
+                d,
+                "Eq. 2.12 (Table D.1: 1.570e4)",
+            ),
+            Quantity(
+                f"{prefix}.R_bending_times_V_outer_D",
+                PiezoQuadrant(
+                    self.material, self.length, self.outer_radius, self.inner_radius, "outer"
+                ).bending_radius_times_voltage,
+                "V*m",
+                d,
+                "Eq. 2.12 with D = 2R_o (does not match Table D.1)",
+            ),
+            Quantity(
+                f"{prefix}.bending_lever_eq212",
+                q.bending_lever,
+                "m",
+                d,
+                "pi*D/(2*sqrt(2)) = R_bending*V*|d31|/h",
+            ),
+            Quantity(
+                f"{prefix}.bending_lever",
+                self.bending_lever,
+                "m",
+                g if self.bending_lever_given is not None else d,
+                "Table D.2 R_bending"
+                if self.bending_lever_given is not None
+                else "pi*D/(2*sqrt(2)); radius of Eq. 3.16",
+            ),
+            Quantity(
+                f"{prefix}.free_elongation_per_V",
+                q.free_elongation(1.0),
+                "m/V",
+                d,
+                "d31*L/h, Eq. 2.2 at F = 0",
+            ),
+            Quantity(
+                f"{prefix}.tip_deflection_per_V",
+                q.tip_deflection(1.0),
+                "m/V",
+                d,
+                "Eq. 2.11 asymmetric (half of symmetric)",
+            ),
+        ]
+        return out
