@@ -210,6 +210,7 @@ def thesis_parameters() -> ParameterSet:
             translational=(1e5, 1e5, 1e5), rotational=(100.0, 100.0, 1e5)
         ),
         bending_lever_given=2.0,
+        source="Table D.2 (R_tube, L); R_i from the real tube's h/R_o; densities from D.1 (unused)",
     )
     friction = GMS(
         stribeck=StribeckParams(mu_s=0.3, mu_c=0.05, v_s=0.8, delta=2.0, sigma2=0.0),

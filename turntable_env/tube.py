@@ -68,6 +68,7 @@ class TubeParams:
         stiffness_given: if set, stiffnesses given by a table instead of App. B (Table D.2).
         bending_lever_given: if set, the Eq. 3.16 radius given by a table [m] (Table D.2's
             "R_bending = 2 m") instead of πD/(2√2).
+        source: where the given geometry comes from (printed by ``describe``).
     """
 
     outer_radius: float = 3.175e-3
@@ -81,6 +82,7 @@ class TubeParams:
     mass_given: float | None = None
     stiffness_given: TubeStiffness | None = None
     bending_lever_given: float | None = None
+    source: str = "Table D.1"
 
     def __post_init__(self) -> None:
         check_positive("outer_radius", self.outer_radius)
@@ -212,11 +214,11 @@ class TubeParams:
         g, d = "given", "derived"
         q = self.quadrant
         out = [
-            Quantity(f"{prefix}.R_o", self.outer_radius, "m", g, "Table D.1"),
-            Quantity(f"{prefix}.R_i", self.inner_radius, "m", g, "Table D.1"),
-            Quantity(f"{prefix}.L", self.length, "m", g, "Table D.1/D.2"),
-            Quantity(f"{prefix}.rho_tube", self.density, "kg/m^3", g, "Table D.1"),
-            Quantity(f"{prefix}.rho_ball", self.ball_density, "kg/m^3", g, "Table D.1"),
+            Quantity(f"{prefix}.R_o", self.outer_radius, "m", g, self.source),
+            Quantity(f"{prefix}.R_i", self.inner_radius, "m", g, self.source),
+            Quantity(f"{prefix}.L", self.length, "m", g, self.source),
+            Quantity(f"{prefix}.rho_tube", self.density, "kg/m^3", g, self.source),
+            Quantity(f"{prefix}.rho_ball", self.ball_density, "kg/m^3", g, self.source),
             Quantity(
                 f"{prefix}.h", self.wall_thickness, "m", d, "h = R_o - R_i (Table D.1: 0.508e-3)"
             ),
