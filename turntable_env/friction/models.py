@@ -534,11 +534,6 @@ class GMS(FrictionModel):
         ]
 
 
-def elements_from_arrays(nu: Any, k: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Validated (ν, k) arrays (exposed for the 2-D contact)."""
-    return _check_elements(nu, k)
-
-
 def check_velocity_history(name: str, values: Any) -> np.ndarray:
     """Validated 2-D plane-velocity history, shape (N, 2) [m/s]."""
     arr = check_array_finite(name, values)
