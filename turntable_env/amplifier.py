@@ -46,15 +46,14 @@ LN9 = math.log(9.0)
 
 
 @njit(cache=True)
-def _first_order_slew(t, u, v0, gain, tau, rate, u_max):
-    """Exact response of the slew-limited first-order stage to a zero-order-hold input."""
+def _first_order_slew(t, u, v0, gain, tau, rate):
+    """Exact response of the slew-limited first-order stage to a zero-order-hold input u [V]."""
     n = t.shape[0]
     out = np.empty(n)
     v = v0
     out[0] = v
     for i in range(n - 1):
-        ui = min(max(u[i], -u_max), u_max)
-        target = gain * ui
+        target = gain * u[i]
         dt = t[i + 1] - t[i]
         e = target - v
         ae = abs(e)
@@ -175,9 +174,7 @@ class Amplifier:
                 if initial_output is None
                 else check_finite("initial_output", initial_output)
             )
-            out = _first_order_slew(
-                t, u, v0, self.gain, self.tau, self.rate_limit(c), self.input_limit
-            )
+            out = _first_order_slew(t, uc, v0, self.gain, self.tau, self.rate_limit(c))
         current = c * np.gradient(out, t) if t.size > 1 else np.zeros_like(out)
         return AmplifierResponse(t, u, out, current)
 

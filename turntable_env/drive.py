@@ -54,6 +54,12 @@ def _check_span(start: float, stop: float) -> tuple[float, float]:
     return t0, t1
 
 
+def _forward(tt: np.ndarray, start: float, frequency: float, n: int) -> np.ndarray:
+    """True in the forward half of each 2n-period two-directional cycle (Fig. 4.5)."""
+    period_index = np.floor((tt - start) * frequency)
+    return np.mod(period_index, 2 * n) < n
+
+
 def _window(tt: np.ndarray, start: float, stop: float) -> np.ndarray:
     return (tt >= start) & (tt < stop)
 
@@ -120,10 +126,8 @@ def two_directional(
     back = (
         sawtooth(tt, -amp, f, aa, t0) if reverse == "sign" else sawtooth(tt, amp, f, 1.0 - aa, t0)
     )
-    k = np.floor((tt - t0) * f)  # period index
-    forward = np.mod(k, 2 * n) < n
     active = _window(tt, t0, t0 + 2 * n * c / f)
-    return np.where(active, np.where(forward, fwd, back), 0.0)
+    return np.where(active, np.where(_forward(tt, t0, f, n), fwd, back), 0.0)
 
 
 def slew_adapted(
@@ -235,5 +239,4 @@ class DriveSignal:
             self.start,
             stop,
         )
-        k = np.floor((tt - self.start) * self.frequency)
-        return np.where(np.mod(k, 2 * self.n_periods) < self.n_periods, fwd, back)
+        return np.where(_forward(tt, self.start, self.frequency, self.n_periods), fwd, back)

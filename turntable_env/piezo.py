@@ -165,11 +165,6 @@ class PiezoQuadrant:
         """Capacitance at zero elongation, C(1 − k²) [F]."""
         return self.capacitance * (1.0 - self.material.coupling_k2)
 
-    @property
-    def stiffness_axial(self) -> float:
-        """Short-circuit axial stiffness of the quadrant A_m/(s₃₃ᴱL) [N/m]."""
-        return 1.0 / float(self.compliance_matrix[0, 0])
-
     def displacement_charge(self, force: float, voltage: float) -> tuple[float, float]:
         """Eq. 2.2: (z [m], q [C]) for a force F [N] and voltage V [V]."""
         f = check_finite("force", force)

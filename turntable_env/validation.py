@@ -15,7 +15,6 @@ import numpy as np
 __all__ = [
     "check_array_finite",
     "check_finite",
-    "check_in_closed",
     "check_in_open",
     "check_nonnegative",
     "check_positive",
@@ -61,14 +60,6 @@ def check_in_open(name: str, value: float, lo: float, hi: float) -> float:
     x = check_finite(name, value)
     if not lo < x < hi:
         raise ValueError(f"{name}={_describe(value)}: must lie in the open interval ({lo}, {hi})")
-    return x
-
-
-def check_in_closed(name: str, value: float, lo: float, hi: float) -> float:
-    """Finite and inside the closed interval [lo, hi]."""
-    x = check_finite(name, value)
-    if not lo <= x <= hi:
-        raise ValueError(f"{name}={_describe(value)}: must lie in [{lo}, {hi}]")
     return x
 
 

@@ -292,8 +292,6 @@ def run_mass(mid, p, x0, fl0, f_applied, mass, dt, fn, v0):
         fa = f_applied[i] + mass * vv / dt
         f = kernel_force(mid, p, x, fl, vv, fa, fn)
         vv = vv + dt * (f_applied[i] - f) / mass
-        if (mid == CLASSICAL or mid == KARNOPP) and abs(vv) < 1e-12 * max(1.0, abs(v0)):
-            vv = 0.0
         xp += dt * vv
         kernel_rates(mid, p, x, fl, vv, fa, fn, dx)
         for j in range(nx):
