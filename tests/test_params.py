@@ -87,7 +87,11 @@ def test_thesis_set_keeps_given_values_and_shows_formula(thesis):
     assert thesis.table.mass == 15.0
     assert thesis.tube.mass == 0.5
     assert thesis.tube.stiffness.translational == (1e5, 1e5, 1e5)
-    assert thesis.tube.stiffness.rotational == (100.0, 100.0, 1e5)
+    # K_o,x/y: the listed 100 N*m/rad is printed; the beam value K_t L^2/3 is used
+    assert thesis.tube.stiffness.rotational == pytest.approx((1e5 * 4 / 3, 1e5 * 4 / 3, 1e5))
+    notes = {q.name: q.value for q in thesis.describe()}
+    assert notes["thesis.K_o_xy_listed"] == 100.0
+    assert notes["thesis.contact_lateral_stiffness_listed"] < 50.0  # N/m: could never slip
     # Table D.2's constant R_bending = 2 m is the Eq. 3.16 lever: the scaled tube gives 2.04 m
     assert thesis.tube.bending_lever == 2.0
     assert thesis.tube.quadrant.bending_lever == pytest.approx(2.0, rel=0.03)

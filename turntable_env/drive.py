@@ -15,6 +15,10 @@ All functions are vectorised over a time array [s] and return the amplifier
   overshoots to −k·amplitude and returns to 0 after ``hold_time`` (from
   :meth:`turntable_env.amplifier.Amplifier.adapted_hold_time`).
 * :class:`DriveSignal` — one object that composes these for the simulator.
+* :class:`Waveform` — a piecewise-linear amplifier input given by breakpoints
+  (jumps are two breakpoints at the same time). Every signal above is piecewise
+  linear, so :meth:`DriveSignal.waveform` represents it exactly; the simulator
+  lands its steps on the breakpoints, so flyback edges are never smeared.
 """
 
 from __future__ import annotations
@@ -34,7 +38,14 @@ from .validation import (
     check_positive,
 )
 
-__all__ = ["DriveSignal", "one_directional", "sawtooth", "slew_adapted", "two_directional"]
+__all__ = [
+    "DriveSignal",
+    "Waveform",
+    "one_directional",
+    "sawtooth",
+    "slew_adapted",
+    "two_directional",
+]
 
 
 def _common(t, amplitude, frequency, a):
@@ -161,6 +172,68 @@ def slew_adapted(
     return np.where(_window(tt, t0, t1), amp * y, 0.0)
 
 
+@dataclass(frozen=True, eq=False)
+class Waveform:
+    """Piecewise-linear amplifier input [V] through breakpoints (``times`` [s], ``values`` [V]).
+
+    Linear between breakpoints; constant before the first and after the last. Two
+    breakpoints at the same time make a jump; the value is right-continuous there.
+
+    Args:
+        times: non-decreasing breakpoint times [s]; at most two equal in a row.
+        values: input voltage at each breakpoint [V].
+    """
+
+    times: np.ndarray
+    values: np.ndarray
+
+    def __post_init__(self) -> None:
+        t = check_array_finite("times", self.times).astype(float).reshape(-1)
+        v = check_array_finite("values", self.values).astype(float).reshape(-1)
+        if t.size == 0 or t.shape != v.shape:
+            raise ValueError(
+                f"values: {v.size} values for {t.size} times (need equal, non-zero counts)"
+            )
+        dt = np.diff(t)
+        if (dt < 0.0).any():
+            i = int(np.nonzero(dt < 0.0)[0][0]) + 1
+            raise ValueError(f"times[{i}]={t[i]!r}: times must be non-decreasing")
+        if t.size > 2 and ((dt[:-1] == 0.0) & (dt[1:] == 0.0)).any():
+            i = int(np.nonzero((dt[:-1] == 0.0) & (dt[1:] == 0.0))[0][0]) + 1
+            raise ValueError(f"times[{i}]={t[i]!r}: at most two breakpoints may share a time")
+        t.setflags(write=False)
+        v.setflags(write=False)
+        object.__setattr__(self, "times", t)
+        object.__setattr__(self, "values", v)
+
+    @classmethod
+    def constant(cls, value: float = 0.0) -> Waveform:
+        """A constant input [V]."""
+        return cls(np.array([0.0]), np.array([check_finite("value", value)]))
+
+    def __call__(self, t: np.ndarray | float) -> np.ndarray:
+        """Input [V] at times ``t`` [s] (right-continuous at jumps)."""
+        tt = check_array_finite("t", t).astype(float)
+        tb, vb = self.times, self.values
+        # index of the last breakpoint <= t (right-continuous at jumps)
+        i = np.searchsorted(tb, tt, side="right") - 1
+        i = np.clip(i, 0, tb.size - 1)
+        j = np.minimum(i + 1, tb.size - 1)
+        span = tb[j] - tb[i]
+        frac = np.where(span > 0.0, (tt - tb[i]) / np.where(span > 0.0, span, 1.0), 0.0)
+        frac = np.clip(frac, 0.0, 1.0)
+        return vb[i] + frac * (vb[j] - vb[i])
+
+    @property
+    def end(self) -> float:
+        """Time of the last breakpoint [s]."""
+        return float(self.times[-1])
+
+    def scaled(self, factor: float) -> Waveform:
+        """The waveform times ``factor`` (e.g. −1 for the opposite direction)."""
+        return Waveform(self.times.copy(), self.values * check_finite("factor", factor))
+
+
 def _check_count(name: str, n: int) -> int:
     if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
         raise ValueError(f"{name}={n!r}: must be a positive integer")
@@ -177,8 +250,12 @@ class DriveSignal:
         a: ramp ratio, position of the maximum, 0 < a < 1.
         n_periods: periods per direction.
         pattern: ``"one"`` (one-directional) or ``"two"`` (forward then back, Fig. 4.5).
-        slew_adaptation: k ≥ 0 of Fig. 4.3; 0 = unadapted (plain sawtooth).
+        n_cycles: for ``"two"``: how many forward-and-back cycles.
+        slew_adaptation: k ≥ 0 of Fig. 4.3; 0 = unadapted. k > 0 implies a step flyback.
         start: [s].
+        flyback: ``"ramp"`` — the sawtooth of Fig. 3.14 falls back over (1 − a)/f;
+            ``"step"`` — the input steps back to 0 at a/f, as the laboratory's function
+            generator did (§4.1.2: the amplifier, not the signal, set the flyback speed).
     """
 
     amplitude: float = 2.0
@@ -188,6 +265,8 @@ class DriveSignal:
     pattern: Literal["one", "two"] = "one"
     slew_adaptation: float = 0.0
     start: float = 0.0
+    flyback: Literal["ramp", "step"] = "ramp"
+    n_cycles: int = 1
 
     def __post_init__(self) -> None:
         check_finite("amplitude", self.amplitude)
@@ -198,31 +277,92 @@ class DriveSignal:
             raise ValueError(f"pattern={self.pattern!r}: must be 'one' or 'two'")
         check_nonnegative("slew_adaptation", self.slew_adaptation)
         check_finite("start", self.start)
+        if self.flyback not in ("ramp", "step"):
+            raise ValueError(f"flyback={self.flyback!r}: must be 'ramp' or 'step'")
+        _check_count("n_cycles", self.n_cycles)
+
+    @property
+    def stepped(self) -> bool:
+        """True if the flyback is an input step (``flyback="step"`` or slew adaptation)."""
+        return self.flyback == "step" or self.slew_adaptation > 0.0
 
     @property
     def duration(self) -> float:
         """Time from start to the end of the last period [s]."""
-        n = self.n_periods * (2 if self.pattern == "two" else 1)
-        return n / self.frequency
+        return self.total_periods / self.frequency
+
+    @property
+    def total_periods(self) -> int:
+        """Number of drive periods in the whole signal."""
+        return self.n_periods * (2 * self.n_cycles if self.pattern == "two" else 1)
+
+    def hold_time(self, amplifier: Amplifier | None = None, load_capacitance: float = 0.0) -> float:
+        """How long the adapted flyback input stays past zero (Fig. 4.3) [s]; 0 if unadapted."""
+        if self.slew_adaptation == 0.0:
+            return 0.0
+        amp = amplifier if amplifier is not None else Amplifier()
+        hold = amp.adapted_hold_time(
+            abs(self.amplitude), 0.0, self.slew_adaptation, load_capacitance
+        )
+        return min(hold, (1.0 - self.a) / self.frequency)
+
+    def waveform(
+        self, amplifier: Amplifier | None = None, load_capacitance: float = 0.0
+    ) -> Waveform:
+        """The drive as breakpoints: equal to :meth:`input_voltage` everywhere (jumps
+        right-continuous)."""
+        T = 1.0 / self.frequency
+        n_total = self.total_periods
+        hold = self.hold_time(amplifier, load_capacitance) if self.slew_adaptation > 0 else 0.0
+        k = self.slew_adaptation
+        ts: list[float] = [self.start]
+        vs: list[float] = [0.0]
+        for p in range(n_total):
+            t0 = self.start + p * T
+            sign = 1.0 if (self.pattern == "one" or (p // self.n_periods) % 2 == 0) else -1.0
+            amp = sign * self.amplitude
+            ts.append(t0 + self.a * T)
+            vs.append(amp)
+            if not self.stepped:
+                ts.append(t0 + T)
+                vs.append(0.0)
+                continue
+            if k == 0.0:  # plain step back to 0 at a/f
+                ts += [t0 + self.a * T, t0 + T]
+                vs += [0.0, 0.0]
+                continue
+            ts += [t0 + self.a * T, t0 + self.a * T + hold]
+            vs += [-k * amp, -k * amp]
+            if hold < (1.0 - self.a) * T:
+                ts += [t0 + self.a * T + hold]
+                vs += [0.0]
+            else:  # the hold fills the flyback: back to 0 at the period's end
+                ts += [t0 + T]
+                vs += [0.0]
+            ts.append(t0 + T)
+            vs.append(0.0)
+        return Waveform(np.array(ts), np.array(vs))
 
     def input_voltage(
         self, t: np.ndarray, amplifier: Amplifier | None = None, load_capacitance: float = 0.0
     ) -> np.ndarray:
         """Amplifier input [V] at times ``t`` [s]; adapted hold time from ``amplifier``."""
         tt = check_array_finite("t", t)
-        if self.slew_adaptation == 0.0:
+        if not self.stepped:
             if self.pattern == "one":
                 return one_directional(
                     tt, self.amplitude, self.frequency, self.a, self.n_periods, self.start
                 )
             return two_directional(
-                tt, self.amplitude, self.frequency, self.a, self.n_periods, 1, self.start
+                tt,
+                self.amplitude,
+                self.frequency,
+                self.a,
+                self.n_periods,
+                self.n_cycles,
+                self.start,
             )
-        amp = amplifier if amplifier is not None else Amplifier()
-        hold = amp.adapted_hold_time(
-            abs(self.amplitude), 0.0, self.slew_adaptation, load_capacitance
-        )
-        hold = min(hold, (1.0 - self.a) / self.frequency)
+        hold = self.hold_time(amplifier, load_capacitance) if self.slew_adaptation > 0 else 0.0
         stop = self.start + self.duration
         fwd = slew_adapted(
             tt, self.amplitude, self.frequency, self.a, self.slew_adaptation, hold, self.start, stop

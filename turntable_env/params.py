@@ -27,75 +27,160 @@ tube's (0.16), which reproduces D.2's R_bending lever to 2 % — evidence for re
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
 from typing import Literal
 
 from .amplifier import Amplifier
+from .contact import ContactParams, ElasticMaterial, HertzContact
 from .detector import Detector
 from .friction import GMS, StribeckParams
 from .geometry import TurntableGeometry, com_stability
 from .quantities import Quantity
 from .table import TableParams
 from .tube import TubeParams, TubeStiffness
-from .validation import check_in_open, check_nonnegative, check_positive
+from .validation import check_finite, check_in_open
 
 __all__ = [
+    "UNLISTED_FILE",
     "ContactParams",
     "ParameterSet",
+    "UnlistedRealInputs",
     "get_parameter_set",
+    "load_unlisted",
     "real_parameters",
     "thesis_parameters",
 ]
 
+UNLISTED_FILE = Path(__file__).with_name("data") / "real_unlisted.toml"
+
 
 @dataclass(frozen=True)
-class ContactParams:
-    """Contact parameters (Table D.2; the real values are derived with the 3D model).
+class UnlistedRealInputs:
+    """Real-turntable inputs the thesis does not give (``data/real_unlisted.toml``).
 
-    Args:
-        normal_stiffness: k_c of the 1-D normal contact spring [N/m].
-        normal_damping: d_c [N·s/m].
-        compressibility_tube, compressibility_table: k₁, k₂ of Eq. 3.24–3.25 [N/m].
-        preload: normal force F_N [N].
-        listed_contact_radius: Table D.2's "R_contact" [m] (printed, see module docstring).
+    Attributes (SI): table/ball elastic constants [Pa, -], ``normal_force`` F_N per
+    contact [N], friction coefficients and Stribeck curve, number of GMS elements,
+    contact restitution [-], tube quality factor Q_m [-]; ``sources`` maps each name to
+    its source or reasoning.
     """
 
-    normal_stiffness: float = 2000.0
-    normal_damping: float = 10.0
-    compressibility_tube: float = 1000.0
-    compressibility_table: float = 1000.0
-    preload: float = 100.0
-    listed_contact_radius: float | None = 2.0
+    table_youngs_modulus: float
+    table_poisson: float
+    ball_youngs_modulus: float
+    ball_poisson: float
+    normal_force: float
+    mu_static: float
+    mu_coulomb: float
+    stribeck_velocity: float
+    stribeck_exponent: float
+    viscous: float
+    gms_elements: int
+    contact_restitution: float
+    tube_quality_factor: float
+    sources: Mapping[str, str] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
-        check_positive("normal_stiffness", self.normal_stiffness)
-        check_nonnegative("normal_damping", self.normal_damping)
-        check_positive("compressibility_tube", self.compressibility_tube)
-        check_positive("compressibility_table", self.compressibility_table)
-        check_positive("preload", self.preload)
-        if self.listed_contact_radius is not None:
-            check_positive("listed_contact_radius", self.listed_contact_radius)
+        for f in fields(self):
+            if f.name != "sources":
+                check_finite(f.name, getattr(self, f.name))
+        check_in_open("contact_restitution", self.contact_restitution, 0.0, 1.0)
+        n = self.gms_elements
+        if isinstance(n, bool) or int(n) != n or n < 1:
+            raise ValueError(f"gms_elements={n!r}: must be a positive integer")
+        # the remaining ranges are checked by the objects built from these values
 
-    def describe(self, prefix: str = "contact") -> list[Quantity]:
-        g = "given"
-        out = [
-            Quantity(f"{prefix}.k_c", self.normal_stiffness, "N/m", g, "Table D.2"),
-            Quantity(f"{prefix}.d_c", self.normal_damping, "N*s/m", g, "Table D.2"),
-            Quantity(f"{prefix}.k_1", self.compressibility_tube, "N/m", g, "Table D.2, Eq. 3.24"),
-            Quantity(f"{prefix}.k_2", self.compressibility_table, "N/m", g, "Table D.2, Eq. 3.24"),
-            Quantity(f"{prefix}.F_N", self.preload, "N", g, "Table D.2"),
-        ]
-        if self.listed_contact_radius is not None:
-            out.append(
-                Quantity(
-                    f"{prefix}.R_contact_listed",
-                    self.listed_contact_radius,
-                    "m",
-                    g,
-                    "Table D.2 (not Eq. 3.1; not used for the geometry)",
-                )
-            )
-        return out
+    @property
+    def table_material(self) -> ElasticMaterial:
+        return ElasticMaterial("steel", self.table_youngs_modulus, self.table_poisson)
+
+    @property
+    def ball_material(self) -> ElasticMaterial:
+        return ElasticMaterial("alumina", self.ball_youngs_modulus, self.ball_poisson)
+
+    @property
+    def stribeck(self) -> StribeckParams:
+        return StribeckParams(
+            mu_s=self.mu_static,
+            mu_c=self.mu_coulomb,
+            v_s=self.stribeck_velocity,
+            delta=self.stribeck_exponent,
+            sigma2=self.viscous,
+        )
+
+    @property
+    def damping_ratio(self) -> float:
+        """ζ of the contact's normal mode from the restitution e: −ln e/√(π² + ln² e)."""
+        le = math.log(self.contact_restitution)
+        return -le / math.sqrt(math.pi**2 + le**2)
+
+
+_UNLISTED_UNITS = {
+    "table_youngs_modulus": "Pa",
+    "table_poisson": "-",
+    "ball_youngs_modulus": "Pa",
+    "ball_poisson": "-",
+    "normal_force": "N",
+    "mu_static": "-",
+    "mu_coulomb": "-",
+    "stribeck_velocity": "m/s",
+    "stribeck_exponent": "-",
+    "viscous": "N*s/m",
+    "gms_elements": "-",
+    "contact_restitution": "-",
+    "tube_quality_factor": "-",
+}
+
+
+def load_unlisted(
+    path: str | Path | None = None, overrides: Mapping[str, float] | None = None
+) -> UnlistedRealInputs:
+    """Read the unlisted real parameters (TOML: ``[name] value, unit, source``).
+
+    Every name of :class:`UnlistedRealInputs` must be present once with its SI unit;
+    ``overrides`` replaces values (for calibration). Raises ValueError naming the file and
+    the entry; nothing is returned unless the whole file is valid.
+    """
+    p = Path(path) if path is not None else UNLISTED_FILE
+    try:
+        raw = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ValueError(f"{p}: cannot read parameter file: {exc}") from None
+    values: dict[str, float] = {}
+    sources: dict[str, str] = {}
+    for name in raw:
+        if name not in _UNLISTED_UNITS:
+            raise ValueError(f"{p}: [{name}]: unknown parameter")
+    for name, unit in _UNLISTED_UNITS.items():
+        entry = raw.get(name)
+        if not isinstance(entry, dict):
+            raise ValueError(f"{p}: [{name}]: missing")
+        v, u, src = entry.get("value"), entry.get("unit"), entry.get("source")
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise ValueError(f"{p}: [{name}] value={v!r}: must be a number")
+        if u != unit:
+            raise ValueError(f"{p}: [{name}] unit={u!r}: must be {unit!r}")
+        if not isinstance(src, str) or not src.strip():
+            raise ValueError(f"{p}: [{name}] source={src!r}: must name a source or reasoning")
+        values[name] = float(v)
+        sources[name] = src
+    for name, v in (overrides or {}).items():
+        if name not in _UNLISTED_UNITS:
+            raise ValueError(f"overrides[{name!r}]: unknown parameter")
+        values[name] = check_finite(f"overrides[{name!r}]", v)
+        sources[name] = "override"
+    values["gms_elements"] = (
+        int(values["gms_elements"])
+        if float(values["gms_elements"]).is_integer()
+        else values["gms_elements"]
+    )
+    try:
+        return UnlistedRealInputs(**values, sources=sources)  # type: ignore[arg-type]
+    except ValueError as exc:
+        raise ValueError(f"{p}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -105,10 +190,16 @@ class ParameterSet:
     Args:
         name: ``"real"`` or ``"thesis"`` (or a user label).
         table, tube: structural parameters.
-        friction: GMS contact friction (None until derived for the real set).
-        contact: contact parameters (None until derived for the real set).
+        friction: GMS contact friction (2-D, §3.3.2).
+        contact: contact parameters (§3.3).
         amplifier, detector: §4.1 hardware.
         ramp_ratio: default position of the sawtooth maximum a (Table D.1: 0.95).
+        unlisted: for the real set, the inputs the thesis does not give (printed with
+            their sources and the quantities derived from them).
+        nominal_frequency: drive frequency of this set's stepping experiments [Hz]
+            (real: 100 Hz, §4.1.3; thesis: 2 Hz, see :func:`thesis_parameters`).
+        nominal_flyback: ``"step"`` (laboratory, §4.1.2) or ``"ramp"`` (Fig. 3.14 sawtooth).
+        notes: how values not in the thesis were obtained (printed).
     """
 
     name: str
@@ -119,9 +210,18 @@ class ParameterSet:
     amplifier: Amplifier = field(default_factory=Amplifier)
     detector: Detector = field(default_factory=Detector)
     ramp_ratio: float = 0.95
+    unlisted: UnlistedRealInputs | None = None
+    nominal_frequency: float = 100.0
+    nominal_flyback: Literal["step", "ramp"] = "step"
+    notes: tuple[Quantity, ...] = ()
 
     def __post_init__(self) -> None:
         check_in_open("ramp_ratio", self.ramp_ratio, 0.0, 1.0)
+        check_finite("nominal_frequency", self.nominal_frequency)
+        if self.nominal_frequency <= 0.0:
+            raise ValueError(f"nominal_frequency={self.nominal_frequency!r}: must be > 0")
+        if self.nominal_flyback not in ("step", "ramp"):
+            raise ValueError(f"nominal_flyback={self.nominal_flyback!r}: must be 'step' or 'ramp'")
         if self.detector.table_radius != self.table.radius:
             raise ValueError(
                 f"detector.table_radius={self.detector.table_radius!r}: must equal "
@@ -169,12 +269,36 @@ class ParameterSet:
                 "CoM depth - contact-plane depth (< 0: CoM above the plane)",
             ),
         ]
+        if self.unlisted is not None:
+            u = self.unlisted
+            for f in fields(u):
+                if f.name != "sources":
+                    out.append(
+                        Quantity(
+                            f"unlisted.{f.name}",
+                            getattr(u, f.name),
+                            _UNLISTED_UNITS[f.name],
+                            "given",
+                            u.sources.get(f.name, ""),
+                        )
+                    )
+            out += _hertz(self.table, self.tube, u).describe(u.normal_force, u.mu_static)
+            out.append(
+                Quantity(
+                    "contact.damping_ratio",
+                    u.damping_ratio,
+                    "-",
+                    "derived",
+                    "-ln e/sqrt(pi^2 + ln^2 e) from the restitution e",
+                )
+            )
         if self.friction is not None:
             out += self.friction.describe()
         if self.contact is not None:
             out += self.contact.describe()
         out += self.amplifier.describe()
         out += self.detector.describe()
+        out += list(self.notes)
         names = [q.name for q in out]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -188,28 +312,120 @@ class ParameterSet:
         return json.dumps(self.to_dict(), indent=indent)
 
 
-def real_parameters() -> ParameterSet:
-    """Table D.1: the real turntable (friction and contact come with the 3D model)."""
+def _hertz(table: TableParams, tube: TubeParams, u: UnlistedRealInputs) -> HertzContact:
+    """The ball (Al₂O₃, radius R_o) on the table (steel, radius R_table)."""
+    return HertzContact(tube.outer_radius, u.ball_material, table.radius, u.table_material)
+
+
+def real_parameters(
+    overrides: Mapping[str, float] | None = None, unlisted_file: str | Path | None = None
+) -> ParameterSet:
+    """Table D.1, the real turntable, with the unlisted values derived (see module docstring).
+
+    Derivations from ``data/real_unlisted.toml`` (each printed by ``turntable params``):
+
+    * normal contact: Hertz, F = K_H δ^{3/2}, K_H = (4/3)E*√R* (ball R_o on sphere R_table);
+    * GMS presliding distance: Mindlin's gross-slip displacement 3μ_sF_N/(16G*a);
+    * GMS elements: §4.2.1 rules, ν_i ∝ i, δ_i equally spaced from δ/n to δ (the first
+      step of the grid stands for the noise level), k_i = ν_iμ_sF_N/δ_i;
+    * GMS attraction C = μ_sF_N·v_S/δ: a slipping element relaxes over the presliding
+      distance when sliding at the Stribeck velocity;
+    * normal damping d_c = 2ζ√(k_n m_red), ζ from the restitution, k_n = 2E*a at F_N,
+      m_red of a tube and the table; tangential micro-damping of the sticking elements
+      with the same ζ: β_t = 2ζ/√(Σk_i/m_red);
+    * Eq. 3.24 weights: each body's E/(1−ν²);
+    * tube damping from Q_m (stiffness-proportional, :attr:`TubeParams.damping_coefficient`).
+
+    Args:
+        overrides: replace entries of the parameter file (calibration), e.g.
+            ``{"normal_force": 2.0}``.
+        unlisted_file: another parameter file in the same format.
+    """
+    u = load_unlisted(unlisted_file, overrides)
     table = TableParams(radius=0.01, density=8.0e3)
+    tube = TubeParams(quality_factor=u.tube_quality_factor)
+    hz = _hertz(table, tube, u)
+    fn = u.normal_force
+    delta = hz.slip_displacement(fn, u.mu_static)
+    n = int(u.gms_elements)
+    stribeck = u.stribeck
+    friction = GMS.from_rules(
+        stribeck,
+        normal_force=fn,
+        n_elements=n,
+        presliding_distance=delta,
+        noise_level=delta / n,
+        C=u.mu_static * fn * u.stribeck_velocity / delta,
+    )
+    m_red = 1.0 / (1.0 / tube.mass + 1.0 / table.mass)
+    k_gms = float(sum(friction.k))
+    contact = ContactParams(
+        normal_stiffness=hz.hertz_constant,
+        normal_exponent=1.5,
+        normal_damping=2.0 * u.damping_ratio * math.sqrt(hz.normal_stiffness(fn) * m_red),
+        compressibility_tube=u.ball_material.contact_modulus,
+        compressibility_table=u.table_material.contact_modulus,
+        preload=fn,
+        listed_contact_radius=None,
+        tangential_damping=2.0 * u.damping_ratio / math.sqrt(k_gms / m_red),
+        source="derived: Hertz-Mindlin from data/real_unlisted.toml",
+    )
     return ParameterSet(
-        name="real", table=table, tube=TubeParams(), detector=Detector(table_radius=table.radius)
+        name="real",
+        table=table,
+        tube=tube,
+        friction=friction,
+        contact=contact,
+        detector=Detector(table_radius=table.radius),
+        unlisted=u,
     )
 
 
 def thesis_parameters() -> ParameterSet:
-    """Table D.2: the scaled parameters of the thesis's simulations (D.1 where D.2 is silent)."""
+    """Table D.2: the scaled parameters of the thesis's simulations (D.1 where D.2 is silent).
+
+    Table D.2 cannot be run as printed; four readings make it a working model, each
+    printed by ``turntable params --set thesis`` (``thesis.*`` entries):
+
+    1. Tube stiffnesses act at the tube top: D.2 lists K_t, K_o as the quantities
+       Table D.1 lists as K_x, K_z, K_φ, which App. B derives for a force at the tip.
+    2. K_o,x = K_o,y: the listed 100 N·m/rad, behind the 1.5 m lever from the tube top
+       to the contact, leaves the contact point 42 N/m of lateral stiffness, so the 30 N
+       static friction would bend the tube by 0.7 m and no contact could slip. The beam
+       value that matches the listed K_t, K_o = K_t·L²/3 (the tip's rotational
+       stiffness EI/L when K_t = 3EI/L³), is used; K_o,z = 1e5 N·m as listed.
+    3. Stroke: with D.1's d₃₁ the scaled tube moves its contact by 0.2 µm at 100 V,
+       1e-4 of D.2's presliding distances (ν_iF_st/k_i = 4.5–7.5 mm). The piezo constants
+       are scaled by s (d₃₁·s, ε₁₁·s², coupling k² unchanged) with s chosen so that the
+       measurement's drive, which §4.2.2 says the simulations used (2 V → 90 V), moves the
+       free contact by twice the largest presliding distance; the amplifier is ideal, as
+       in the thesis's simulations.
+    4. Damping D.2 does not list is taken from the real set (App. D: unlisted values
+       come from D.1): tube Q_m and the contact's tangential micro-damping from the
+       same restitution.
+
+    Drive: Fig. 3.14's sawtooth (a = 0.95, ramp flyback) at 2 Hz, where the scaled
+    model steps regularly: the ramp (0.475 s) is slow against the table's period on its
+    contacts (0.16 s), the flyback (25 ms) fast. At Fig. 3.14's 1 Hz the steps are
+    irregular (`python experiments/turntable_evidence.py` prints both).
+    """
     table = TableParams(radius=3.15, density=None, mass_given=15.0)
     r_tube = 1.0
+    length = 2.0
     h_ratio = (3.175e-3 - 2.667e-3) / 3.175e-3  # real tube's h/R_o, see module docstring
-    tube = TubeParams(
+    k_t = 1e5  # N/m, Table D.2
+    k_o_listed = 100.0  # N*m/rad, Table D.2
+    k_o = k_t * length**2 / 3.0  # beam value for the listed K_t (reading 2)
+    u = load_unlisted()
+    base_tube = TubeParams(
         outer_radius=r_tube,
         inner_radius=r_tube * (1.0 - h_ratio),
-        length=2.0,
+        length=length,
         mass_given=0.5,
-        stiffness_given=TubeStiffness(
-            translational=(1e5, 1e5, 1e5), rotational=(100.0, 100.0, 1e5)
-        ),
+        stiffness_given=TubeStiffness(translational=(k_t, k_t, k_t), rotational=(k_o, k_o, 1e5)),
         bending_lever_given=2.0,
+        axial_coupling=False,
+        quality_factor=u.tube_quality_factor,
         source="Table D.2 (R_tube, L); R_i from the real tube's h/R_o; densities from D.1 (unused)",
     )
     friction = GMS(
@@ -218,13 +434,50 @@ def thesis_parameters() -> ParameterSet:
         k=(400.0, 643.0, 1260.0, 1350.0, 1233.0),
         C=200.0,
     )
+    f_n = 100.0  # N, Table D.2
+    mu_s = friction.stribeck.mu_s
+    presliding = max(n * mu_s * f_n / k for n, k in zip(friction.nu, friction.k, strict=True))
+    lever = base_tube.stiffness_centre_offset + base_tube.seat_height + base_tube.outer_radius
+    travel_per_volt = base_tube.rest_twist_per_volt[1, 0] * lever  # m/V at s = 1
+    drive_volts = 2.0 * Amplifier().gain  # V, the §4.1.3 input that §4.2.2 reuses
+    stroke = 2.0 * presliding / (travel_per_volt * drive_volts)
+    tube = TubeParams(**{**base_tube.__dict__, "stroke_scale": stroke})
+    m_red = 1.0 / (1.0 / tube.mass + 1.0 / table.mass)
+    contact = ContactParams(
+        tangential_damping=2.0 * u.damping_ratio / math.sqrt(sum(friction.k) / m_red)
+    )
+    d = "derived"
+    notes = (
+        Quantity("thesis.K_o_xy_listed", k_o_listed, "N*m/rad", "given", "Table D.2"),
+        Quantity("thesis.K_o_xy_used", k_o, "N*m/rad", d, "K_t*L^2/3 (reading 2)"),
+        Quantity(
+            "thesis.contact_lateral_stiffness_listed",
+            1.0 / (1.0 / k_t + (base_tube.seat_height + r_tube) ** 2 / k_o_listed),
+            "N/m",
+            d,
+            "with the listed K_o: no contact could slip",
+        ),
+        Quantity("thesis.presliding_max", presliding, "m", d, "max nu_i*mu_s*F_N/k_i"),
+        Quantity("thesis.stroke_scale", stroke, "-", d, "2*presliding/(travel per V*90 V)"),
+        Quantity(
+            "thesis.contact_travel_at_90V",
+            travel_per_volt * stroke * drive_volts,
+            "m",
+            d,
+            "reading 3",
+        ),
+    )
     return ParameterSet(
         name="thesis",
         table=table,
         tube=tube,
         friction=friction,
-        contact=ContactParams(),
+        contact=contact,
+        amplifier=Amplifier(ideal=True),
         detector=Detector(table_radius=table.radius),
+        nominal_frequency=2.0,
+        nominal_flyback="ramp",
+        notes=notes,
     )
 
 

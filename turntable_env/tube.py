@@ -23,7 +23,8 @@ import numpy as np
 
 from .piezo import PiezoMaterial, PiezoQuadrant
 from .quantities import Quantity
-from .validation import check_positive
+from .screw import homogeneous, merge_stiffness
+from .validation import check_nonnegative, check_positive
 
 __all__ = ["TubeParams", "TubeStiffness"]
 
@@ -68,6 +69,13 @@ class TubeParams:
         stiffness_given: if set, stiffnesses given by a table instead of App. B (Table D.2).
         bending_lever_given: if set, the Eq. 3.16 radius given by a table [m] (Table D.2's
             "R_bending = 2 m") instead of πD/(2√2).
+        ball_seat_height: distance from the tube's end face to the ball centre [m]; None
+            derives it for a ball of radius R_o resting on the bore's inner edge,
+            √(R_o² − R_i²).
+        quality_factor: mechanical quality factor Q_m of the tube (None: undamped).
+        axial_coupling: include the quadrants' mean axial strain in the rest twist.
+        stroke_scale: factor on d₃₁ (and on ε₁₁ by its square, so the coupling k² is
+            unchanged); 1 for the real tube (see ``thesis_parameters``).
         source: where the given geometry comes from (printed by ``describe``).
     """
 
@@ -82,6 +90,10 @@ class TubeParams:
     mass_given: float | None = None
     stiffness_given: TubeStiffness | None = None
     bending_lever_given: float | None = None
+    ball_seat_height: float | None = None
+    quality_factor: float | None = None
+    axial_coupling: bool = True
+    stroke_scale: float = 1.0
     source: str = "Table D.1"
 
     def __post_init__(self) -> None:
@@ -102,6 +114,13 @@ class TubeParams:
             check_positive("mass_given", self.mass_given)
         if self.bending_lever_given is not None:
             check_positive("bending_lever_given", self.bending_lever_given)
+        if self.ball_seat_height is not None:
+            check_nonnegative("ball_seat_height", self.ball_seat_height)
+        if self.quality_factor is not None:
+            check_positive("quality_factor", self.quality_factor)
+        if not isinstance(self.axial_coupling, bool):
+            raise ValueError(f"axial_coupling={self.axial_coupling!r}: must be a bool")
+        check_positive("stroke_scale", self.stroke_scale)
         # constructing the quadrant validates diameter_convention
         _ = self.quadrant
 
@@ -109,8 +128,12 @@ class TubeParams:
     @property
     def quadrant(self) -> PiezoQuadrant:
         """The 2-port C element of one electrode quadrant (Eq. 2.2)."""
+        m = self.material
+        if self.stroke_scale != 1.0:
+            s = self.stroke_scale
+            m = PiezoMaterial(m.d31 * s, m.s33E, m.eps11T_rel * s * s, m.poisson)
         return PiezoQuadrant(
-            material=self.material,
+            material=m,
             length=self.length,
             outer_radius=self.outer_radius,
             inner_radius=self.inner_radius,
@@ -172,6 +195,106 @@ class TubeParams:
         kb = self.K_bending
         kr = self.K_rot_bending
         return TubeStiffness((kb, kb, self.K_axial), (kr, kr, self.K_torsion))
+
+    # --- §3.2: the variable spatial spring ------------------------------------------
+    @property
+    def seat_height(self) -> float:
+        """Tube end face → ball centre [m]: given, or √(R_o² − R_i²) (ball on the bore edge)."""
+        if self.ball_seat_height is not None:
+            return self.ball_seat_height
+        return math.sqrt(self.outer_radius**2 - self.inner_radius**2)
+
+    @property
+    def stiffness_centre_offset(self) -> float:
+        """Distance from the top (end face) down the axis to the centre of stiffness [m]:
+        L/2 for the derived Euler–Bernoulli spring, 0 for given (tip) stiffnesses."""
+        return 0.0 if self.stiffness_given is not None else 0.5 * self.length
+
+    @property
+    def centre_stiffness(self) -> np.ndarray:
+        """6×6 stiffness at the centre of stiffness (mid-length), tube frame, (ω, v) order.
+
+        Derived: diag(EI/L, EI/L, GI_p/L, 12EI/L³, 12EI/L³, EA/L), the Euler–Bernoulli
+        cantilever seen from its centre of compliance (gives K_x = 3EI/L³ at the top).
+        Given (Table D.2): the listed diagonal, at the top (see the module docstring).
+        """
+        if self.stiffness_given is not None:
+            return self.stiffness_given.matrix()
+        ei = self.material.youngs_modulus * self.area_moment
+        L = self.length
+        return np.diag(
+            [ei / L, ei / L, self.K_torsion, 12.0 * ei / L**3, 12.0 * ei / L**3, self.K_axial]
+        )
+
+    @staticmethod
+    def quadrant_directions() -> np.ndarray:
+        """Unit bending directions b_q (tube frame) of quadrants q = 0..3: +x, +y, −x, −y.
+
+        A positive voltage moves the free tip towards b_q (asymmetric mode, Eq. 2.11).
+        """
+        return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+    def quadrant_springs(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The four quadrant springs (stiffness in own frame, H from the centre frame).
+
+        Quadrant q's frame is the centre frame turned by 90°·q about the tube axis; each
+        carries a quarter of :attr:`centre_stiffness` (Eq. 3.17).
+        """
+        kq = 0.25 * self.centre_stiffness
+        hs = []
+        for q in range(4):
+            c, s = math.cos(q * math.pi / 2), math.sin(q * math.pi / 2)
+            rot = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # centre → quadrant
+            hs.append(homogeneous(rot, np.zeros(3)))
+        return [kq] * 4, hs
+
+    @property
+    def spring_stiffness(self) -> np.ndarray:
+        """The merged spring at the tube centre, Σ Ad_Hᵀ K_q Ad_H (Eq. 3.18) [tube frame]."""
+        ks, hs = self.quadrant_springs()
+        return merge_stiffness(ks, hs)
+
+    @property
+    def rest_twist_per_volt(self) -> np.ndarray:
+        """G: 6×4 matrix, column q = rest displacement twist of the centre spring per volt on
+        quadrant q (Eq. 3.16) [rad/V, m/V], tube frame."""
+        quad = self.quadrant
+        z_per_v = quad.free_elongation(1.0)  # signed, negative for d31 < 0 [m/V]
+        g_theta = abs(z_per_v) / self.bending_lever  # rad/V
+        g_axial = 0.25 * z_per_v if self.axial_coupling else 0.0  # m/V, mean strain × L
+        ez = np.array([0.0, 0.0, 1.0])
+        g = np.zeros((6, 4))
+        for q, b in enumerate(self.quadrant_directions()):
+            g[:3, q] = g_theta * np.cross(ez, b)
+            g[5, q] = g_axial
+        return g
+
+    @property
+    def blocked_capacitance_matrix(self) -> np.ndarray:
+        """C_s = C_free·I − GᵀKG [F], 4×4: the quadrants' capacitance at fixed deflection.
+
+        Raises ValueError if it is not positive definite (coupling too strong to be passive).
+        """
+        g = self.rest_twist_per_volt
+        cs = self.quadrant.capacitance * np.eye(4) - g.T @ self.spring_stiffness @ g
+        if np.linalg.eigvalsh(cs).min() <= 0.0:
+            raise ValueError(
+                f"stroke_scale={self.stroke_scale!r}: the quadrant coupling G^T K G exceeds the "
+                "free capacitance (stored energy indefinite)"
+            )
+        return cs
+
+    @property
+    def first_bending_frequency(self) -> float:
+        """ω₁ = √(K_x/m_tube) [rad/s] of the lumped tube (App. B stiffness, App. C mass)."""
+        return math.sqrt(self.stiffness.translational[0] / self.mass)
+
+    @property
+    def damping_coefficient(self) -> float:
+        """β = 1/(Q_m ω₁) [s] of the stiffness-proportional damping D = βK (0 if undamped)."""
+        if self.quality_factor is None:
+            return 0.0
+        return 1.0 / (self.quality_factor * self.first_bending_frequency)
 
     # --- App. C --------------------------------------------------------------------
     @property
