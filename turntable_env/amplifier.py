@@ -46,6 +46,20 @@ LN9 = math.log(9.0)
 
 
 @njit(cache=True)
+def slew_step(v, target, dt, tau, rate):
+    """Exact step of dV/dt = clip((target − V)/τ, ±rate) over dt [s] for a constant target [V]."""
+    e = target - v
+    ae = abs(e)
+    sgn = 1.0 if e >= 0.0 else -1.0
+    if ae > rate * tau:
+        t_lin = (ae - rate * tau) / rate
+        if dt <= t_lin:
+            return v + sgn * rate * dt
+        return target - sgn * rate * tau * math.exp(-(dt - t_lin) / tau)
+    return target - e * math.exp(-dt / tau)
+
+
+@njit(cache=True)
 def _first_order_slew(t, u, v0, gain, tau, rate):
     """Exact response of the slew-limited first-order stage to a zero-order-hold input u [V]."""
     n = t.shape[0]
@@ -53,19 +67,7 @@ def _first_order_slew(t, u, v0, gain, tau, rate):
     v = v0
     out[0] = v
     for i in range(n - 1):
-        target = gain * u[i]
-        dt = t[i + 1] - t[i]
-        e = target - v
-        ae = abs(e)
-        sgn = 1.0 if e >= 0.0 else -1.0
-        if ae > rate * tau:
-            t_lin = (ae - rate * tau) / rate
-            if dt <= t_lin:
-                v = v + sgn * rate * dt
-            else:
-                v = target - sgn * rate * tau * math.exp(-(dt - t_lin) / tau)
-        else:
-            v = target - e * math.exp(-dt / tau)
+        v = slew_step(v, gain * u[i], t[i + 1] - t[i], tau, rate)
         out[i + 1] = v
     return out
 

@@ -36,6 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .amplifier import slew_step
 from .friction.gms2d import gms2d_rates, gms2d_update
 from .friction.kernels import stribeck_magnitude
 from .screw import _log_so3_nb, _rotate_left_nb
@@ -71,20 +72,6 @@ def _advance_index(wt, n, idx, t):
     while idx + 1 < n and wt[idx + 1] <= t:
         idx += 1
     return idx
-
-
-@njit(cache=True)
-def _amp_step(v, target, dt, tau, rate):
-    """Exact step of dV/dt = clip((target − V)/τ, ±rate) over dt for a constant target."""
-    e = target - v
-    ae = abs(e)
-    sgn = 1.0 if e >= 0.0 else -1.0
-    if ae > rate * tau:
-        t_lin = (ae - rate * tau) / rate
-        if dt <= t_lin:
-            return v + sgn * rate * dt
-        return target - sgn * rate * tau * math.exp(-(dt - t_lin) / tau)
-    return target - e * math.exp(-dt / tau)
 
 
 @njit(cache=True)
@@ -317,6 +304,24 @@ def _table_centre(pc_disp, rot, c_body, out):
 
 
 @njit(cache=True)
+def _kinematics(
+    pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt, cinfo,
+    cn, cx, cy, crc, crt, rc, tmp,
+):  # fmt: skip
+    """Table-centre displacement and velocity, then the contacts (:func:`_contacts`);
+    ``rc``, ``tmp`` are scratch 3-vectors."""
+    _table_centre(pc_disp, rot, c_body, pt_disp)
+    for j in range(3):
+        rc[j] = rot[j, 0] * c_body[0] + rot[j, 1] * c_body[1] + rot[j, 2] * c_body[2]
+    _cross(omega, rc, tmp)
+    for j in range(3):
+        vt[j] = vc[j] - tmp[j]  # v_centre = v_CoM + ω × (p_centre − p_CoM)
+    _contacts(
+        xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt
+    )
+
+
+@njit(cache=True)
 def _stored_energies(
     pc_disp,
     vc,
@@ -516,42 +521,15 @@ def run_full_model(
     _charges(xi, vq, bcoup, cs, qch)
 
     # kinematics and forces at t0
-    _table_centre(pc_disp, rot, c_body, pt_disp)
     _omega(rot, jinv, lam, omega)
-    for j in range(3):
-        rc[j] = rot[j, 0] * c_body[0] + rot[j, 1] * c_body[1] + rot[j, 2] * c_body[2]
-    _cross(omega, rc, tmp)
-    for j in range(3):
-        vt[j] = vc[j] - tmp[j]
-    _contacts(
-        xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt
-    )
+    _kinematics(
+        pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
+        cinfo, cn, cx, cy, crc, crt, rc, tmp,
+    )  # fmt: skip
     _forces(
-        xi,
-        xid,
-        vq,
-        ktop,
-        dtop,
-        bcoup,
-        cinfo,
-        cn,
-        cx,
-        cy,
-        crc,
-        crt,
-        gf,
-        gst,
-        gk,
-        table_p,
-        gms_p,
-        rot,
-        c_body,
-        w_tube,
-        f_table,
-        tau_com,
-        fn,
-        ff,
-    )
+        xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
+        gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff,
+    )  # fmt: skip
     i_out = 0
     n_steps = 0
     while True:
@@ -661,15 +639,10 @@ def run_full_model(
                     s += dtop[k, a, b] * xid[k, b]
                 acc[2] += dt * xid[k, a] * s
         # ---- 3. contacts at t_{n+1} with half-step velocities ------------------------
-        _table_centre(pc_disp, rot, c_body, pt_disp)
-        for j in range(3):
-            rc[j] = rot[j, 0] * c_body[0] + rot[j, 1] * c_body[1] + rot[j, 2] * c_body[2]
-        _cross(omega, rc, tmp)
-        for j in range(3):
-            vt[j] = vc[j] - tmp[j]
-        _contacts(
-            xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt
-        )
+        _kinematics(
+            pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
+            cinfo, cn, cx, cy, crc, crt, rc, tmp,
+        )  # fmt: skip
         for k in range(3):
             vx = cinfo[k, 2]
             vy = cinfo[k, 3]
@@ -743,7 +716,7 @@ def run_full_model(
             if ideal:
                 vch[c] = gain * u
             else:
-                vch[c] = _amp_step(vch[c], gain * u, dt, tau_amp, amp_rate[c])
+                vch[c] = slew_step(vch[c], gain * u, dt, tau_amp, amp_rate[c])
         _quadrant_voltages(vch, qchan, vq_new)
         _charges(xi, vq_new, bcoup, cs, qch_new)
         for k in range(3):
@@ -755,31 +728,9 @@ def run_full_model(
                 qch[k, q] = qch_new[k, q]
         # ---- 5. forces at t_{n+1}, second half kick -------------------------------------
         _forces(
-            xi,
-            xid,
-            vq,
-            ktop,
-            dtop,
-            bcoup,
-            cinfo,
-            cn,
-            cx,
-            cy,
-            crc,
-            crt,
-            gf,
-            gst,
-            gk,
-            table_p,
-            gms_p,
-            rot,
-            c_body,
-            w_tube,
-            f_table,
-            tau_com,
-            fn,
-            ff,
-        )
+            xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
+            gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff,
+        )  # fmt: skip
         for j in range(3):
             vc[j] += h * f_table[j] / m
             lam[j] += h * tau_com[j]

@@ -222,31 +222,23 @@ class TurntableModel:
             if done:
                 break
 
-    def _normal_forces(self, x: np.ndarray) -> np.ndarray:
-        """Normal forces [N] of the three contacts at rest positions ``x`` (see
-        :meth:`static_equilibrium`)."""
+    def _contact_geometry(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Contacts at rest at positions ``x`` (see :meth:`static_equilibrium`):
+        (cinfo, n, x_c, y_c, tube-top → contact, centre → contact), as the kernel fills them."""
         ar = self._arrays
         cinfo = np.zeros((3, 5))
         cn, cx, cy, crc, crt = (np.zeros((3, 3)) for _ in range(5))
         z3 = np.zeros(3)
         _contacts(
-            x[3:].reshape(3, 6).copy(),
-            x[:3].copy(),
-            ar["d_nom"],
-            ar["r0"],
-            ar["basis_ref"],
-            ar["table_p"],
-            np.zeros((3, 6)),
-            z3,
-            z3,
-            cinfo,
-            cn,
-            cx,
-            cy,
-            crc,
-            crt,
-        )
-        tp = ar["table_p"]
+            x[3:].reshape(3, 6).copy(), x[:3].copy(), ar["d_nom"], ar["r0"], ar["basis_ref"],
+            ar["table_p"], np.zeros((3, 6)), z3, z3, cinfo, cn, cx, cy, crc, crt,
+        )  # fmt: skip
+        return cinfo, cn, cx, cy, crc, crt
+
+    def _normal_forces(self, x: np.ndarray) -> np.ndarray:
+        """Normal forces [N] of the three contacts at rest positions ``x``."""
+        tp = self._arrays["table_p"]
+        cinfo = self._contact_geometry(x)[0]
         return np.array([tp[6] * max(d, 0.0) ** tp[7] for d in cinfo[:, 0]])
 
     # ------------------------------------------------------------------------------
@@ -399,63 +391,20 @@ class TurntableModel:
         _quadrant_voltages(vch, ar["qchan"], vq)
         scale = max(ar["table_p"][12], 1e-300) * 1e-2  # length scale for the unknowns
         f_scale = self.params.contact.preload  # type: ignore[union-attr]
-        zeros3 = np.zeros(3)
+        ne = ar["gnu"].size
         rot = np.eye(3)
 
         def residual(y: np.ndarray) -> np.ndarray:
             x = y * scale
-            pt = x[:3].copy()
-            xi = x[3:].reshape(3, 6).copy()
-            xid = np.zeros((3, 6))
-            cinfo = np.zeros((3, 5))
-            cn, cx, cy, crc, crt = (np.zeros((3, 3)) for _ in range(5))
-            _contacts(
-                xi,
-                pt,
-                ar["d_nom"],
-                ar["r0"],
-                ar["basis_ref"],
-                ar["table_p"],
-                xid,
-                zeros3,
-                zeros3,
-                cinfo,
-                cn,
-                cx,
-                cy,
-                crc,
-                crt,
-            )
+            cinfo, cn, cx, cy, crc, crt = self._contact_geometry(x)
             w = np.zeros((3, 6))
             f = np.zeros(3)
-            tau = np.zeros(3)
-            gf = np.zeros((3, ar["gnu"].size, 2))
             _forces(
-                xi,
-                xid,
-                vq,
-                ar["ktop"],
-                ar["dtop"] * 0.0,
-                ar["bcoup"],
-                cinfo,
-                cn,
-                cx,
-                cy,
-                crc,
-                crt,
-                gf,
-                np.ones((3, ar["gnu"].size), dtype=np.int64),
-                ar["gk"],
-                ar["table_p"],
-                ar["gms_p"],
-                rot,
-                ar["c_body"],
-                w,
-                f,
-                tau,
-                np.zeros(3),
-                np.zeros((3, 2)),
-            )
+                x[3:].reshape(3, 6).copy(), np.zeros((3, 6)), vq, ar["ktop"], ar["dtop"],
+                ar["bcoup"], cinfo, cn, cx, cy, crc, crt, np.zeros((3, ne, 2)),
+                np.ones((3, ne), dtype=np.int64), ar["gk"], ar["table_p"], ar["gms_p"], rot,
+                ar["c_body"], w, f, np.zeros(3), np.zeros(3), np.zeros((3, 2)),
+            )  # fmt: skip
             return np.concatenate([f, w.reshape(-1)]) / f_scale
 
         # start: table lowered along z by the static overlap and the tubes' compression
