@@ -78,6 +78,12 @@ def real_set(out: Path | None) -> None:
             f"(measured {measured:.2f} um, model/measured {r.step_size * 1e6 / measured:.2f}); "
             f"steps {np.round(r.steps * 1e6, 3).tolist()}"
         )
+        if signal == "one":
+            a_end = r.angles[-1]
+            print(
+                f"   cross-talk at the end: about A {a_end[0] / a_end[1]:+.1%}, "
+                f"about C {a_end[2] / a_end[1]:+.1%} of the rotation about B"
+            )
         if out and signal == "one":
             import matplotlib.pyplot as plt
 
