@@ -3,6 +3,7 @@
     python experiments/turntable_evidence.py            # about 2 minutes on one core
     python experiments/turntable_evidence.py --out DIR  # also the plots
 
+0. The unloaded real tube: free contact travel, axial strain, coupling counted twice.
 1. Table D.2: one-directional steps about B, two-directional return (cycle minima).
 2. Real parameters: steps about A, B, C, Z for both signs; 90 V steps beside the
    measured 0.37 µm (one-directional) and 0.30 µm (two-directional).
@@ -31,6 +32,25 @@ def _cycle_minima(r, drive) -> tuple[list[float], float]:
         float(a[(t >= c * period) & (t < (c + 1) * period)].min()) for c in range(drive.n_cycles)
     ]
     return mins, float(a.max() - a.min())
+
+
+def free_travel() -> None:
+    print("0. Real tube at 90 V, unloaded (what bounds the step)")
+    tube = stepping_drive("real")[1].tube
+    q = tube.quadrant
+    lever = tube.seat_height + tube.outer_radius  # tube end face -> contact point [m]
+    travel = q.tip_deflection(90.0) + q.tip_angle(90.0) * lever
+    print(
+        f"   ball seat {tube.seat_height * 1e3:.2f} mm, end face -> contact {lever * 1e3:.2f} mm; "
+        f"free contact travel {travel * 1e6:.3f} um "
+        f"(tip {q.tip_deflection(90.0) * 1e6:.3f} + rotation {q.tip_angle(90.0) * lever * 1e6:.3f})"
+    )
+    print(f"   mean axial strain x L at 90 V: {0.25 * q.free_elongation(90.0) * 1e9:.1f} nm")
+    # the piezo element of Fig. 3.8a in series with the spring would add its own compliance
+    piezo_rot = q.compliance_matrix[0, 0] / tube.bending_lever**2  # rad/(N*m)
+    k_rot = tube.K_rot_bending
+    softening = 1.0 - 1.0 / (1.0 + k_rot * piezo_rot)
+    print(f"   counting the PZT compliance twice would soften bending by {softening:.0%}")
 
 
 def thesis_set(out: Path | None) -> None:
@@ -136,13 +156,22 @@ def drift() -> None:
     drive, ps = stepping_drive("real", periods=3)
     r = simulate(ps, drive, axis="B", settle=0.17, output_dt=1e-5)
     step = r.step_size / r.table_radius
+    a, t = r.angle(), r.time
     for settle in (0.0, 0.02, 0.06):
         t0 = drive.duration + settle
-        w = r.angle()[(r.time >= t0) & (r.time <= t0 + 0.1)]
+        w = a[(t >= t0) & (t <= t0 + 0.1)]
         print(
             f"   0.1 s window from {settle * 1e3:.0f} ms after the drive: excursion "
             f"{np.ptp(w) / step:.2e} steps, change {(w[-1] - w[0]) / step:+.2e} steps"
         )
+    # the ring-down: dominant frequency and decay time over 10-40 ms after the drive
+    t0 = drive.duration
+    w = a[(t >= t0 + 0.01) & (t < t0 + 0.04)]
+    spec = np.abs(np.fft.rfft((w - w.mean()) * np.hanning(w.size)))
+    f_ring = np.fft.rfftfreq(w.size, t[1] - t[0])[1 + np.argmax(spec[1:])]
+    p1 = np.ptp(a[(t >= t0 + 0.01) & (t < t0 + 0.015)])
+    p2 = np.ptp(a[(t >= t0 + 0.03) & (t < t0 + 0.035)])
+    print(f"   ring-down: {f_ring / 1e3:.1f} kHz, decay time {0.02 / np.log(p1 / p2) * 1e3:.1f} ms")
 
 
 def divergence() -> None:
@@ -163,6 +192,7 @@ def main() -> None:
 
         matplotlib.use("Agg")
         args.out.mkdir(parents=True, exist_ok=True)
+    free_travel()
     thesis_set(args.out)
     real_set(args.out)
     amplifier_modes()

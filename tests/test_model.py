@@ -141,7 +141,7 @@ def test_halving_the_step_changes_the_step_size_by_less_than_half_a_percent(real
 
 # --- evidence 6: no drift in stick -----------------------------------------------------
 def test_no_drift_in_stick_after_stepping(real_model):
-    """Drive held at 0 V after 3 steps: once the 4.7 kHz ring-down (τ ≈ 7 ms) has decayed
+    """Drive held at 0 V after 3 steps: once the 4.7 kHz ring-down (decay time ≈ 9 ms) has decayed
     (60 ms), the angle stays within 1e-3 of a step over 0.1 s."""
     drive, _ = stepping_drive(real_model.params, periods=3)
     r = simulate(real_model.params, drive, model=real_model, settle=0.17, output_dt=1e-5)

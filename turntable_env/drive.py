@@ -313,7 +313,7 @@ class DriveSignal:
         right-continuous)."""
         T = 1.0 / self.frequency
         n_total = self.total_periods
-        hold = self.hold_time(amplifier, load_capacitance) if self.slew_adaptation > 0 else 0.0
+        hold = self.hold_time(amplifier, load_capacitance)
         k = self.slew_adaptation
         ts: list[float] = [self.start]
         vs: list[float] = [0.0]
@@ -362,7 +362,7 @@ class DriveSignal:
                 self.n_cycles,
                 self.start,
             )
-        hold = self.hold_time(amplifier, load_capacitance) if self.slew_adaptation > 0 else 0.0
+        hold = self.hold_time(amplifier, load_capacitance)
         stop = self.start + self.duration
         fwd = slew_adapted(
             tt, self.amplitude, self.frequency, self.a, self.slew_adaptation, hold, self.start, stop

@@ -99,6 +99,7 @@ def _contacts(
     th_x_r = np.empty(3)
     e = np.empty(3)
     tmp = np.empty(3)
+    vrel = np.empty(3)
     for k in range(3):
         _cross(xi[k, 0:3], r0[k], th_x_r)
         for j in range(3):
@@ -133,7 +134,6 @@ def _contacts(
             crc[k, j] = r0[k, j] - (r_ball - wb * overlap) * cn[k, j]
             crt[k, j] = rho_t * cn[k, j]
         # relative velocity at the contact point: ball − table
-        vrel = np.empty(3)
         _cross(xid[k, 0:3], crc[k], tmp)
         for j in range(3):
             vrel[j] = xid[k, 3 + j] + tmp[j]
@@ -319,6 +319,20 @@ def _kinematics(
     _contacts(
         xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt
     )
+
+
+@njit(cache=True)
+def _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid):
+    """Half kick over h [s]: table momentum and angular momentum, tube-top velocities."""
+    for j in range(3):
+        vc[j] += h * f_table[j] / m
+        lam[j] += h * tau_com[j]
+    for k in range(3):
+        for a in range(6):
+            s = 0.0
+            for b in range(6):
+                s += minv[k, a, b] * w_tube[k, b]
+            xid[k, a] += h * s
 
 
 @njit(cache=True)
@@ -609,15 +623,7 @@ def run_full_model(
                 break
         h = 0.5 * dt
         # ---- 1. half kick ---------------------------------------------------------------
-        for j in range(3):
-            vc[j] += h * f_table[j] / m
-            lam[j] += h * tau_com[j]
-        for k in range(3):
-            for a in range(6):
-                s = 0.0
-                for b in range(6):
-                    s += minv[k, a, b] * w_tube[k, b]
-                xid[k, a] += h * s
+        _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid)
         # ---- 2. drift -------------------------------------------------------------------
         _omega(rot, jinv, lam, omega)
         for j in range(3):
@@ -731,15 +737,7 @@ def run_full_model(
             xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
             gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff,
         )  # fmt: skip
-        for j in range(3):
-            vc[j] += h * f_table[j] / m
-            lam[j] += h * tau_com[j]
-        for k in range(3):
-            for a in range(6):
-                s = 0.0
-                for b in range(6):
-                    s += minv[k, a, b] * w_tube[k, b]
-                xid[k, a] += h * s
+        _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid)
         _omega(rot, jinv, lam, omega)
         t = t_next
         n_steps += 1

@@ -389,7 +389,7 @@ class TurntableModel:
         vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
         vq = np.zeros((3, 4))
         _quadrant_voltages(vch, ar["qchan"], vq)
-        scale = max(ar["table_p"][12], 1e-300) * 1e-2  # length scale for the unknowns
+        scale = 1e-2 * ar["table_p"][12]  # length scale of the unknowns [m]
         f_scale = self.params.contact.preload  # type: ignore[union-attr]
         ne = ar["gnu"].size
         rot = np.eye(3)
