@@ -54,19 +54,31 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         cycles=args.cycles,
     )
     settle = args.settle if args.settle is not None else 0.0
+    output_dt = args.output_dt if args.output_dt else min(1e-5, 0.01 / drive.frequency)
     try:
-        r = simulate(
-            ps,
-            drive,
-            axis=args.axis,
-            settle=settle,
-            dt_factor=args.dt_factor,
-            output_dt=args.output_dt if args.output_dt else min(1e-5, 0.01 / drive.frequency),
-        )
+        if args.model == "reduced":
+            from .reduced import simulate_reduced
+
+            r = simulate_reduced(ps, drive, axis=args.axis, settle=settle, output_dt=output_dt)
+            wall = r.info["wall_s"]
+            out = {
+                "model": "reduced",
+                "step_um": r.step_size * 1e6,
+                "steps_um": [float(x) * 1e6 for x in r.steps],
+                "net_rotation_rad": r.net_rotation,
+                "detector_V_net": r.detector_V_net,
+                "wall_s": wall,
+                "realtime_factor": float(r.time[-1] - r.time[0]) / wall,
+            }
+        else:
+            r = simulate(
+                ps, drive, axis=args.axis, settle=settle, dt_factor=args.dt_factor,
+                coarse_factor=args.coarse_factor or None, output_dt=output_dt,
+            )  # fmt: skip
+            out = {"model": "full", **r.summary()}
     except SimulationError as exc:
         print(f"turntable: error: {exc}", file=sys.stderr)
         return 3
-    out = r.summary()
     out["drive"] = {
         "amplitude_V_input": drive.amplitude,
         "amplitude_V_tubes": drive.amplitude * ps.amplifier.gain,
@@ -91,6 +103,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         elif isinstance(v, float) and math.isfinite(v):
             v = f"{v:.6g}"
         print(f"  {k:<32} {v}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from .bench import format_table, run_bench
+
+    res = run_bench(duration=args.duration, batch=args.batch, quick=args.quick)
+    if args.json:
+        print(json.dumps(res, indent=2, default=float))
+    else:
+        print(format_table(res))
     return 0
 
 
@@ -132,11 +155,32 @@ def build_parser() -> argparse.ArgumentParser:
         "(default: adapted for real, ideal for thesis)",
     )
     ps.add_argument("--settle", type=float, default=None, help="time after the drive [s]")
+    ps.add_argument(
+        "--model", choices=["full", "reduced"], default="full",
+        help="full 3-D model or the per-axis reduced model (axes A, B, C)",
+    )  # fmt: skip
     ps.add_argument("--dt-factor", type=float, default=0.05, help="step = factor/omega_max")
+    ps.add_argument(
+        "--coarse-factor", type=float, default=0.5,
+        help="adaptive full-model step while quiet = factor/omega_max (0: fixed step)",
+    )  # fmt: skip
     ps.add_argument("--output-dt", type=float, default=None, help="sample interval [s]")
     ps.add_argument("--out", default=None, help="write the response as CSV here")
     ps.add_argument("--json", action="store_true", help="print JSON")
     ps.set_defaults(func=_cmd_simulate)
+
+    pb = sub.add_parser(
+        "bench",
+        help="speed and accuracy of the full, reduced, batched and SciPy paths",
+        description="Standard scenario: real set, axis B, one-directional 2 V (90 V) 100 Hz "
+        "a = 0.95, adapted amplifier. Real-time factors, step errors against converged "
+        "references, peak memory, compile time.",
+    )
+    pb.add_argument("--duration", type=float, default=1.0, help="simulated time [s]")
+    pb.add_argument("--batch", type=int, default=64, help="turntables in the batched run")
+    pb.add_argument("--quick", action="store_true", help="short references (smoke runs only)")
+    pb.add_argument("--json", action="store_true", help="print JSON")
+    pb.set_defaults(func=_cmd_bench)
     return p
 
 

@@ -39,7 +39,7 @@ from numba import njit
 from .amplifier import slew_step
 from .friction.gms2d import gms2d_rates, gms2d_update
 from .friction.kernels import stribeck_magnitude
-from .screw import _log_so3_nb, _rotate_left_nb
+from .screw import _log_so3_nb, _rotate_left_inplace
 
 __all__ = ["STATUS_NAMES", "run_full_model"]
 
@@ -83,23 +83,24 @@ def _cross(a, b, out):
 
 @njit(cache=True)
 def _contacts(
-    xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt
+    xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt, scr
 ):
     """Contact geometry and velocities at the current positions.
 
     Fills per contact k: cinfo[k] = (overlap δ [m], δ̇ [m/s], v_x, v_y in the plane [m/s],
     table lever ρ [m]); cn[k] = normal n (table centre → ball); cx, cy = plane basis
     (Eq. 3.26); crc[k] = tube-top → contact point; crt[k] = table centre → contact point.
+    ``scr`` is scratch (rows 0–3 used), so no step allocates.
     """
     r_ball = table_p[4]
     r_nom = table_p[5]
     w_ball = table_p[9]
     w_table = table_p[10]
     wb = w_table / (w_ball + w_table)  # p_c = p1 + wb·δ·n  (Eq. 3.24)
-    th_x_r = np.empty(3)
-    e = np.empty(3)
-    tmp = np.empty(3)
-    vrel = np.empty(3)
+    th_x_r = scr[0]
+    e = scr[1]
+    tmp = scr[2]
+    vrel = scr[3]
     for k in range(3):
         _cross(xi[k, 0:3], r0[k], th_x_r)
         for j in range(3):
@@ -192,17 +193,19 @@ def _forces(
     tau_com,
     fn_out,
     ff_out,
+    scr,
 ):
     """Wrenches on the tube tops (world, about the top) and force / torque (about the CoM)
-    on the table. ``vq[k, q]`` are the quadrant voltages [V]."""
+    on the table. ``vq[k, q]`` are the quadrant voltages [V]; ``scr`` scratch rows 4–8."""
     m = table_p[0]
     g = table_p[1]
     preload = table_p[2]
     sigma2 = gms_p[5]
-    tmp = np.empty(3)
-    fw = np.empty(3)
-    tau_c = np.zeros(3)  # torque about the table centre
+    tmp = scr[4]
+    fw = scr[5]
+    tau_c = scr[6]  # torque about the table centre
     for j in range(3):
+        tau_c[j] = 0.0
         f_table[j] = 0.0
     f_table[2] = -m * g - preload
     for k in range(3):
@@ -247,11 +250,11 @@ def _forces(
         for j in range(3):
             tau_c[j] += tmp[j]
     # torque about the CoM: τ_c − (p_com − p_centre) × F_total, p_com − p_centre = R c
-    rc = np.empty(3)
+    rc = scr[7]
     for j in range(3):
         rc[j] = rot[j, 0] * c_body[0] + rot[j, 1] * c_body[1] + rot[j, 2] * c_body[2]
     # gravity acts at the CoM (no torque there); remove it from the lever term
-    f_nog = np.empty(3)
+    f_nog = scr[8]
     for j in range(3):
         f_nog[j] = f_table[j]
     f_nog[2] += m * g
@@ -282,12 +285,12 @@ def _charges(xi, vq, bcoup, cs, out):
 
 
 @njit(cache=True)
-def _omega(rot, jinv, lam, out):
-    """ω = R J⁻¹ Rᵀ L (world)."""
-    lb = np.empty(3)
+def _omega(rot, jinv, lam, out, scr):
+    """ω = R J⁻¹ Rᵀ L (world); ``scr`` scratch rows 9–10."""
+    lb = scr[9]
     for a in range(3):
         lb[a] = rot[0, a] * lam[0] + rot[1, a] * lam[1] + rot[2, a] * lam[2]
-    wb = np.empty(3)
+    wb = scr[10]
     for a in range(3):
         wb[a] = jinv[a, 0] * lb[0] + jinv[a, 1] * lb[1] + jinv[a, 2] * lb[2]
     for a in range(3):
@@ -306,10 +309,12 @@ def _table_centre(pc_disp, rot, c_body, out):
 @njit(cache=True)
 def _kinematics(
     pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt, cinfo,
-    cn, cx, cy, crc, crt, rc, tmp,
+    cn, cx, cy, crc, crt, scr,
 ):  # fmt: skip
     """Table-centre displacement and velocity, then the contacts (:func:`_contacts`);
-    ``rc``, ``tmp`` are scratch 3-vectors."""
+    ``scr`` scratch rows 0–3 and 11–12."""
+    rc = scr[11]
+    tmp = scr[12]
     _table_centre(pc_disp, rot, c_body, pt_disp)
     for j in range(3):
         rc[j] = rot[j, 0] * c_body[0] + rot[j, 1] * c_body[1] + rot[j, 2] * c_body[2]
@@ -317,8 +322,9 @@ def _kinematics(
     for j in range(3):
         vt[j] = vc[j] - tmp[j]  # v_centre = v_CoM + ω × (p_centre − p_CoM)
     _contacts(
-        xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt
-    )
+        xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt,
+        scr,
+    )  # fmt: skip
 
 
 @njit(cache=True)
@@ -439,6 +445,78 @@ def _first_bad(pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, 
 
 
 @njit(cache=True)
+def _is_quiet(
+    t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst, gnu, gk, fn,
+    cinfo, table_p, gms_p, vch, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load, quiet_volt,
+    dt_coarse, scr,
+):  # fmt: skip
+    """True if a coarse step is safe now: every GMS element sticks with a margin to its static
+    capacity ν_i μ_s F_N that lasts ``quiet_load`` coarse steps at its present loading rate
+    k_i|v|, no body accelerates faster than ``quiet_acc`` [m/s²]
+    (table rotation and tube-top rotation times their levers), and no amplifier channel
+    would move more than ``quiet_volt`` [V] in a coarse step."""
+    mu_s = gms_p[1]
+    kn_tangent = table_p[6] * table_p[7]  # × δ^(e−1) below: normal stiffness [N/m]
+    for k in range(3):
+        if table_p[7] != 1.0 and cinfo[k, 0] > 0.0:
+            kn_tangent = table_p[6] * table_p[7] * cinfo[k, 0] ** (table_p[7] - 1.0)
+        vrel = math.sqrt(cinfo[k, 2] ** 2 + cinfo[k, 3] ** 2)
+        fn_rate = abs(kn_tangent * cinfo[k, 1])  # |dF_N/dt| [N/s]
+        for i in range(gf.shape[1]):
+            if gst[k, i] == 0:
+                return False
+            # margin to breakaway must outlast quiet_load coarse steps at the present rates
+            # of the element's load (k_i|v|) and of its capacity (ν_i μ_s |dF_N/dt|)
+            margin = gnu[i] * mu_s * fn[k] - math.sqrt(gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2)
+            rate = gk[i] * vrel + gnu[i] * mu_s * fn_rate
+            if margin < quiet_load * rate * dt_coarse:
+                return False
+    a2 = (f_table[0] ** 2 + f_table[1] ** 2 + f_table[2] ** 2) / (m * m)
+    if a2 > quiet_acc * quiet_acc:
+        return False
+    # angular acceleration of the table: R J⁻¹ Rᵀ τ (body inverse inertia), times the radius
+    tb = scr[13]
+    for a in range(3):
+        tb[a] = rot[0, a] * tau_com[0] + rot[1, a] * tau_com[1] + rot[2, a] * tau_com[2]
+    al2 = 0.0
+    for a in range(3):
+        s = jinv[a, 0] * tb[0] + jinv[a, 1] * tb[1] + jinv[a, 2] * tb[2]
+        al2 += s * s
+    if al2 * lever_t * lever_t > quiet_acc * quiet_acc:
+        return False
+    for k in range(3):
+        ar2 = 0.0
+        at2 = 0.0
+        for a in range(6):
+            s = 0.0
+            for b in range(6):
+                s += minv[k, a, b] * w_tube[k, b]
+            if a < 3:
+                ar2 += s * s
+            else:
+                at2 += s * s
+        if math.sqrt(at2) + math.sqrt(ar2) * lever_b > quiet_acc:
+            return False
+    gain = amp_p[0]
+    tau = amp_p[1]
+    ideal = amp_p[2] > 0.5
+    ulim = amp_p[3]
+    for c in range(4):
+        i = widx[c]
+        u = _pwl_value(wt[c], wv[c], wn[c], i, t)
+        if i + 1 < wn[c]:  # input change over the coarse step
+            u1 = _pwl_value(wt[c], wv[c], wn[c], _advance_index(wt[c], wn[c], i, t + dt_coarse),
+                            t + dt_coarse)  # fmt: skip
+            u1 = min(ulim, max(-ulim, u1))
+            if gain * abs(u1 - u) > quiet_volt:
+                return False
+        u = min(ulim, max(-ulim, u))
+        if not ideal and abs(gain * u - vch[c]) * dt_coarse / tau > quiet_volt:
+            return False
+    return True
+
+
+@njit(cache=True)
 def run_full_model(
     # state (modified in place)
     pc_disp,
@@ -477,7 +555,7 @@ def run_full_model(
     # time
     t0,
     t_end,
-    dt_max,
+    step_p,
     t_out,
     # records (n_out rows)
     rec_state,
@@ -494,15 +572,19 @@ def run_full_model(
                       W_elec, D_friction, D_tube, D_contact, gross electrical |W|)
     rec_xi[i]      = tube-top displacements (3, 6)
 
-    Returns (status, t, variable index, records written, steps taken).
+    step_p = (dt_fine, dt_coarse, quiet_len, quiet_load, quiet_volt, hold) selects the step
+    (see "Adaptive step" in the module docstring).
+
+    Returns (status, t, variable index, records written, steps taken, coarse steps).
     """
     ne = gf.shape[1]
     n_out = t_out.shape[0]
     omega = np.empty(3)
     pt_disp = np.empty(3)
     vt = np.empty(3)
-    rc = np.empty(3)
     tmp = np.empty(3)
+    scr = np.zeros((16, 3))  # scratch rows of the helpers (no allocation per step)
+    rot_scr = np.empty((3, 3))
     cinfo = np.zeros((3, 5))
     cn = np.zeros((3, 3))
     cx = np.zeros((3, 3))
@@ -519,6 +601,7 @@ def run_full_model(
     qch_new = np.zeros((3, 4))
     vq_new = np.zeros((3, 4))
     df = np.zeros((ne, 2))
+    was = np.zeros(ne, dtype=np.int64)
     energies = np.zeros(6)
     widx = np.zeros(4, dtype=np.int64)
     m = table_p[0]
@@ -527,6 +610,19 @@ def run_full_model(
     ideal = amp_p[2] > 0.5
     ulim = amp_p[3]
     d_rim = d_nom  # the rim check uses the nominal contact directions
+    dt_fine = step_p[0]
+    dt_coarse = step_p[1]
+    quiet_acc = step_p[2] / (dt_coarse * dt_coarse)  # largest quiet acceleration [m/s²]
+    quiet_load = step_p[3]
+    quiet_volt = step_p[4]
+    hold = step_p[5]
+    lever_t = table_p[3]  # table radius: angular → contact acceleration [m]
+    lever_b = 0.0  # tube top → ball centre (seat height) [m]
+    for j in range(3):
+        lever_b += r0[0, j] * r0[0, j]
+    lever_b = math.sqrt(lever_b)
+    fine_until = t0
+    n_coarse = 0
 
     t = t0
     for c in range(4):
@@ -535,14 +631,14 @@ def run_full_model(
     _charges(xi, vq, bcoup, cs, qch)
 
     # kinematics and forces at t0
-    _omega(rot, jinv, lam, omega)
+    _omega(rot, jinv, lam, omega, scr)
     _kinematics(
         pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
-        cinfo, cn, cx, cy, crc, crt, rc, tmp,
+        cinfo, cn, cx, cy, crc, crt, scr,
     )  # fmt: skip
     _forces(
         xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
-        gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff,
+        gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff, scr,
     )  # fmt: skip
     i_out = 0
     n_steps = 0
@@ -598,7 +694,18 @@ def run_full_model(
             i_out += 1
         if t >= t_end - 1e-15:
             break
-        # ---- step size: land on breakpoints and output times ----------------------
+        # ---- step size: coarse while quiet, fine otherwise; land on breakpoints -------
+        quiet = dt_coarse > dt_fine and t >= fine_until
+        if quiet:
+            quiet = _is_quiet(
+                t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst,
+                gnu, gk, fn, cinfo, table_p, gms_p, vch, wt, wv, wn, widx, amp_p, quiet_acc,
+                quiet_load, quiet_volt, dt_coarse, scr,
+            )  # fmt: skip
+            if not quiet:
+                fine_until = t + hold
+        dt_max = dt_coarse if quiet else dt_fine
+        n_coarse += 1 if quiet else 0
         t_next = min(t + dt_max, t_end)
         if i_out < n_out and t_out[i_out] < t_next:
             t_next = t_out[i_out]
@@ -625,15 +732,12 @@ def run_full_model(
         # ---- 1. half kick ---------------------------------------------------------------
         _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid)
         # ---- 2. drift -------------------------------------------------------------------
-        _omega(rot, jinv, lam, omega)
+        _omega(rot, jinv, lam, omega, scr)
         for j in range(3):
             pc_disp[j] += dt * vc[j]
             tmp[j] = dt * omega[j]
-        rot_new = _rotate_left_nb(rot, tmp)
-        for a in range(3):
-            for b in range(3):
-                rot[a, b] = rot_new[a, b]
-        _omega(rot, jinv, lam, omega)
+        _rotate_left_inplace(rot, tmp, rot_scr)
+        _omega(rot, jinv, lam, omega, scr)
         for k in range(3):
             for a in range(6):
                 xi[k, a] += dt * xid[k, a]
@@ -647,7 +751,7 @@ def run_full_model(
         # ---- 3. contacts at t_{n+1} with half-step velocities ------------------------
         _kinematics(
             pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
-            cinfo, cn, cx, cy, crc, crt, rc, tmp,
+            cinfo, cn, cx, cy, crc, crt, scr,
         )  # fmt: skip
         for k in range(3):
             vx = cinfo[k, 2]
@@ -687,15 +791,19 @@ def run_full_model(
                 for i in range(ne):
                     gf[k, i, 0] += dt * df[i, 0]
                     gf[k, i, 1] += dt * df[i, 1]
+                for i in range(ne):
+                    was[i] = gst[k, i]
                 gms2d_update(
                     gf[k], gst[k], vx, vy, fn_k, gnu, gms_p[1], gms_p[2], gms_p[3], gms_p[4]
                 )
-                # a sticking element cannot hold more than its share when F_N drops
+                # no element holds more than its share ν_i|s(v)|: a sticking one when F_N
+                # drops, and one that broke away inside this step (its overshoot k_i v Δt
+                # past the breakaway instant would be a first-order error in Δt)
                 smag = stribeck_magnitude(
                     math.sqrt(vx * vx + vy * vy), fn_k, gms_p[1], gms_p[2], gms_p[3], gms_p[4]
                 )
                 for i in range(ne):
-                    if gst[k, i] == 1:
+                    if gst[k, i] == 1 or was[i] == 1:
                         fm = math.sqrt(gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2)
                         cap = gnu[i] * smag
                         if fm > cap:
@@ -735,10 +843,10 @@ def run_full_model(
         # ---- 5. forces at t_{n+1}, second half kick -------------------------------------
         _forces(
             xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
-            gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff,
+            gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff, scr,
         )  # fmt: skip
         _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid)
-        _omega(rot, jinv, lam, omega)
+        _omega(rot, jinv, lam, omega, scr)
         t = t_next
         n_steps += 1
         for c in range(4):
@@ -756,5 +864,5 @@ def run_full_model(
                 pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, d_rim
             )
             if st != 0:
-                return st, t, var, i_out, n_steps
-    return 0, t, -1, i_out, n_steps
+                return st, t, var, i_out, n_steps, n_coarse
+    return 0, t, -1, i_out, n_steps, n_coarse

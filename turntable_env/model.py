@@ -63,6 +63,11 @@ __all__ = [
 AXES = ("A", "B", "C", "Z")
 GRAVITY = 9.81  # m/s², standard gravity (the laboratory's; not in the thesis)
 TUBES = ("A", "B", "C")
+# adaptive step (see TurntableModel._step_control)
+QUIET_LENGTH = 0.01  # fraction of the weakest element's breakaway displacement
+QUIET_LOAD = 4.0  # coarse steps an element's margin to breakaway must last
+QUIET_VOLT = 0.5  # V an amplifier channel may move in one coarse step
+HOLD_PERIODS = 5.0  # periods of the highest mode at the fine step after a disturbance
 
 
 class SimulationError(RuntimeError):
@@ -231,7 +236,7 @@ class TurntableModel:
         z3 = np.zeros(3)
         _contacts(
             x[3:].reshape(3, 6).copy(), x[:3].copy(), ar["d_nom"], ar["r0"], ar["basis_ref"],
-            ar["table_p"], np.zeros((3, 6)), z3, z3, cinfo, cn, cx, cy, crc, crt,
+            ar["table_p"], np.zeros((3, 6)), z3, z3, cinfo, cn, cx, cy, crc, crt, np.zeros((16, 3)),
         )  # fmt: skip
         return cinfo, cn, cx, cy, crc, crt
 
@@ -403,7 +408,7 @@ class TurntableModel:
                 x[3:].reshape(3, 6).copy(), np.zeros((3, 6)), vq, ar["ktop"], ar["dtop"],
                 ar["bcoup"], cinfo, cn, cx, cy, crc, crt, np.zeros((3, ne, 2)),
                 np.ones((3, ne), dtype=np.int64), ar["gk"], ar["table_p"], ar["gms_p"], rot,
-                ar["c_body"], w, f, np.zeros(3), np.zeros(3), np.zeros((3, 2)),
+                ar["c_body"], w, f, np.zeros(3), np.zeros(3), np.zeros((3, 2)), np.zeros((16, 3)),
             )  # fmt: skip
             return np.concatenate([f, w.reshape(-1)]) / f_scale
 
@@ -420,6 +425,24 @@ class TurntableModel:
                 f"static equilibrium not found (max residual {res:.3g} of F_N): {sol.message}"
             )
         return sol.x * scale
+
+    def _step_control(self, h_fine: float, h_coarse: float) -> np.ndarray:
+        """The kernel's step_p: (fine step, coarse step [s], quiet length [m], load fraction,
+        volts per coarse step, hold time after a disturbance [s]).
+
+        Quiet length: QUIET_LENGTH × the breakaway displacement ν_i μ_s F_N / k_i of the
+        weakest GMS element — a body whose acceleration would move it farther than that in a
+        coarse step keeps the fine step. Hold: after anything not quiet, HOLD_PERIODS periods
+        of the highest mode pass at the fine step before the coarse one returns.
+        """
+        fr = self.params.friction
+        c = self.params.contact
+        assert fr is not None and c is not None
+        breakaway = min(
+            nu * fr.stribeck.mu_s * c.preload / k for nu, k in zip(fr.nu, fr.k, strict=True)
+        )
+        hold = HOLD_PERIODS * 2.0 * math.pi / self.omega_max
+        return np.array([h_fine, h_coarse, QUIET_LENGTH * breakaway, QUIET_LOAD, QUIET_VOLT, hold])
 
     def drive_waveforms(self, drive: Mapping[str, DriveSignal | Waveform]) -> dict[str, Waveform]:
         """Channel → input breakpoints (slew-adapted hold time from the channel's load)."""
@@ -441,6 +464,7 @@ class TurntableModel:
         *,
         dt_factor: float = 0.05,
         dt_max: float | None = None,
+        coarse_factor: float | None = None,
         output_dt: float = 1e-5,
         start: float = 0.0,
     ) -> dict:
@@ -451,6 +475,10 @@ class TurntableModel:
             duration: simulated time [s].
             dt_factor: step = dt_factor / ω_max (ω_max the highest natural frequency).
             dt_max: explicit step [s] instead (overrides dt_factor).
+            coarse_factor: if given (> dt_factor), the adaptive step of
+                :mod:`turntable_env.integrator`: coarse_factor / ω_max while the turntable is
+                quiet (every contact sticks well below its capacity, no body accelerates,
+                the amplifier is not slewing), the fine step otherwise.
             output_dt: sample interval of the records [s].
             start: initial time [s].
 
@@ -464,6 +492,10 @@ class TurntableModel:
             h = check_positive("dt_factor", dt_factor) / self.omega_max
         else:
             h = check_positive("dt_max", dt_max)
+        h_coarse = h
+        if coarse_factor is not None:
+            h_coarse = max(h, check_positive("coarse_factor", coarse_factor) / self.omega_max)
+        step_p = self._step_control(h, h_coarse)
         waves = self.drive_waveforms(drive)
         nbp = max([w.times.size for w in waves.values()] + [1])
         wt = np.zeros((4, nbp))
@@ -504,13 +536,13 @@ class TurntableModel:
         rec_contact = np.zeros((n_out, 3, 6))
         rec_energy = np.zeros((n_out, 11))
         rec_xi = np.zeros((n_out, 3, 6))
-        status, t_stop, var, n_rec, n_steps = run_full_model(
+        status, t_stop, var, n_rec, n_steps, n_coarse = run_full_model(
             state["pc_disp"], state["vc"], state["rot"], state["lam"], state["xi"],
             state["xid"], state["gf"], state["gst"], state["vch"], state["acc"],
             ar["table_p"], ar["jinv"], ar["c_body"], ar["d_nom"], ar["r0"], ar["basis_ref"],
             ar["mtube"], ar["minv"], ar["ktop"], ar["dtop"], ar["bcoup"], ar["cs"], ar["qchan"],
             ar["gnu"], ar["gk"], ar["gms_p"], ar["amp_p"], ar["amp_rate"],
-            wt, wv, wn, t0, t0 + dur, h, t_out, rec_state, rec_contact, rec_energy, rec_xi,
+            wt, wv, wn, t0, t0 + dur, step_p, t_out, rec_state, rec_contact, rec_energy, rec_xi,
         )  # fmt: skip
         if status != 0:
             raise SimulationError(
@@ -524,7 +556,9 @@ class TurntableModel:
             "energy": rec_energy[:n_rec],
             "xi": rec_xi[:n_rec],
             "n_steps": int(n_steps),
+            "n_coarse": int(n_coarse),
             "dt": h,
+            "dt_coarse": h_coarse,
             "final": state,
             "waveforms": waves,
         }

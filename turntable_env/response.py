@@ -13,7 +13,7 @@ import numpy as np
 
 from .detector import Detector
 
-__all__ = ["ENERGY_TERMS", "TurntableResponse"]
+__all__ = ["ENERGY_TERMS", "SteppingMetrics", "TurntableResponse"]
 
 AXES = ("A", "B", "C", "Z")
 TUBES = ("A", "B", "C")
@@ -36,8 +36,61 @@ _STORED = ENERGY_TERMS[:6]
 _DISSIPATED = ENERGY_TERMS[7:10]
 
 
+class SteppingMetrics:
+    """Detector and step metrics shared by every response about one axis.
+
+    Needs ``time`` [s], ``angle()`` [rad], ``detector``, ``table_radius`` [m] and
+    ``period_starts`` [s] on the class that mixes it in.
+    """
+
+    time: np.ndarray
+    detector: Detector
+    table_radius: float
+    period_starts: np.ndarray
+
+    def angle(self, axis: str | None = None) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def detector_voltage(self, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Detector output about the axis under test [V] (Eq. 4.1 inverted, saturation,
+        noise if ``rng`` is given)."""
+        return self.detector.voltage(self.angle(), rng)
+
+    @property
+    def detector_V_net(self) -> float:
+        """Detector output at the end minus at the start [V] (noise-free)."""
+        v = self.detector_voltage()
+        return float(v[-1] - v[0])
+
+    @property
+    def net_rotation(self) -> float:
+        """Rotation about the axis under test, end minus start [rad]."""
+        a = self.angle()
+        return float(a[-1] - a[0])
+
+    # --- steps --------------------------------------------------------------------------
+    def period_angles(self) -> np.ndarray:
+        """Angle about the axis under test at each period start and after the last period
+        [rad] (linear interpolation between samples)."""
+        if self.period_starts.size == 0:
+            return np.empty(0)
+        return np.interp(self.period_starts, self.time, self.angle())
+
+    @property
+    def steps(self) -> np.ndarray:
+        """Signed step per drive period at the table radius [m] (Eq. 4.2: x = θ·R_table)."""
+        pa = self.period_angles()
+        return np.diff(pa) * self.table_radius
+
+    @property
+    def step_size(self) -> float:
+        """Mean |step| at the table radius [m] (nan without periods)."""
+        s = self.steps
+        return float(np.mean(np.abs(s))) if s.size else float("nan")
+
+
 @dataclass(frozen=True, eq=False)
-class TurntableResponse:
+class TurntableResponse(SteppingMetrics):
     """Time response of the full turntable model; time is axis 0.
 
     Attributes:
@@ -94,43 +147,6 @@ class TurntableResponse:
     def angles(self) -> np.ndarray:
         """Rotation about A, B, C, Z [rad], (n, 4)."""
         return self.rotation_vector @ self.axis_units.T
-
-    def detector_voltage(self, rng: np.random.Generator | None = None) -> np.ndarray:
-        """Detector output about the axis under test [V] (Eq. 4.1 inverted, saturation,
-        noise if ``rng`` is given)."""
-        return self.detector.voltage(self.angle(), rng)
-
-    @property
-    def detector_V_net(self) -> float:
-        """Detector output at the end minus at the start [V] (noise-free)."""
-        v = self.detector_voltage()
-        return float(v[-1] - v[0])
-
-    @property
-    def net_rotation(self) -> float:
-        """Rotation about the axis under test, end minus start [rad]."""
-        a = self.angle()
-        return float(a[-1] - a[0])
-
-    # --- steps --------------------------------------------------------------------------
-    def period_angles(self) -> np.ndarray:
-        """Angle about the axis under test at each period start and after the last period
-        [rad] (linear interpolation between samples)."""
-        if self.period_starts.size == 0:
-            return np.empty(0)
-        return np.interp(self.period_starts, self.time, self.angle())
-
-    @property
-    def steps(self) -> np.ndarray:
-        """Signed step per drive period at the table radius [m] (Eq. 4.2: x = θ·R_table)."""
-        pa = self.period_angles()
-        return np.diff(pa) * self.table_radius
-
-    @property
-    def step_size(self) -> float:
-        """Mean |step| at the table radius [m] (nan without periods)."""
-        s = self.steps
-        return float(np.mean(np.abs(s))) if s.size else float("nan")
 
     # --- energy ---------------------------------------------------------------------------
     @property

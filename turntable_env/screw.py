@@ -97,17 +97,17 @@ def log_so3(r: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _exp_so3_nb(w):
+def _exp_so3_into(w, r):
+    """Fill ``r`` (3, 3) with exp(w̃) (Rodrigues)."""
     th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
-    th = math.sqrt(th2)
-    if th < 1e-4:  # Taylor series, exact to double precision below 1e-4 rad
+    if th2 < 1e-8:  # Taylor series, exact to double precision below 1e-4 rad
         a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
         b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
     else:
+        th = math.sqrt(th2)
         a = math.sin(th) / th
         b = (1.0 - math.cos(th)) / th2
     x, y, z = w[0], w[1], w[2]
-    r = np.empty((3, 3))
     r[0, 0] = 1.0 - b * (y * y + z * z)
     r[1, 1] = 1.0 - b * (x * x + z * z)
     r[2, 2] = 1.0 - b * (x * x + y * y)
@@ -117,6 +117,12 @@ def _exp_so3_nb(w):
     r[2, 0] = -a * y + b * x * z
     r[1, 2] = -a * x + b * y * z
     r[2, 1] = a * x + b * y * z
+
+
+@njit(cache=True)
+def _exp_so3_nb(w):
+    r = np.empty((3, 3))
+    _exp_so3_into(w, r)
     return r
 
 
@@ -141,17 +147,31 @@ def _log_so3_nb(r):
 
 
 @njit(cache=True)
-def _rotate_left_nb(r, w):
-    """exp(w̃)·R, re-orthonormalised (keeps R in SO(3) over millions of steps)."""
-    e = _exp_so3_nb(w)
-    out = e @ r
-    # one Gram–Schmidt pass on the columns: errors stay at machine precision
-    c0 = out[:, 0] / math.sqrt(out[0, 0] ** 2 + out[1, 0] ** 2 + out[2, 0] ** 2)
-    c1 = out[:, 1] - (c0[0] * out[0, 1] + c0[1] * out[1, 1] + c0[2] * out[2, 1]) * c0
-    c1 = c1 / math.sqrt(c1[0] ** 2 + c1[1] ** 2 + c1[2] ** 2)
-    out[:, 0] = c0
-    out[:, 1] = c1
-    out[0, 2] = c0[1] * c1[2] - c0[2] * c1[1]
-    out[1, 2] = c0[2] * c1[0] - c0[0] * c1[2]
-    out[2, 2] = c0[0] * c1[1] - c0[1] * c1[0]
-    return out
+def _rotate_left_inplace(r, w, e):
+    """R ← exp(w̃)·R, re-orthonormalised (keeps R in SO(3) over millions of steps);
+    ``e`` is a (3, 3) scratch array, so the step allocates nothing."""
+    _exp_so3_into(w, e)
+    # columns 0, 1 of exp(w̃)R, then one Gram–Schmidt pass; column 2 = c0 × c1
+    p00 = e[0, 0] * r[0, 0] + e[0, 1] * r[1, 0] + e[0, 2] * r[2, 0]
+    p10 = e[1, 0] * r[0, 0] + e[1, 1] * r[1, 0] + e[1, 2] * r[2, 0]
+    p20 = e[2, 0] * r[0, 0] + e[2, 1] * r[1, 0] + e[2, 2] * r[2, 0]
+    p01 = e[0, 0] * r[0, 1] + e[0, 1] * r[1, 1] + e[0, 2] * r[2, 1]
+    p11 = e[1, 0] * r[0, 1] + e[1, 1] * r[1, 1] + e[1, 2] * r[2, 1]
+    p21 = e[2, 0] * r[0, 1] + e[2, 1] * r[1, 1] + e[2, 2] * r[2, 1]
+    n0 = math.sqrt(p00 * p00 + p10 * p10 + p20 * p20)
+    p00 /= n0
+    p10 /= n0
+    p20 /= n0
+    d = p00 * p01 + p10 * p11 + p20 * p21
+    p01 -= d * p00
+    p11 -= d * p10
+    p21 -= d * p20
+    n1 = math.sqrt(p01 * p01 + p11 * p11 + p21 * p21)
+    p01 /= n1
+    p11 /= n1
+    p21 /= n1
+    r[0, 0], r[1, 0], r[2, 0] = p00, p10, p20
+    r[0, 1], r[1, 1], r[2, 1] = p01, p11, p21
+    r[0, 2] = p10 * p21 - p20 * p11
+    r[1, 2] = p20 * p01 - p00 * p21
+    r[2, 2] = p00 * p11 - p10 * p01

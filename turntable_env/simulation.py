@@ -77,6 +77,7 @@ def simulate(
     settle: float = 0.0,
     dt_factor: float = 0.05,
     dt: float | None = None,
+    coarse_factor: float | None = None,
     output_dt: float = 1e-5,
     model: TurntableModel | None = None,
 ) -> TurntableResponse:
@@ -90,6 +91,8 @@ def simulate(
         settle: extra time after the drive when ``duration`` is not given [s].
         dt_factor: integration step as a fraction of 1/ω_max (see :class:`TurntableModel`).
         dt: explicit integration step [s] (overrides ``dt_factor``).
+        coarse_factor: adaptive step — coarse_factor/ω_max while the turntable is quiet,
+            the fine step otherwise (see :meth:`TurntableModel.run`); None: fixed step.
         output_dt: sample interval of the response [s].
         model: a prebuilt :class:`TurntableModel` for ``params`` (saves the packing).
 
@@ -112,7 +115,10 @@ def simulate(
     if mdl.params is not ps and model is not None:
         raise ValueError("model: was built for another parameter set")
     wall0 = time.perf_counter()
-    raw = mdl.run(drives, dur, dt_factor=dt_factor, dt_max=dt, output_dt=output_dt)
+    raw = mdl.run(
+        drives, dur, dt_factor=dt_factor, dt_max=dt, coarse_factor=coarse_factor,
+        output_dt=output_dt,
+    )  # fmt: skip
     wall = time.perf_counter() - wall0
     st, ct, en = raw["state"], raw["contact"], raw["energy"]
     main = drives.get(axis)
@@ -145,6 +151,7 @@ def simulate(
             "drive": {k: repr(v) for k, v in drives.items()},
             "dt": raw["dt"],
             "n_steps": raw["n_steps"],
+            "n_coarse": raw["n_coarse"],
             "wall_s": wall,
         },
     )

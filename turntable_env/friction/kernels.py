@@ -60,7 +60,9 @@ def stribeck_magnitude(speed, fn, mu_s, mu_c, v_s, delta):
     """|s(v)| = F_c + (F_s − F_c)·exp(−|v/v_S|^δ), F_s = μ_s F_N, F_c = μ_c F_N (Eq. 2.13–2.14)."""
     f_s = mu_s * fn
     f_c = mu_c * fn
-    return f_c + (f_s - f_c) * math.exp(-((abs(speed) / v_s) ** delta))
+    r = abs(speed) / v_s
+    p = r * r if delta == 2.0 else r**delta  # the Gaussian case without a pow call
+    return f_c + (f_s - f_c) * math.exp(-p)
 
 
 @njit(cache=True)

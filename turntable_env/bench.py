@@ -1,0 +1,174 @@
+"""``turntable bench``: speed and accuracy of every simulator path on one scenario.
+
+Standard scenario (issue "fast simulation"): real parameters, axis B, one-directional
+input of 2 V (90 V on the tubes) at 100 Hz, a = 0.95, adapted amplifier, 1 s simulated.
+
+For each path — full 3-D model (adaptive step), reduced per-axis model, the reduced
+model batched (N turntables in one call), and a plain ``scipy.integrate.solve_ivp``
+implementation of the reduced model — it measures, in one process:
+
+* the real-time factor (simulated s / wall s), after a warm-up call;
+* the step-size error: mean |step| of the first ``REF_PERIODS`` periods against a
+  converged reference of the same equations (the step halved until the step size
+  changes by < 0.1 %; the SciPy path, which integrates the reduced equations, is
+  compared with the reduced model's converged reference over its own window);
+* peak traced memory (``tracemalloc``: NumPy and Python allocations) in a separate call
+  (full model: the reference window; SciPy: its first 1 ms);
+* the JIT compile (or cache-load) time of the compiled kernels, separately.
+"""
+
+from __future__ import annotations
+
+import time
+import tracemalloc
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .baseline import simulate_scipy
+from .reduced import ReducedModel, simulate_batch
+from .simulation import simulate, stepping_drive
+
+__all__ = ["STANDARD", "converge", "run_bench"]
+
+STANDARD = {"amplitude": 2.0, "frequency": 100.0, "a": 0.95, "amplifier": "adapted"}
+REF_PERIODS = 10  # periods over which step errors are measured
+FULL_FINE, FULL_COARSE = 0.05, 0.5  # full model's adaptive step (fractions of 1/ω_max)
+SCIPY_RTOL = 1e-4
+SCIPY_WINDOW = 0.011  # s simulated by the SciPy baseline (one flyback)
+
+
+def converge(
+    step_size: Callable[[float], float], h0: float, tol: float = 1e-3, max_halvings: int = 6
+) -> tuple[float, list[tuple[float, float]]]:
+    """Halve the step parameter from h0 until the step size changes by < tol (relative).
+
+    Returns (converged step size, [(step parameter, step size), ...])."""
+    hist = [(h0, step_size(h0))]
+    for _ in range(max_halvings):
+        h = hist[-1][0] / 2
+        hist.append((h, step_size(h)))
+        if abs(hist[-1][1] - hist[-2][1]) < tol * abs(hist[-1][1]):
+            break
+    return hist[-1][1], hist
+
+
+def _timed(fn: Callable[[], Any]) -> tuple[Any, float]:
+    """(result, wall s)."""
+    t0 = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t0
+
+
+def _peak(fn: Callable[[], Any]) -> tuple[Any, float]:
+    """(result, peak traced MiB); a separate call, since tracing slows Python code."""
+    tracemalloc.start()
+    out = fn()
+    _cur, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return out, peak / 2**20
+
+
+def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> dict[str, Any]:
+    """Run every path on the standard scenario; returns the figures (see module docstring).
+
+    ``quick`` shortens the runs (for tests of the command, not for reported figures)."""
+    periods = max(round(duration * STANDARD["frequency"]), 1)
+    ref_periods = 2 if quick else REF_PERIODS
+    drive, ps = stepping_drive("real", periods=periods, **STANDARD)  # type: ignore[arg-type]
+    ref_drive, _ = stepping_drive("real", periods=ref_periods, **STANDARD)  # type: ignore[arg-type]
+    t_ref = ref_periods / STANDARD["frequency"]
+    out: dict[str, Any] = {"scenario": {**STANDARD, "axis": "B", "duration_s": duration}}
+
+    # --- compile / cache load ----------------------------------------------------------
+    t0 = time.perf_counter()
+    reduced = ReducedModel(ps, "B")
+    simulate_batch([reduced], [ref_drive], 1e-3)
+    simulate(ps, ref_drive, 1e-4, axis="B", model=reduced.full)
+    out["compile_s"] = time.perf_counter() - t0
+
+    # --- full model ------------------------------------------------------------------
+    full = reduced.full
+
+    def full_run(dur: float, fine: float, coarse: float | None, drv=drive) -> Any:  # type: ignore[no-untyped-def]
+        return simulate(
+            ps, drv, dur, axis="B", model=full, dt_factor=fine, coarse_factor=coarse,
+            output_dt=1e-4,
+        )  # fmt: skip
+
+    r, wall = _timed(lambda: full_run(duration, FULL_FINE, FULL_COARSE))
+    out["full_rtf"] = duration / wall
+    out["full_step_um"] = r.step_size * 1e6
+    short, out["full_peak_MiB"] = _peak(lambda: full_run(t_ref, FULL_FINE, FULL_COARSE, ref_drive))
+    fast = short.step_size
+    ref, hist = converge(lambda f: full_run(t_ref, f, None, ref_drive).step_size, FULL_FINE)
+    out["full_step_error"] = abs(fast - ref) / ref
+    out["full_reference"] = {"dt_factor": hist[-1][0], "step_um": ref * 1e6}
+
+    # --- reduced model ---------------------------------------------------------------
+    one_run = lambda: simulate_batch([reduced], [drive], duration, output_dt=1e-4)[0]  # noqa: E731
+    r, wall = _timed(one_run)
+    out["reduced_rtf"] = duration / wall
+    _r, out["reduced_peak_MiB"] = _peak(one_run)
+    out["reduced_step_um"] = r.step_size * 1e6
+
+    def red_step(scale: float, dur: float = t_ref, drv=ref_drive) -> float:  # type: ignore[no-untyped-def]
+        m = reduced if scale == 1.0 else ReducedModel(ps, "B", step_scale=scale, model=full)
+        return simulate_batch([m], [drv], dur, output_dt=1e-5)[0].step_size
+
+    fast = red_step(1.0)
+    ref, hist = converge(red_step, 1.0)
+    out["reduced_step_error"] = abs(fast - ref) / ref
+    out["reduced_reference"] = {"step_scale": hist[-1][0], "step_um": ref * 1e6}
+    out["reduced_vs_full"] = out["reduced_step_um"] / out["full_step_um"] - 1.0
+
+    # --- batched ---------------------------------------------------------------------
+    models = [reduced] * batch
+    batch_run = lambda: simulate_batch(models, [drive] * batch, duration, output_dt=1e-4)  # noqa: E731
+    _rs, wall = _timed(batch_run)
+    out["batch"] = batch
+    out["batched_rtf_per_turntable"] = duration / wall
+    out["batched_rtf_aggregate"] = batch * duration / wall
+    _rs, out["batched_peak_MiB"] = _peak(batch_run)
+
+    # --- SciPy baseline --------------------------------------------------------------
+    win = min(SCIPY_WINDOW, duration)
+    one, _ = stepping_drive("real", periods=1, **STANDARD)  # type: ignore[arg-type]
+    (ts, th), wall = _timed(lambda: simulate_scipy(reduced, one, win, rtol=SCIPY_RTOL))
+    out["scipy_rtf"] = win / wall
+    _sp, out["scipy_peak_MiB"] = _peak(lambda: simulate_scipy(reduced, one, 1e-3, rtol=SCIPY_RTOL))
+    out["scipy_window_s"] = win
+    step_sp = abs(np.interp(1.0 / STANDARD["frequency"], ts, th) - th[0]) * ps.table.radius
+    ref1, _ = converge(lambda s: red_step(s, win, one), 1.0)
+    out["scipy_step_error"] = abs(step_sp - ref1) / ref1
+    for key in ("full", "reduced", "batched"):
+        rtf = out["batched_rtf_aggregate"] if key == "batched" else out[f"{key}_rtf"]
+        out[f"{key}_vs_scipy"] = rtf / out["scipy_rtf"]
+    return out
+
+
+def format_table(res: dict[str, Any]) -> str:
+    """The bench figures as a markdown table."""
+    rows = [
+        ("full 3-D (adaptive)", res["full_rtf"], res["full_step_error"], res["full_peak_MiB"],
+         res["full_vs_scipy"]),
+        ("reduced", res["reduced_rtf"], res["reduced_step_error"], res["reduced_peak_MiB"],
+         res["reduced_vs_scipy"]),
+        (f"reduced batched N={res['batch']} (aggregate)", res["batched_rtf_aggregate"],
+         res["reduced_step_error"], res["batched_peak_MiB"], res["batched_vs_scipy"]),
+        ("SciPy solve_ivp (reduced eqs.)", res["scipy_rtf"], res["scipy_step_error"],
+         res["scipy_peak_MiB"], 1.0),
+    ]  # fmt: skip
+    lines = [
+        "| path | real-time factor | step error | peak MiB | × SciPy |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for name, rtf, err, mem, ratio in rows:
+        lines.append(f"| {name} | {rtf:.3g} | {100 * err:.2f} % | {mem:.1f} | {ratio:.3g} |")
+    lines.append(
+        f"\ncompile/cache load {res['compile_s']:.2f} s; batched per turntable "
+        f"{res['batched_rtf_per_turntable']:.3g}; reduced vs full step "
+        f"{100 * res['reduced_vs_full']:+.1f} %"
+    )
+    return "\n".join(lines)

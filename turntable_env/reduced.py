@@ -1,0 +1,542 @@
+"""Per-axis reduced model: rotation about one axis, derived from the full 3-D model.
+
+Rotation about axis X ∈ {A, B, C} (unit n = d_X) is driven by the two other tubes
+k: their contact points lie on the table's equator about n (d_k ⟂ n), so each acts
+at lever ρ_k = R_table along e_k = n × d_k — which is one of tube k's two bending
+directions (§3.1: the tube axes are orthogonal). The reduced model keeps
+
+* the table: J_n θ̈ = Σ_k ρ_k F_k − k_g θ, with J_n = nᵀJ_O n the inertia about n
+  through the sphere centre (App. C, parallel-axis from the CoM) and k_g = m g h_CoM
+  (1 − n_z²) the pendulum stiffness of the CoM 3R/8 below the centre;
+* each driving tube as one bending degree of freedom at its contact point: the
+  full model's 6×6 tube-top spring K, mass M and damping βK condensed (Guyan) onto
+  the contact-point displacement along e_k, u_c = aᵀξ with a = (r_c × e_k, e_k):
+  K_k = 1/(aᵀK⁻¹a), shape ψ = K⁻¹a K_k, M_k = ψᵀMψ, damping βK_k; the quadrant
+  voltages of channel X move it freely by g_k = aᵀK⁻¹B q_X per volt (Eq. 2.11 via
+  the tube's rest twist per volt);
+* 1-D GMS friction (Eq. 2.24–2.26) between tube contact point and table at the full
+  model's static normal force F_N, with the same elements, Stribeck curve, viscous
+  term and micro-damping β_t k_i of the sticking elements;
+* the channel's amplifier (same gain, τ, slew limit from its load) and the detector.
+
+Nothing is fitted: every number comes from :class:`~turntable_env.model.TurntableModel`.
+Integration: :mod:`turntable_env.reduced_kernel` (exact between GMS transitions).
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import scipy.linalg
+
+from .detector import Detector
+from .drive import DriveSignal, Waveform
+from .model import SimulationError, TurntableModel, _axis_index
+from .params import ParameterSet, get_parameter_set
+from .reduced_kernel import N_REC, run_reduced_batch
+from .response import SteppingMetrics
+from .validation import check_positive
+
+__all__ = [
+    "AxisParameters",
+    "AxisResponse",
+    "ReducedModel",
+    "simulate_batch",
+    "simulate_reduced",
+]
+
+REDUCED_AXES = ("A", "B", "C")
+H_MIN = 62.5e-9  # s, time grid of the reduced integrator (1/16 µs)
+SLIP_STEP = 2e-6  # s, largest step while an element slips (linear part exact: see sweep)
+RING_FRACTION = 0.25  # of a period of the fastest stick mode: largest step while ringing
+QUIET_LENGTH = 0.01  # fraction of the weakest element's breakaway displacement
+MAX_RUNG = 18  # largest step h_min·2^18 = 16 ms
+
+
+@dataclass(frozen=True)
+class AxisParameters:
+    """Derived parameters of the reduced model for one axis (SI units).
+
+    Attributes:
+        axis: "A", "B" or "C".
+        inertia: J_n, table inertia about the axis through the sphere centre [kg·m²].
+        gravity_stiffness: k_g, pendulum stiffness of the CoM [N·m/rad].
+        lever: ρ_k of the two driving contacts [m].
+        tube_mass, tube_stiffness, tube_damping: condensed tube at its contact point
+            [kg], [N/m], [N·s/m].
+        tube_gain: free contact-point displacement per channel volt [m/V].
+        normal_force: F_N of the two contacts [N].
+        tubes: names of the two driving tubes.
+    """
+
+    axis: str
+    inertia: float
+    gravity_stiffness: float
+    lever: tuple[float, float]
+    tube_mass: tuple[float, float]
+    tube_stiffness: tuple[float, float]
+    tube_damping: tuple[float, float]
+    tube_gain: tuple[float, float]
+    normal_force: tuple[float, float]
+    tubes: tuple[str, str]
+
+    @classmethod
+    def from_model(cls, model: TurntableModel, axis: str) -> AxisParameters:
+        """Condense the full model onto rotation about ``axis`` (see module docstring)."""
+        if axis not in REDUCED_AXES:
+            raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
+        ar = model._arrays
+        ps = model.params
+        c = _axis_index(axis)
+        n = model.layout.axis_units[c]
+        m = ps.table.mass
+        cb = ar["c_body"]
+        j_com = np.linalg.inv(ar["jinv"])
+        j_o = j_com + m * (cb @ cb * np.eye(3) - np.outer(cb, cb))
+        inertia = float(n @ j_o @ n)
+        k_g = float(m * model.gravity * ps.table.com_depth * (1.0 - n[2] ** 2))
+        beta = ps.tube.damping_coefficient
+        r_ball = ps.tube.outer_radius
+        fields: dict[str, list[float]] = {k: [] for k in ("lever", "M", "K", "D", "g")}
+        tubes = []
+        for k in range(3):
+            if k == c:
+                continue
+            d = ar["d_nom"][k]
+            e = np.cross(n, d)
+            e /= np.linalg.norm(e)
+            r_c = ar["r0"][k] - r_ball * d  # tube top → contact point [m]
+            a = np.concatenate([np.cross(r_c, e), e])
+            kinv_a = np.linalg.solve(ar["ktop"][k], a)
+            k_eff = 1.0 / float(a @ kinv_a)
+            psi = kinv_a * k_eff
+            q = (ar["qchan"][k] == c).astype(float)
+            gain = float(a @ np.linalg.solve(ar["ktop"][k], ar["bcoup"][k] @ q))
+            fields["lever"].append(ps.table.radius)
+            fields["M"].append(float(psi @ ar["mtube"][k] @ psi))
+            fields["K"].append(k_eff)
+            fields["D"].append(beta * k_eff)
+            fields["g"].append(gain)
+            tubes.append("ABC"[k])
+        fn = ps.contact.preload  # type: ignore[union-attr]
+        return cls(
+            axis=axis,
+            inertia=inertia,
+            gravity_stiffness=k_g,
+            lever=tuple(fields["lever"]),  # type: ignore[arg-type]
+            tube_mass=tuple(fields["M"]),  # type: ignore[arg-type]
+            tube_stiffness=tuple(fields["K"]),  # type: ignore[arg-type]
+            tube_damping=tuple(fields["D"]),  # type: ignore[arg-type]
+            tube_gain=tuple(fields["g"]),  # type: ignore[arg-type]
+            normal_force=(fn, fn),
+            tubes=(tubes[0], tubes[1]),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class AxisResponse(SteppingMetrics):
+    """Time response of the reduced model; time is axis 0 of every array.
+
+    Attributes:
+        time: [s]; angle_rad: rotation about the axis [rad]; angular_velocity [rad/s];
+        voltage: amplifier output on the channel [V]; tube_displacement (n, 2) contact-point
+        deflection of the driving tubes [m]; slip (n, 2) relative displacement tube − table
+        at the contacts [m]; friction (n, 2) [N]; n_stick (n, 2) sticking GMS elements.
+    """
+
+    time: np.ndarray
+    angle_rad: np.ndarray
+    angular_velocity: np.ndarray
+    voltage: np.ndarray
+    tube_displacement: np.ndarray
+    slip: np.ndarray
+    friction: np.ndarray
+    n_stick: np.ndarray
+    axis: str
+    detector: Detector
+    table_radius: float
+    period_starts: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    def angle(self, axis: str | None = None) -> np.ndarray:
+        """Rotation about the model's axis [rad] (``axis`` must be it or None)."""
+        if axis not in (None, self.axis):
+            raise ValueError(f"axis={axis!r}: the reduced model only turns about {self.axis}")
+        return self.angle_rad
+
+    def to_pandas(self) -> Any:
+        """DataFrame indexed by time_s (SI units in the column names)."""
+        import pandas as pd
+
+        cols = {
+            "angle_rad": self.angle_rad,
+            "angular_velocity_rad_s": self.angular_velocity,
+            "voltage_V": self.voltage,
+            "detector_V": self.detector_voltage(),
+        }
+        for k in range(2):
+            cols[f"tube{k + 1}_m"] = self.tube_displacement[:, k]
+            cols[f"slip{k + 1}_m"] = self.slip[:, k]
+            cols[f"friction{k + 1}_N"] = self.friction[:, k]
+            cols[f"n_stick{k + 1}"] = self.n_stick[:, k]
+        return pd.DataFrame(cols, index=pd.Index(self.time, name="time_s"))
+
+    def plot(self, axes: Any = None) -> Any:
+        """Angle at the table radius, amplifier voltage and sticking elements vs time."""
+        import matplotlib.pyplot as plt
+
+        if axes is None:
+            _fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
+        t_ms = self.time * 1e3
+        axes[0].plot(t_ms, self.angle_rad * self.table_radius * 1e6)
+        axes[0].set_ylabel(f"rotation about {self.axis}\nat R_table [µm]")
+        axes[1].plot(t_ms, self.voltage)
+        axes[1].set_ylabel("amplifier output [V]")
+        axes[2].plot(t_ms, self.n_stick)
+        axes[2].set_ylabel("sticking elements")
+        axes[2].set_xlabel("time [ms]")
+        return axes
+
+
+def _ladder(mat: np.ndarray, h: float, n_rungs: int) -> np.ndarray:
+    """exp(mat·h·2^r) for r < n_rungs (expm once, then repeated squaring)."""
+    out = np.empty((n_rungs, *mat.shape))
+    e = scipy.linalg.expm(mat * h)
+    for r in range(n_rungs):
+        out[r] = e
+        e = e @ e
+    return out
+
+
+class ReducedModel:
+    """The reduced per-axis model of one parameter set, ready for the compiled integrator.
+
+    Args:
+        params: parameter set (or its name).
+        axis: "A", "B" or "C".
+        step_scale: scales every step bound (grid, slip step, ringing step); halve it to
+            check convergence.
+        model: a prebuilt :class:`TurntableModel` of ``params`` (saves the packing).
+    """
+
+    def __init__(
+        self,
+        params: ParameterSet | Literal["real", "thesis"] = "real",
+        axis: str = "B",
+        *,
+        step_scale: float = 1.0,
+        model: TurntableModel | None = None,
+    ) -> None:
+        ps = get_parameter_set(params) if isinstance(params, str) else params
+        self.params = ps
+        self.full = model if model is not None else TurntableModel(ps)
+        self.axis = axis
+        self.step_scale = check_positive("step_scale", step_scale)
+        self.axis_params = AxisParameters.from_model(self.full, axis)
+        self._pack()
+
+    # ------------------------------------------------------------------------------
+    def _system(self, s_stuck: tuple[float, float]) -> np.ndarray:
+        """Augmented 10×10 matrix of (θ, θ̇, u1, u̇1, u2, u̇2, V, V̇, f1, f2) with the stuck
+        stiffness s_stuck[k] on each contact (see module docstring)."""
+        ap = self.axis_params
+        fr = self.params.friction
+        assert fr is not None
+        sig2 = fr.stribeck.sigma2
+        beta_t = self.params.contact.tangential_damping  # type: ignore[union-attr]
+        a = np.zeros((10, 10))
+        a[0, 1] = 1.0
+        a[0 + 1, 0] = -ap.gravity_stiffness / ap.inertia
+        a[6, 7] = 1.0
+        for k in range(2):
+            iu, iv = 2 + 2 * k, 3 + 2 * k
+            rho, s = ap.lever[k], s_stuck[k]
+            d = sig2 + beta_t * s
+            # F_k = s (u − ρθ) + d (u̇ − ρθ̇) + f_k, as a row over the state
+            frow = np.zeros(10)
+            frow[iu] += s
+            frow[0] -= s * rho
+            frow[iv] += d
+            frow[1] -= d * rho
+            frow[8 + k] += 1.0
+            a[1] += rho * frow / ap.inertia
+            a[iu, iv] = 1.0
+            m, kt, dt = ap.tube_mass[k], ap.tube_stiffness[k], ap.tube_damping[k]
+            a[iv, iu] -= kt / m
+            a[iv, iv] -= dt / m
+            a[iv, 6] += kt * ap.tube_gain[k] / m
+            a[iv] -= frow / m
+        return a
+
+    def _pack(self) -> None:
+        fr = self.params.friction
+        assert fr is not None
+        ap = self.axis_params
+        kk = np.asarray(fr.k, float)
+        nu = np.asarray(fr.nu, float)
+        ne = kk.size
+        # stuck-stiffness levels of a contact: distinct Σ_{stuck} k_i over the 2^ne masks
+        sums = np.array([sum(kk[i] for i in range(ne) if m >> i & 1) for m in range(1 << ne)])
+        levels: list[float] = []
+        lvl_of = np.empty(1 << ne, dtype=np.int64)
+        tol = 1e-12 * float(kk.sum())
+        for m, sm in enumerate(sums):
+            for j, lv in enumerate(levels):
+                if abs(lv - sm) <= tol:
+                    lvl_of[m] = j
+                    break
+            else:
+                lvl_of[m] = len(levels)
+                levels.append(float(sm))
+        nl = len(levels)
+        h = H_MIN * self.step_scale
+        a_stick = self._system((float(kk.sum()), float(kk.sum())))
+        a6 = a_stick[:6, :6]
+        lam, vec = np.linalg.eig(a6)
+        om = np.abs(lam)
+        omega_hi = float(np.max(om))
+        ring_frac = RING_FRACTION * self.step_scale
+        r_ring = math.floor(math.log2(max(ring_frac * 2 * math.pi / omega_hi / h, 1.0)))
+        r_slip = math.floor(math.log2(max(SLIP_STEP * self.step_scale / h, 1.0)))
+        # quasi-static state per unit input (V, f1, f2) and modal projections (all stick)
+        qs = -np.linalg.solve(a6, a_stick[:6, [6, 8, 9]])
+        c_rel = np.zeros((2, 6))
+        for k in range(2):
+            c_rel[k, 2 + 2 * k] = 1.0
+            c_rel[k, 0] = -ap.lever[k]
+        r_small = max(r_ring, r_slip) + 1
+        phi_s = np.empty((nl * nl, r_small, 6, 6))
+        gam_s = np.empty((nl * nl, r_small, 6, 4))
+        for i0 in range(nl):
+            for i1 in range(nl):
+                e = _ladder(self._system((levels[i0], levels[i1])), h, r_small)
+                phi_s[i0 * nl + i1] = e[:, :6, :6]
+                gam_s[i0 * nl + i1] = e[:, :6, 6:10]
+        e = _ladder(a_stick, h, MAX_RUNG + 1)
+        amp = self.params.amplifier
+        c_load = self.full.load_capacitance(self.axis)
+        breakaway = min(
+            n_ * fr.stribeck.mu_s * min(ap.normal_force) / k_ for n_, k_ in zip(nu, kk, strict=True)
+        )
+        s = fr.stribeck
+        self._arrays = {
+            "mech": np.array(
+                [
+                    ap.inertia,
+                    ap.gravity_stiffness,
+                    *ap.lever,
+                    *ap.tube_mass,
+                    *ap.tube_stiffness,
+                    *ap.tube_damping,
+                    *ap.tube_gain,
+                    *ap.normal_force,
+                ]
+            ),
+            "gms": np.array(
+                [
+                    fr.C,
+                    s.mu_s,
+                    s.mu_c,
+                    s.v_s,
+                    s.delta,
+                    s.sigma2,
+                    self.params.contact.tangential_damping,
+                ]  # type: ignore[union-attr]
+            ),
+            "nu": nu,
+            "kk": kk,
+            "amp": np.array(
+                [
+                    amp.gain,
+                    amp.tau,
+                    1.0 if amp.ideal else 0.0,
+                    amp.input_limit,
+                    amp.rate_limit(c_load),
+                ]
+            ),
+            "ctl": np.array([QUIET_LENGTH * breakaway, 0.0, r_ring, r_slip]),
+            "qs": qs,
+            "modal_w": np.linalg.inv(vec),
+            "modal_c": (c_rel @ vec).astype(complex),
+            "modal_om": om,
+            "modal_om_max": np.array(omega_hi),
+            "ring_frac": ring_frac,
+            "lvl": np.stack([lvl_of, lvl_of]),
+            "nlvl": np.array([nl, nl], dtype=np.int64),
+            "phi_small": phi_s,
+            "gam_small": gam_s,
+            "phi_big": e[:, :6, :6].copy(),
+            "gam_big": e[:, :6, 6:10].copy(),
+            "h": h,
+            "omega": (float(np.min(om)), omega_hi),
+        }
+
+    @property
+    def grid(self) -> float:
+        """Time grid of the integrator [s]."""
+        return self._arrays["h"]
+
+    def initial_state(self, channel_voltage: float = 0.0) -> dict[str, np.ndarray]:
+        """Rest state with the tubes bent by the channel voltage [V] and unloaded GMS."""
+        ap = self.axis_params
+        ne = self._arrays["kk"].size
+        y = np.zeros(6)
+        for k in range(2):
+            # static: K_k (g_k V − u) = F_k = s_k (u − ρθ) with θ = 0, elements unloaded → u
+            # carries the whole bend only if the contact is free; at rest F = 0 → u = g V
+            y[2 + 2 * k] = ap.tube_gain[k] * channel_voltage
+        # the table took the tubes' position without loading the contacts (θ = 0, x = g V)
+        return {
+            "y": y,
+            "volt": np.array(channel_voltage),
+            "f": np.zeros((2, ne)),
+            "st": np.ones((2, ne), dtype=np.int64),
+        }
+
+
+def _waveform_arrays(
+    waves: Sequence[Waveform], t0: float, h: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    nbp = max(max(w.times.size for w in waves), 1)
+    wg = np.zeros((len(waves), nbp))  # breakpoints in grid units (integers, as floats)
+    wv = np.zeros((len(waves), nbp))
+    wn = np.ones(len(waves), dtype=np.int64)
+    for b, w in enumerate(waves):
+        wg[b, : w.times.size] = np.rint((w.times - t0) / h)
+        wv[b, : w.times.size] = w.values
+        wn[b] = w.times.size
+    return wg, wv, wn
+
+
+def simulate_batch(
+    models: Sequence[ReducedModel],
+    drives: Sequence[DriveSignal | Waveform],
+    duration: float,
+    *,
+    output_dt: float = 1e-5,
+) -> list[AxisResponse]:
+    """Run N reduced turntables (own parameters, own drives) together in one compiled call.
+
+    Args:
+        models: one :class:`ReducedModel` per turntable (same number of GMS elements and the
+            same ``step_scale``).
+        drives: one channel input per turntable (DriveSignal or Waveform, starting at 0).
+        duration: simulated time [s], the same for all.
+        output_dt: sample interval [s], a multiple of the grid (rounded to it).
+
+    Raises:
+        ValueError: mismatched lengths or models; SimulationError: a state diverged.
+    """
+    if len(models) != len(drives) or not models:
+        raise ValueError(
+            f"models/drives: need equal, non-zero lengths ({len(models)}, {len(drives)})"
+        )
+    dur = check_positive("duration", duration)
+    check_positive("output_dt", output_dt)
+    h = models[0].grid
+    ne = models[0]._arrays["kk"].size
+    for i, m in enumerate(models):
+        if m.grid != h or m._arrays["kk"].size != ne:
+            raise ValueError(f"models[{i}]: grid or GMS element count differs from models[0]")
+    nb = len(models)
+    waves = []
+    u0 = np.empty(nb)
+    for b, (m, d) in enumerate(zip(models, drives, strict=True)):
+        w = m.full.drive_waveforms({m.axis: d})[m.axis]
+        waves.append(w)
+        amp = m.params.amplifier
+        u0[b] = np.clip(w(0.0)[()], -amp.input_limit, amp.input_limit) * amp.gain
+    wg, wv, wn = _waveform_arrays(waves, 0.0, h)
+    out_every = max(round(output_dt / h), 1)
+    n_end = round(dur / h)
+    n_out = n_end // out_every + 1
+
+    def stack(name: str) -> np.ndarray:
+        arrs = [m._arrays[name] for m in models]
+        shape = np.max([a.shape for a in arrs], axis=0)
+        out = np.zeros((nb, *shape), dtype=arrs[0].dtype)
+        for b, a in enumerate(arrs):
+            out[(b, *tuple(slice(0, s) for s in a.shape))] = a
+        return out
+
+    states = [m.initial_state(u0[b]) for b, m in enumerate(models)]
+    y = np.stack([s["y"] for s in states])
+    volt = np.array([float(s["volt"]) for s in states])
+    f = np.stack([s["f"] for s in states])
+    st = np.stack([s["st"] for s in states])
+    rec = np.zeros((nb, n_out, N_REC))
+    n_rec = np.zeros(nb, dtype=np.int64)
+    counters = np.zeros((nb, 3), dtype=np.int64)
+    wall0 = _time.perf_counter()
+    run_reduced_batch(
+        y, volt, f, st, np.zeros(nb, dtype=np.int64),
+        stack("mech"), stack("gms"), stack("nu"), stack("kk"), stack("amp"), stack("ctl"),
+        stack("lvl"), stack("nlvl"), stack("phi_small"), stack("gam_small"), stack("phi_big"),
+        stack("gam_big"), stack("qs"), stack("modal_w"), stack("modal_c"), stack("modal_om"),
+        stack("modal_om_max"), models[0]._arrays["ring_frac"],
+        wg, wv, wn, np.full(nb, n_end, dtype=np.int64),
+        np.full(nb, out_every, dtype=np.int64), h, rec, n_rec, counters,
+    )  # fmt: skip
+    wall = _time.perf_counter() - wall0
+    out = []
+    for b, (m, d) in enumerate(zip(models, drives, strict=True)):
+        if counters[b, 2] != 0:
+            t_bad = rec[b, max(n_rec[b] - 1, 0), 0]
+            raise SimulationError(
+                "non-finite", float(t_bad), f"reduced model state (turntable {b})"
+            )
+        r = rec[b, : n_rec[b]]
+        if isinstance(d, DriveSignal):
+            starts = d.start + np.arange(d.total_periods + 1) / d.frequency
+            starts = starts[starts <= r[-1, 0] + 1e-12]
+        else:
+            starts = np.empty(0)
+        out.append(
+            AxisResponse(
+                time=r[:, 0].copy(),
+                angle_rad=r[:, 1].copy(),
+                angular_velocity=r[:, 2].copy(),
+                voltage=r[:, 3].copy(),
+                tube_displacement=r[:, 4:6].copy(),
+                slip=r[:, 6:8].copy(),
+                friction=r[:, 8:10].copy(),
+                n_stick=r[:, 10:12].astype(np.int64),
+                axis=m.axis,
+                detector=m.params.detector,
+                table_radius=m.params.table.radius,
+                period_starts=starts,
+                info={
+                    "params": m.params.name,
+                    "steps": int(counters[b, 0]),
+                    "rejected": int(counters[b, 1]),
+                    "grid_s": h,
+                    "wall_s": wall,
+                    "batch": nb,
+                },
+            )
+        )
+    return out
+
+
+def simulate_reduced(
+    params: ParameterSet | Literal["real", "thesis"],
+    drive: DriveSignal | Waveform,
+    duration: float | None = None,
+    *,
+    axis: str = "B",
+    settle: float = 0.0,
+    output_dt: float = 1e-5,
+    step_scale: float = 1.0,
+    model: ReducedModel | None = None,
+) -> AxisResponse:
+    """Run the reduced model of ``axis`` from rest (see :func:`simulate_batch`)."""
+    mdl = model if model is not None else ReducedModel(params, axis, step_scale=step_scale)
+    if duration is None:
+        end = drive.start + drive.duration if isinstance(drive, DriveSignal) else drive.end
+        duration = end + settle
+    return simulate_batch([mdl], [drive], duration, output_dt=output_dt)[0]
