@@ -19,6 +19,7 @@ implementation of the reduced model — it measures, in one process:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -100,6 +101,12 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     r, wall = _timed(lambda: full_run(duration, FULL_FINE, FULL_COARSE))
     out["full_rtf"] = duration / wall
     out["full_step_um"] = r.step_size * 1e6
+    out["full_profile"] = {
+        "steps_per_period": r.info["n_steps"] / periods,
+        "coarse_fraction": r.info["n_coarse"] / r.info["n_steps"],
+        "us_per_step": 1e6 * r.info["wall_s"] / r.info["n_steps"],
+        "python_fraction": 1.0 - r.info["wall_s"] / wall,
+    }
     short, out["full_peak_MiB"] = _peak(lambda: full_run(t_ref, FULL_FINE, FULL_COARSE, ref_drive))
     fast = short.step_size
     ref, hist = converge(lambda f: full_run(t_ref, f, None, ref_drive).step_size, FULL_FINE)
@@ -110,6 +117,14 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     one_run = lambda: simulate_batch([reduced], [drive], duration, output_dt=1e-4)[0]  # noqa: E731
     r, wall = _timed(one_run)
     out["reduced_rtf"] = duration / wall
+    out["reduced_axis_parameters"] = dataclasses.asdict(reduced.axis_params)
+    evals = r.info["steps"] + r.info["rejected"]
+    out["reduced_profile"] = {
+        "steps_per_period": r.info["steps"] / periods,
+        "rejected_per_period": r.info["rejected"] / periods,
+        "ns_per_step_evaluation": 1e9 * r.info["wall_s"] / evals,
+        "python_fraction": 1.0 - r.info["wall_s"] / wall,
+    }
     _r, out["reduced_peak_MiB"] = _peak(one_run)
     out["reduced_step_um"] = r.step_size * 1e6
 
@@ -166,8 +181,16 @@ def format_table(res: dict[str, Any]) -> str:
     ]
     for name, rtf, err, mem, ratio in rows:
         lines.append(f"| {name} | {rtf:.3g} | {100 * err:.2f} % | {mem:.1f} | {ratio:.3g} |")
+    fp, rp = res["full_profile"], res["reduced_profile"]
     lines.append(
-        f"\ncompile/cache load {res['compile_s']:.2f} s; batched per turntable "
+        f"\nfull: {fp['steps_per_period']:.0f} steps/period ({100 * fp['coarse_fraction']:.0f} % "
+        f"coarse), {fp['us_per_step']:.2f} µs/step, Python {100 * fp['python_fraction']:.0f} %; "
+        f"reduced: {rp['steps_per_period']:.0f} steps + {rp['rejected_per_period']:.0f} rejected "
+        f"per period, {rp['ns_per_step_evaluation']:.0f} ns each, Python "
+        f"{100 * rp['python_fraction']:.0f} %"
+    )
+    lines.append(
+        f"compile/cache load {res['compile_s']:.2f} s; batched per turntable "
         f"{res['batched_rtf_per_turntable']:.3g}; reduced vs full step "
         f"{100 * res['reduced_vs_full']:+.1f} %"
     )
