@@ -56,6 +56,14 @@ SLIP_STEP = 2e-6  # s, largest step while an element slips (linear part exact: s
 RING_FRACTION = 0.25  # of a period of the fastest stick mode: largest step while ringing
 QUIET_LENGTH = 0.01  # fraction of the weakest element's breakaway displacement
 MAX_RUNG = 18  # largest step h_min·2^18 = 16 ms
+_STATE_NAMES = (
+    "table angle",
+    "table angular velocity",
+    "tube 1 contact displacement",
+    "tube 1 contact velocity",
+    "tube 2 contact displacement",
+    "tube 2 contact velocity",
+)
 
 
 @dataclass(frozen=True)
@@ -301,7 +309,6 @@ class ReducedModel:
         om = np.abs(lam)
         omega_hi = float(np.max(om))
         ring_frac = RING_FRACTION * self.step_scale
-        r_ring = math.floor(math.log2(max(ring_frac * 2 * math.pi / omega_hi / h, 1.0)))
         r_slip = math.floor(math.log2(max(SLIP_STEP * self.step_scale / h, 1.0)))
         # quasi-static state per unit input (V, f1, f2) and modal projections (all stick)
         qs = -np.linalg.solve(a6, a_stick[:6, [6, 8, 9]])
@@ -309,7 +316,7 @@ class ReducedModel:
         for k in range(2):
             c_rel[k, 2 + 2 * k] = 1.0
             c_rel[k, 0] = -ap.lever[k]
-        r_small = max(r_ring, r_slip) + 1
+        r_small = r_slip + 1  # rungs of the configurations with a slipping element
         phi_s = np.empty((nl * nl, r_small, 6, 6))
         gam_s = np.empty((nl * nl, r_small, 6, 4))
         for i0 in range(nl):
@@ -359,7 +366,7 @@ class ReducedModel:
                     amp.rate_limit(c_load),
                 ]
             ),
-            "ctl": np.array([QUIET_LENGTH * breakaway, 0.0, r_ring, r_slip]),
+            "ctl": np.array([QUIET_LENGTH * breakaway, r_slip]),
             "qs": qs,
             "modal_w": np.linalg.inv(vec),
             "modal_c": (c_rel @ vec).astype(complex),
@@ -382,15 +389,11 @@ class ReducedModel:
         return self._arrays["h"]
 
     def initial_state(self, channel_voltage: float = 0.0) -> dict[str, np.ndarray]:
-        """Rest state with the tubes bent by the channel voltage [V] and unloaded GMS."""
-        ap = self.axis_params
+        """Rest state at θ = 0: the tubes bent freely by the channel voltage [V] (u_k = g_k V)
+        and the GMS elements unloaded, as the full model's static equilibrium starts."""
         ne = self._arrays["kk"].size
         y = np.zeros(6)
-        for k in range(2):
-            # static: K_k (g_k V − u) = F_k = s_k (u − ρθ) with θ = 0, elements unloaded → u
-            # carries the whole bend only if the contact is free; at rest F = 0 → u = g V
-            y[2 + 2 * k] = ap.tube_gain[k] * channel_voltage
-        # the table took the tubes' position without loading the contacts (θ = 0, x = g V)
+        y[2:6:2] = np.asarray(self.axis_params.tube_gain) * channel_voltage
         return {
             "y": y,
             "volt": np.array(channel_voltage),
@@ -400,14 +403,15 @@ class ReducedModel:
 
 
 def _waveform_arrays(
-    waves: Sequence[Waveform], t0: float, h: float
+    waves: Sequence[Waveform], h: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Breakpoints of every turntable's input on the grid h [s] (rounded), values [V]."""
     nbp = max(max(w.times.size for w in waves), 1)
     wg = np.zeros((len(waves), nbp))  # breakpoints in grid units (integers, as floats)
     wv = np.zeros((len(waves), nbp))
     wn = np.ones(len(waves), dtype=np.int64)
     for b, w in enumerate(waves):
-        wg[b, : w.times.size] = np.rint((w.times - t0) / h)
+        wg[b, : w.times.size] = np.rint(w.times / h)
         wv[b, : w.times.size] = w.values
         wn[b] = w.times.size
     return wg, wv, wn
@@ -451,7 +455,7 @@ def simulate_batch(
         waves.append(w)
         amp = m.params.amplifier
         u0[b] = np.clip(w(0.0)[()], -amp.input_limit, amp.input_limit) * amp.gain
-    wg, wv, wn = _waveform_arrays(waves, 0.0, h)
+    wg, wv, wn = _waveform_arrays(waves, h)
     out_every = max(round(output_dt / h), 1)
     n_end = round(dur / h)
     n_out = n_end // out_every + 1
@@ -473,8 +477,9 @@ def simulate_batch(
     n_rec = np.zeros(nb, dtype=np.int64)
     counters = np.zeros((nb, 3), dtype=np.int64)
     wall0 = _time.perf_counter()
+    n_now = np.zeros(nb, dtype=np.int64)
     run_reduced_batch(
-        y, volt, f, st, np.zeros(nb, dtype=np.int64),
+        y, volt, f, st, n_now,
         stack("mech"), stack("gms"), stack("nu"), stack("kk"), stack("amp"), stack("ctl"),
         stack("lvl"), stack("nlvl"), stack("phi_small"), stack("gam_small"), stack("phi_big"),
         stack("gam_big"), stack("qs"), stack("modal_w"), stack("modal_c"), stack("modal_om"),
@@ -486,9 +491,10 @@ def simulate_batch(
     out = []
     for b, (m, d) in enumerate(zip(models, drives, strict=True)):
         if counters[b, 2] != 0:
-            t_bad = rec[b, max(n_rec[b] - 1, 0), 0]
+            bad = [i for i in range(6) if not np.isfinite(y[b, i])]
+            name = _STATE_NAMES[bad[0]] if bad else "amplifier voltage"
             raise SimulationError(
-                "non-finite", float(t_bad), f"reduced model state (turntable {b})"
+                "non-finite", float(n_now[b] * h), f"reduced model {name} (turntable {b})"
             )
         r = rec[b, : n_rec[b]]
         if isinstance(d, DriveSignal):

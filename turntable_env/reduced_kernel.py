@@ -23,8 +23,9 @@ Step control (no Python per step):
 * after an accepted step without a transition the rung grows by one;
 * while an element slips the rung is capped at ``r_slip`` (the slipping
   elements' forces and the amplifier's slewing are held / linearised over a
-  step); while the contacts ring (dynamic amplitude of the relative motion above
-  ``quiet_len``) at ``r_ring`` (a quarter period of the fastest stick mode), so no
+  step); while the contacts ring — a stick mode whose amplitude in the relative
+  motion (deviation from the quasi-static state, in modal coordinates) exceeds
+  ``quiet_len`` — at ``ring_frac`` of that fastest ringing mode's period, so no
   transition hides inside a step; otherwise up to the next breakpoint or output.
 
 Slipping elements relax exactly for the step's mean relative velocity
@@ -67,7 +68,7 @@ N_REC = len(REC_FIELDS)
 # mech[b]: [J, k_g, rho1, rho2, M1, M2, K1, K2, Dt1, Dt2, g1, g2, FN1, FN2]
 # gms[b]:  [C, mu_s, mu_c, v_s, delta, sigma2, beta_t]
 # amp[b]:  [gain, tau, ideal, input_limit, rate]
-# ctl[b]:  [quiet_len, -, r_ring, r_slip]
+# ctl[b]:  [quiet_len [m], r_slip (largest rung while an element slips)]
 
 
 @njit(cache=True)
@@ -113,12 +114,15 @@ def run_reduced_batch(
     """
     nb = y.shape[0]
     ne = f.shape[2]
-    r_small = phi_small.shape[2]
     r_big = phi_big.shape[1]
     y0 = np.empty(6)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)
     dev = np.empty(6)
+    x0 = np.empty(2)  # relative displacement [m] and velocity [m/s] at the step start
+    xd0 = np.empty(2)
+    fin = np.empty(2)  # constant force inputs [N]
+    s_end = np.empty(2)  # Stribeck level |s(v)| at the step end [N]
     for b in range(nb):
         n = n_now[b]
         idx = _advance(wg[b], wn[b], 0, n)
@@ -129,7 +133,7 @@ def run_reduced_batch(
         ulim = amp[b, 3]
         rate = amp[b, 4]
         quiet_len = ctl[b, 0]
-        r_slip = int(ctl[b, 3])
+        r_slip = int(ctl[b, 1])
         mu_s = gms[b, 1]
         n_acc = 0
         n_rej = 0
@@ -172,6 +176,13 @@ def run_reduced_batch(
                 for i in range(ne):
                     if st[b, k, i] == 0:
                         any_slip = True
+            # constant force inputs over the step (both contacts): the stuck elements'
+            # offsets F_i − k_i x and the slipping elements' forces [N]
+            for k in range(2):
+                x0[k], xd0[k] = _rel(y[b], mech[b], k)
+                fin[k] = 0.0
+                for i in range(ne):
+                    fin[k] += f[b, k, i] - (kk[b, i] * x0[k] if st[b, k, i] == 1 else 0.0)
             cap = r_land
             if any_slip:
                 cap = min(cap, r_slip)
@@ -179,15 +190,10 @@ def run_reduced_batch(
                 # ringing: modal amplitudes of the deviation from the quasi-static state
                 # (y − y_qs, y_qs = −A⁻¹(b_V V + B_f f)); the fastest mode whose amplitude in
                 # the contacts' relative motion exceeds quiet_len sets the largest step
-                xa0, _ = _rel(y[b], mech[b], 0)
-                xb0, _ = _rel(y[b], mech[b], 1)
-                fa = 0.0
-                fb = 0.0
-                for i in range(ne):
-                    fa += f[b, 0, i] - kk[b, i] * xa0
-                    fb += f[b, 1, i] - kk[b, i] * xb0
                 for j in range(6):
-                    dev[j] = y[b, j] - (qs[b, j, 0] * volt[b] + qs[b, j, 1] * fa + qs[b, j, 2] * fb)
+                    dev[j] = y[b, j] - (
+                        qs[b, j, 0] * volt[b] + qs[b, j, 1] * fin[0] + qs[b, j, 2] * fin[1]
+                    )
                 om_fast = 0.0
                 for j in range(6):
                     zj = 0.0j
@@ -223,14 +229,12 @@ def run_reduced_batch(
                 for i in range(ne):
                     f0[k, i] = f[b, k, i]
             v0 = volt[b]
+            u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
             while True:
-                if rung >= r_small and not all_stick:
-                    rung = r_small - 1
                 dn = 1 << rung
                 h = dn * h_min
                 n1 = n + dn
                 # amplifier
-                u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
                 i1 = _advance(wg[b], wn[b], idx, n1 - 1)  # same segment (steps never cross)
                 u1 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], i1, n1)))
                 if ideal:
@@ -240,41 +244,27 @@ def run_reduced_batch(
                     v1 = _amp_step(v0, u0, u1, h, gain, tau, rate)
                     v0e = v0
                 vslope = (v1 - v0e) / h
-                # constant force inputs: stuck offsets and slipping forces
-                x0a, _xd0a = _rel(y0, mech[b], 0)
-                x0b, _xd0b = _rel(y0, mech[b], 1)
-                fin0 = 0.0
-                fin1 = 0.0
-                for i in range(ne):
-                    if st[b, 0, i] == 1:
-                        fin0 += f0[0, i] - kk[b, i] * x0a
-                    else:
-                        fin0 += f0[0, i]
-                    if st[b, 1, i] == 1:
-                        fin1 += f0[1, i] - kk[b, i] * x0b
-                    else:
-                        fin1 += f0[1, i]
-                if rung < r_small:
-                    ph = phi_small[b, cfg, rung]
-                    gm = gam_small[b, cfg, rung]
-                else:
+                if all_stick:  # every rung of the all-stick configuration
                     ph = phi_big[b, rung]
                     gm = gam_big[b, rung]
+                else:  # partial slip: rung ≤ r_slip
+                    ph = phi_small[b, cfg, rung]
+                    gm = gam_small[b, cfg, rung]
                 for a in range(6):
-                    s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin0 + gm[a, 3] * fin1
+                    s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
                     for c in range(6):
                         s += ph[a, c] * y0[c]
                     y[b, a] = s
                 # elements
                 event = False
                 for k in range(2):
-                    x0, xd0 = _rel(y0, mech[b], k)
                     x1, xd1 = _rel(y[b], mech[b], k)
-                    dx = x1 - x0
-                    vbar = 0.5 * (xd0 + xd1)
+                    dx = x1 - x0[k]
+                    vbar = 0.5 * (xd0[k] + xd1)
                     fn_k = mech[b, 12 + k]
                     sbar = stribeck_magnitude(vbar, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
                     s1 = stribeck_magnitude(xd1, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
+                    s_end[k] = s1
                     for i in range(ne):
                         fi = f0[k, i]
                         if st[b, k, i] == 1:
@@ -309,13 +299,9 @@ def run_reduced_batch(
                 # accept
                 volt[b] = v1
                 for k in range(2):
-                    _x1, xd1 = _rel(y[b], mech[b], k)
-                    s1 = stribeck_magnitude(
-                        xd1, mech[b, 12 + k], mu_s, gms[b, 2], gms[b, 3], gms[b, 4]
-                    )
                     for i in range(ne):
                         if st[b, k, i] == 1 and st_new[k, i] == 0:
-                            capf = nu[b, i] * s1  # broke away: no overshoot past capacity
+                            capf = nu[b, i] * s_end[k]  # broke away: no overshoot past capacity
                             if abs(f[b, k, i]) > capf:
                                 f[b, k, i] = capf if f[b, k, i] > 0.0 else -capf
                         st[b, k, i] = st_new[k, i]
