@@ -15,6 +15,9 @@ All functions are vectorised over a time array [s] and return the amplifier
   overshoots to −k·amplitude and returns to 0 after ``hold_time`` (from
   :meth:`turntable_env.amplifier.Amplifier.adapted_hold_time`).
 * :class:`DriveSignal` — one object that composes these for the simulator.
+* :class:`StepSetting` and :func:`generator_segment` — a free-running, phase-continuous
+  generator for closed-loop control: each control interval gets a setting, which
+  takes over at the next period start (a running period is never cut).
 * :class:`Waveform` — a piecewise-linear amplifier input given by breakpoints
   (jumps are two breakpoints at the same time). Every signal above is piecewise
   linear, so :meth:`DriveSignal.waveform` represents it exactly; the simulator
@@ -40,7 +43,11 @@ from .validation import (
 
 __all__ = [
     "DriveSignal",
+    "StepSetting",
     "Waveform",
+    "capacitive_energy",
+    "generator_segment",
+    "grid_breakpoints",
     "one_directional",
     "sawtooth",
     "slew_adapted",
@@ -380,3 +387,153 @@ class DriveSignal:
             stop,
         )
         return np.where(_forward(tt, self.start, self.frequency, self.n_periods), fwd, back)
+
+
+@dataclass(frozen=True)
+class StepSetting:
+    """One stepping waveform of the free-running generator (amplifier input).
+
+    Each period is the sawtooth of Fig. 3.14 (``slew_adaptation`` = 0: rise over a/f,
+    fall over (1 − a)/f) or the slew-adapted input of Fig. 4.3 (k > 0: rise over a/f,
+    step to −k·amplitude, hold ``hold_time``, then 0). Amplitude 0 is the idle generator.
+
+    Args:
+        amplitude: peak input [V], signed (sign = direction).
+        frequency: [Hz].
+        a: ramp ratio, 0 < a < 1.
+        slew_adaptation: k ≥ 0 of Fig. 4.3.
+        hold_time: adapted hold [s] (k > 0), clipped to the flyback interval (1 − a)/f.
+    """
+
+    amplitude: float = 0.0
+    frequency: float = 100.0
+    a: float = 0.95
+    slew_adaptation: float = 0.0
+    hold_time: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_finite("amplitude", self.amplitude)
+        check_positive("frequency", self.frequency)
+        check_in_open("a", self.a, 0.0, 1.0)
+        check_nonnegative("slew_adaptation", self.slew_adaptation)
+        check_nonnegative("hold_time", self.hold_time)
+
+    @property
+    def idle(self) -> bool:
+        return self.amplitude == 0.0
+
+    def template(self) -> tuple[np.ndarray, np.ndarray]:
+        """One period as breakpoints: times from 0 to 1/f [s], input [V]."""
+        T = 1.0 / self.frequency
+        ta = self.a * T
+        amp, k = self.amplitude, self.slew_adaptation
+        if k == 0.0:
+            return np.array([0.0, ta, T]), np.array([0.0, amp, 0.0])
+        hold = min(self.hold_time, T - ta)
+        if hold < T - ta:
+            t = [0.0, ta, ta, ta + hold, ta + hold, T]
+            v = [0.0, amp, -k * amp, -k * amp, 0.0, 0.0]
+        else:
+            t = [0.0, ta, ta, T, T]
+            v = [0.0, amp, -k * amp, -k * amp, 0.0]
+        return np.array(t), np.array(v)
+
+
+def _window_points(
+    tp: np.ndarray, vp: np.ndarray, lo: float, hi: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Breakpoints of a piecewise-linear signal restricted to [lo, hi]: the value at ``lo``
+    is the right limit, the value at ``hi`` the left limit (so windows join seamlessly)."""
+    i0 = int(np.searchsorted(tp, lo, side="right"))
+    i1 = int(np.searchsorted(tp, hi, side="left"))
+    v_lo = float(np.interp(lo, tp, vp)) if i0 == 0 or tp[i0 - 1] < lo else float(vp[i0 - 1])
+    if i1 < tp.size and tp[i1] == hi:
+        v_hi = float(vp[i1])
+    else:
+        v_hi = float(np.interp(hi, tp, vp))
+    inner = slice(i0, max(i1, i0))
+    return (
+        np.concatenate([[lo], tp[inner], [hi]]),
+        np.concatenate([[v_lo], vp[inner], [v_hi]]),
+    )
+
+
+def generator_segment(
+    t0: float, t1: float, phase: float, running: StepSetting, pending: StepSetting
+) -> tuple[np.ndarray, np.ndarray, float, StepSetting]:
+    """Generator output over one control interval [t0, t1] [s] as breakpoints.
+
+    The generator is free-running and phase continuous: ``running`` finishes its current
+    period (from ``phase`` ∈ [0, 1)), then ``pending`` takes over at the period start
+    (where every waveform is 0, so a new setting never makes the input jump); an idle
+    generator starts ``pending`` at once. An idle ``pending`` stops the generator at the
+    end of the running period (phase 0).
+
+    Returns:
+        (times [s], input [V], phase at t1, the setting running at t1).
+    """
+    if not t1 > t0:
+        raise ValueError(f"t1={t1!r}: must be > t0={t0!r}")
+    if not 0.0 <= phase < 1.0:
+        raise ValueError(f"phase={phase!r}: must be in [0, 1)")
+    ts: list[np.ndarray] = []
+    vs: list[np.ndarray] = []
+    t_latch = t0
+    if not running.idle and phase > 0.0:
+        T = 1.0 / running.frequency
+        tp, vp = running.template()
+        p_start = t0 - phase * T
+        t_end = min(p_start + T, t1)
+        a_, b_ = _window_points(tp + p_start, vp, t0, t_end)
+        ts.append(a_)
+        vs.append(b_)
+        if p_start + T > t1:  # the running period outlasts the interval
+            return np.concatenate(ts), np.concatenate(vs), (t1 - p_start) / T, running
+        t_latch = p_start + T
+    if t_latch < t1:
+        if pending.idle:
+            ts.append(np.array([t_latch, t1]))
+            vs.append(np.zeros(2))
+            return np.concatenate(ts), np.concatenate(vs), 0.0, pending
+        T = 1.0 / pending.frequency
+        tp, vp = pending.template()
+        n = max(math.ceil((t1 - t_latch) / T - 1e-12), 1)
+        starts = t_latch + T * np.arange(n)
+        tt = (starts[:, None] + tp[None, :]).ravel()
+        vv = np.tile(vp, n)
+        a_, b_ = _window_points(tt, vv, t_latch, t1)
+        ts.append(a_)
+        vs.append(b_)
+        ph = (t1 - t_latch) / T - (n - 1)
+        return np.concatenate(ts), np.concatenate(vs), (0.0 if ph >= 1.0 - 1e-12 else ph), pending
+    return np.concatenate(ts), np.concatenate(vs), 0.0, pending
+
+
+def capacitive_energy(values: np.ndarray, capacitance: float) -> float:
+    """Energy the amplifier moves into and out of a capacitive load C [F] along a
+    piecewise-linear output with breakpoint voltages ``values`` [V]: C∫|V dV| [J].
+
+    Per linear segment V0 → V1: C|V1² − V0²|/2 without a sign change, C(V0² + V1²)/2
+    through zero. A full 0 → V → 0 period costs C·V² (charge and discharge; §4.1.2's
+    amplifier sources and sinks the quadrant current)."""
+    v = np.asarray(values, dtype=float)
+    v0, v1 = v[:-1], v[1:]
+    same = v0 * v1 >= 0.0
+    seg = np.where(same, np.abs(v1 * v1 - v0 * v0), v0 * v0 + v1 * v1)
+    return float(0.5 * capacitance * seg.sum())
+
+
+def grid_breakpoints(times: np.ndarray, values: np.ndarray, grid: float) -> tuple[np.ndarray, ...]:
+    """Breakpoints rounded to an integration grid [s] (grid units as floats), with exact
+    repeats dropped and at most two breakpoints per grid time (the first and the last
+    value there): the form the compiled integrators read."""
+    g = np.rint(np.asarray(times, dtype=float) / grid)
+    v = np.asarray(values, dtype=float)
+    keep = np.ones(g.size, dtype=bool)
+    keep[1:] = (g[1:] != g[:-1]) | (v[1:] != v[:-1])
+    g, v = g[keep], v[keep]
+    if g.size > 2:
+        inner = np.zeros(g.size, dtype=bool)
+        inner[1:-1] = (g[1:-1] == g[:-2]) & (g[1:-1] == g[2:])
+        g, v = g[~inner], v[~inner]
+    return g, v

@@ -457,6 +457,25 @@ class TurntableModel:
                 raise ValueError(f"drive[{axis!r}]={sig!r}: must be a DriveSignal or a Waveform")
         return out
 
+    def rest_state(self, channel_voltages: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Integrator state at the static equilibrium (R = I, every GMS element stuck and
+        unloaded, zero velocities) for the channel output voltages [V] (A, B, C, Z)."""
+        vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
+        x = self.static_equilibrium(vch)
+        ne = self._arrays["gnu"].size
+        return {
+            "pc_disp": x[:3].copy(),  # R = I: CoM displacement = centre displacement [m]
+            "vc": np.zeros(3),
+            "rot": np.eye(3),
+            "lam": np.zeros(3),
+            "xi": x[3:].reshape(3, 6).copy(),
+            "xid": np.zeros((3, 6)),
+            "gf": np.zeros((3, ne, 2)),
+            "gst": np.ones((3, ne), dtype=np.int64),
+            "vch": vch.copy(),
+            "acc": np.zeros(5),
+        }
+
     def run(
         self,
         drive: Mapping[str, DriveSignal | Waveform],
@@ -467,6 +486,7 @@ class TurntableModel:
         coarse_factor: float | None = None,
         output_dt: float = 1e-5,
         start: float = 0.0,
+        initial_state: Mapping[str, np.ndarray] | None = None,
     ) -> dict:
         """Integrate from rest (static equilibrium) for ``duration`` [s]; raw arrays.
 
@@ -481,6 +501,8 @@ class TurntableModel:
                 the amplifier is not slewing), the fine step otherwise.
             output_dt: sample interval of the records [s].
             start: initial time [s].
+            initial_state: resume from this state (the ``"final"`` entry of an earlier run,
+                copied, not modified) instead of the static equilibrium.
 
         Raises:
             SimulationError: a state became non-finite or diverged (names time and state).
@@ -513,23 +535,15 @@ class TurntableModel:
         amp = self.params.amplifier
         u0 = np.array([waves[a](t0)[()] if a in waves else 0.0 for a in AXES])
         vch = amp.gain * np.clip(u0, -amp.input_limit, amp.input_limit)
-        x = self.static_equilibrium(vch)
-        rot = np.eye(3)
-        pc = x[:3].copy()  # R = I: CoM displacement = centre displacement
-        xi = x[3:].reshape(3, 6).copy()
-        ne = ar["gnu"].size
-        state = {
-            "pc_disp": pc,
-            "vc": np.zeros(3),
-            "rot": rot,
-            "lam": np.zeros(3),
-            "xi": xi,
-            "xid": np.zeros((3, 6)),
-            "gf": np.zeros((3, ne, 2)),
-            "gst": np.ones((3, ne), dtype=np.int64),
-            "vch": vch,
-            "acc": np.zeros(5),
-        }
+        if initial_state is None:
+            state = self.rest_state(vch)
+        else:
+            ref = self.rest_state(vch)
+            state = {}
+            for k, v in ref.items():
+                if k not in initial_state or np.shape(initial_state[k]) != v.shape:
+                    raise ValueError(f"initial_state[{k!r}]: missing or not of shape {v.shape}")
+                state[k] = np.array(initial_state[k], dtype=v.dtype)
         n_out = math.floor(dur / odt + 1e-9) + 1
         t_out = t0 + odt * np.arange(n_out)
         rec_state = np.zeros((n_out, 14))

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import time as _time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -40,11 +40,12 @@ from .model import SimulationError, TurntableModel, _axis_index
 from .params import ParameterSet, get_parameter_set
 from .reduced_kernel import N_REC, run_reduced_batch
 from .response import SteppingMetrics
-from .validation import check_positive
+from .validation import check_finite, check_positive
 
 __all__ = [
     "AxisParameters",
     "AxisResponse",
+    "ReducedBatch",
     "ReducedModel",
     "simulate_batch",
     "simulate_reduced",
@@ -229,7 +230,9 @@ class ReducedModel:
         axis: "A", "B" or "C".
         step_scale: scales every step bound (grid, slip step, ringing step); halve it to
             check convergence.
-        model: a prebuilt :class:`TurntableModel` of ``params`` (saves the packing).
+        model: a prebuilt :class:`TurntableModel` (saves the packing); it may belong to another
+            parameter set with the same table and tubes (friction, preload and amplifier are
+            taken from ``params``: the condensation only needs the bodies).
     """
 
     def __init__(
@@ -242,10 +245,14 @@ class ReducedModel:
     ) -> None:
         ps = get_parameter_set(params) if isinstance(params, str) else params
         self.params = ps
+        if model is not None and (model.params.table != ps.table or model.params.tube != ps.tube):
+            raise ValueError("model: its table or tubes differ from those of params")
         self.full = model if model is not None else TurntableModel(ps)
         self.axis = axis
         self.step_scale = check_positive("step_scale", step_scale)
-        self.axis_params = AxisParameters.from_model(self.full, axis)
+        fn = ps.contact.preload  # type: ignore[union-attr]
+        condensed = AxisParameters.from_model(self.full, axis)
+        self.axis_params = replace(condensed, normal_force=(fn, fn))
         self._pack()
 
     # ------------------------------------------------------------------------------
@@ -391,15 +398,31 @@ class ReducedModel:
     def initial_state(self, channel_voltage: float = 0.0) -> dict[str, np.ndarray]:
         """Rest state at θ = 0: the tubes bent freely by the channel voltage [V] (u_k = g_k V)
         and the GMS elements unloaded, as the full model's static equilibrium starts."""
-        ne = self._arrays["kk"].size
+        return self.rest_state(0.0, channel_voltage)
+
+    def rest_state(self, angle: float, channel_voltage: float = 0.0) -> dict[str, np.ndarray]:
+        """Static equilibrium at table angle θ [rad] with every GMS element stuck.
+
+        The contacts hold the pendulum torque k_gθ (ΣρF_k = k_gθ, F_k ∝ ρ_k), shared by the
+        elements in proportion to k_i; each tube is bent by its free deflection g_kV less
+        F_k/K_k. Raises ValueError if an element would have to exceed its capacity ν_iμ_sF_N.
+        """
+        th = check_finite("angle", angle)
+        v = check_finite("channel_voltage", channel_voltage)
+        ap = self.axis_params
+        kk = self._arrays["kk"]
+        nu = self._arrays["nu"]
+        rho = np.asarray(ap.lever)
+        force = ap.gravity_stiffness * th * rho / float(rho @ rho)  # N on the table
+        f = np.outer(force, kk / kk.sum())
+        mu_s = self.params.friction.stribeck.mu_s  # type: ignore[union-attr]
+        cap = nu[None, :] * mu_s * np.asarray(ap.normal_force)[:, None]  # N
+        if (np.abs(f) >= cap).any():
+            raise ValueError(f"angle={angle!r}: friction cannot hold the table there")
         y = np.zeros(6)
-        y[2:6:2] = np.asarray(self.axis_params.tube_gain) * channel_voltage
-        return {
-            "y": y,
-            "volt": np.array(channel_voltage),
-            "f": np.zeros((2, ne)),
-            "st": np.ones((2, ne), dtype=np.int64),
-        }
+        y[0] = th
+        y[2:6:2] = np.asarray(ap.tube_gain) * v - force / np.asarray(ap.tube_stiffness)
+        return {"y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64)}
 
 
 def _waveform_arrays(
@@ -415,6 +438,112 @@ def _waveform_arrays(
         wv[b, : w.times.size] = w.values
         wn[b] = w.times.size
     return wg, wv, wn
+
+
+_STACKED = (
+    "mech", "gms", "nu", "kk", "amp", "ctl", "lvl", "nlvl", "phi_small", "gam_small",
+    "phi_big", "gam_big", "qs", "modal_w", "modal_c", "modal_om", "modal_om_max",
+)  # fmt: skip
+
+
+class ReducedBatch:
+    """N reduced turntables and their states, advanced together by one compiled call and
+    resumable (the integrator state persists between :meth:`advance` calls).
+
+    Args:
+        models: one :class:`ReducedModel` per turntable (same grid and GMS element count).
+
+    Attributes:
+        y: (N, 6) θ [rad], θ̇ [rad/s], u1 [m], u̇1 [m/s], u2 [m], u̇2 [m/s].
+        volt: (N,) amplifier output [V]. f: (N, 2, n_e) element forces [N].
+        st: (N, 2, n_e) 1 stick / 0 slip. n: (N,) grid time (units of :attr:`grid`).
+        counters: (N, 3) accepted steps, rejected steps, status of the last call.
+    """
+
+    def __init__(self, models: Sequence[ReducedModel]) -> None:
+        if not models:
+            raise ValueError("models: need at least one model")
+        self.grid = models[0].grid
+        ne = models[0]._arrays["kk"].size
+        for i, m in enumerate(models):
+            if m.grid != self.grid or m._arrays["kk"].size != ne:
+                raise ValueError(f"models[{i}]: grid or GMS element count differs from models[0]")
+        self.models = list(models)
+        nb = len(models)
+        self._arr: dict[str, np.ndarray] = {}
+        for name in _STACKED:
+            arrs = [m._arrays[name] for m in models]
+            shape = np.max([a.shape for a in arrs], axis=0)
+            self._arr[name] = np.zeros((nb, *shape), dtype=arrs[0].dtype)
+            for b, a in enumerate(arrs):
+                self._arr[name][(b, *tuple(slice(0, s) for s in a.shape))] = a
+        self.ring_frac = models[0]._arrays["ring_frac"]
+        self.y = np.zeros((nb, 6))
+        self.volt = np.zeros(nb)
+        self.f = np.zeros((nb, 2, ne))
+        self.st = np.ones((nb, 2, ne), dtype=np.int64)
+        self.n = np.zeros(nb, dtype=np.int64)
+        self.counters = np.zeros((nb, 3), dtype=np.int64)
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    def set_model(self, b: int, model: ReducedModel) -> None:
+        """Replace turntable b's model (e.g. domain randomisation); arrays must fit."""
+        if model.grid != self.grid or model.step_scale != self.models[0].step_scale:
+            raise ValueError("model: grid differs from the batch's")
+        for name in _STACKED:
+            a = np.asarray(model._arrays[name])
+            shape = self._arr[name].shape[1:]
+            if a.ndim != len(shape) or any(s > d for s, d in zip(a.shape, shape, strict=True)):
+                raise ValueError(f"model: array {name!r} {a.shape} does not fit {shape}")
+            row = np.zeros(shape, dtype=self._arr[name].dtype)
+            row[tuple(slice(0, s) for s in a.shape)] = a
+            self._arr[name][b] = row
+        self.models[b] = model
+
+    def set_state(self, b: int, state: dict[str, np.ndarray], time: float = 0.0) -> None:
+        """Set turntable b's state (from :meth:`ReducedModel.rest_state`) at ``time`` [s]."""
+        self.y[b] = state["y"]
+        self.volt[b] = float(state["volt"])
+        self.f[b] = state["f"]
+        self.st[b] = state["st"]
+        self.n[b] = round(time / self.grid)
+
+    def advance(
+        self,
+        wg: np.ndarray,
+        wv: np.ndarray,
+        wn: np.ndarray,
+        n_end: np.ndarray,
+        out_every: np.ndarray,
+        rec: np.ndarray,
+        n_rec: np.ndarray,
+    ) -> None:
+        """Integrate every turntable to grid time n_end[b] under its input breakpoints
+        (wg grid units, wv [V], wn counts), recording into rec (see
+        :func:`~turntable_env.reduced_kernel.run_reduced_batch`).
+
+        Raises:
+            SimulationError: a state became non-finite (names the state, turntable and time).
+        """
+        a = self._arr
+        self.counters[:, 2] = 0
+        run_reduced_batch(
+            self.y, self.volt, self.f, self.st, self.n,
+            a["mech"], a["gms"], a["nu"], a["kk"], a["amp"], a["ctl"], a["lvl"], a["nlvl"],
+            a["phi_small"], a["gam_small"], a["phi_big"], a["gam_big"], a["qs"], a["modal_w"],
+            a["modal_c"], a["modal_om"], a["modal_om_max"], self.ring_frac,
+            wg, wv, wn, n_end, out_every, self.grid, rec, n_rec, self.counters,
+        )  # fmt: skip
+        bad_b = np.nonzero(self.counters[:, 2] != 0)[0]
+        if bad_b.size:
+            b = int(bad_b[0])
+            bad = [i for i in range(6) if not np.isfinite(self.y[b, i])]
+            name = _STATE_NAMES[bad[0]] if bad else "amplifier voltage"
+            raise SimulationError(
+                "non-finite", float(self.n[b] * self.grid), f"reduced model {name} (turntable {b})"
+            )
 
 
 def simulate_batch(
@@ -442,60 +571,31 @@ def simulate_batch(
         )
     dur = check_positive("duration", duration)
     check_positive("output_dt", output_dt)
-    h = models[0].grid
-    ne = models[0]._arrays["kk"].size
-    for i, m in enumerate(models):
-        if m.grid != h or m._arrays["kk"].size != ne:
-            raise ValueError(f"models[{i}]: grid or GMS element count differs from models[0]")
+    batch = ReducedBatch(models)
+    h = batch.grid
     nb = len(models)
     waves = []
-    u0 = np.empty(nb)
     for b, (m, d) in enumerate(zip(models, drives, strict=True)):
         w = m.full.drive_waveforms({m.axis: d})[m.axis]
         waves.append(w)
         amp = m.params.amplifier
-        u0[b] = np.clip(w(0.0)[()], -amp.input_limit, amp.input_limit) * amp.gain
+        u0 = np.clip(w(0.0)[()], -amp.input_limit, amp.input_limit) * amp.gain
+        batch.set_state(b, m.initial_state(u0))
     wg, wv, wn = _waveform_arrays(waves, h)
     out_every = max(round(output_dt / h), 1)
     n_end = round(dur / h)
     n_out = n_end // out_every + 1
-
-    def stack(name: str) -> np.ndarray:
-        arrs = [m._arrays[name] for m in models]
-        shape = np.max([a.shape for a in arrs], axis=0)
-        out = np.zeros((nb, *shape), dtype=arrs[0].dtype)
-        for b, a in enumerate(arrs):
-            out[(b, *tuple(slice(0, s) for s in a.shape))] = a
-        return out
-
-    states = [m.initial_state(u0[b]) for b, m in enumerate(models)]
-    y = np.stack([s["y"] for s in states])
-    volt = np.array([float(s["volt"]) for s in states])
-    f = np.stack([s["f"] for s in states])
-    st = np.stack([s["st"] for s in states])
     rec = np.zeros((nb, n_out, N_REC))
     n_rec = np.zeros(nb, dtype=np.int64)
-    counters = np.zeros((nb, 3), dtype=np.int64)
     wall0 = _time.perf_counter()
-    n_now = np.zeros(nb, dtype=np.int64)
-    run_reduced_batch(
-        y, volt, f, st, n_now,
-        stack("mech"), stack("gms"), stack("nu"), stack("kk"), stack("amp"), stack("ctl"),
-        stack("lvl"), stack("nlvl"), stack("phi_small"), stack("gam_small"), stack("phi_big"),
-        stack("gam_big"), stack("qs"), stack("modal_w"), stack("modal_c"), stack("modal_om"),
-        stack("modal_om_max"), models[0]._arrays["ring_frac"],
-        wg, wv, wn, np.full(nb, n_end, dtype=np.int64),
-        np.full(nb, out_every, dtype=np.int64), h, rec, n_rec, counters,
+    batch.advance(
+        wg, wv, wn, np.full(nb, n_end, dtype=np.int64), np.full(nb, out_every, dtype=np.int64),
+        rec, n_rec,
     )  # fmt: skip
     wall = _time.perf_counter() - wall0
+    counters = batch.counters
     out = []
     for b, (m, d) in enumerate(zip(models, drives, strict=True)):
-        if counters[b, 2] != 0:
-            bad = [i for i in range(6) if not np.isfinite(y[b, i])]
-            name = _STATE_NAMES[bad[0]] if bad else "amplifier voltage"
-            raise SimulationError(
-                "non-finite", float(n_now[b] * h), f"reduced model {name} (turntable {b})"
-            )
         r = rec[b, : n_rec[b]]
         if isinstance(d, DriveSignal):
             starts = d.start + np.arange(d.total_periods + 1) / d.frequency

@@ -1,0 +1,345 @@
+"""PiezoTurntable-v0: Gymnasium contract, determinism, vectorisation and the task's physics."""
+
+from __future__ import annotations
+
+import importlib
+import pickle
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import turntable_env
+from turntable_env.drive import capacitive_energy
+from turntable_env.envs import (
+    DEFAULT_RANDOMIZATION,
+    ActionScaling,
+    PiezoTurntableEnv,
+    PiezoTurntableVectorEnv,
+)
+
+ENV_ID = "PiezoTurntable-v0"
+# Warnings the checkers may raise for this env, each with its reason. None today.
+EXPECTED_CHECKER_WARNINGS: tuple[str, ...] = ()
+SCALE = ActionScaling()
+HOME = {"start_angle": 0.0, "target_angle": 0.0}
+
+
+def _quiet_env(**kw) -> PiezoTurntableEnv:
+    return gym.make(ENV_ID, noise=False, **kw).unwrapped
+
+
+def _run(env, actions, seed=0, options=None):
+    obs, _ = env.reset(seed=seed, options=options)
+    out = [obs]
+    rewards = []
+    for a in actions:
+        obs, r, *_ = env.step(a)
+        out.append(obs)
+        rewards.append(r)
+    return np.array(out), np.array(rewards)
+
+
+# --- registration ---------------------------------------------------------------------------
+def test_registration_guarded_and_time_limit():
+    importlib.reload(turntable_env)  # a second registration must be a no-op
+    spec = gym.spec(ENV_ID)
+    assert spec.max_episode_steps == turntable_env.MAX_EPISODE_STEPS
+    assert spec.vector_entry_point == "turntable_env.envs:PiezoTurntableVectorEnv"
+
+
+def test_make_with_module_prefix_without_import():
+    code = (
+        "import gymnasium as gym; env = gym.make('turntable_env:PiezoTurntable-v0'); "
+        "print(type(env.unwrapped).__name__, env.spec.max_episode_steps)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["PiezoTurntableEnv", str(turntable_env.MAX_EPISODE_STEPS)]
+
+
+# --- checkers ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("render_mode", [None, "rgb_array"])
+def test_gymnasium_check_env(render_mode):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(ENV_ID, render_mode=render_mode).unwrapped
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env, skip_render_check=render_mode is None)
+    assert tuple(str(w.message) for w in caught) == EXPECTED_CHECKER_WARNINGS
+
+
+def test_sb3_check_env():
+    from stable_baselines3.common.env_checker import check_env
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(gym.make(ENV_ID), warn=True)
+    assert tuple(str(w.message) for w in caught) == EXPECTED_CHECKER_WARNINGS
+
+
+# --- determinism, pickle, validation -------------------------------------------------------------
+def test_same_seed_same_sequences_with_noise_and_randomisation():
+    rng = np.random.default_rng(3)
+    actions = rng.uniform(-1, 1, size=(15, 5)).astype(np.float32)
+    runs = [_run(gym.make(ENV_ID, randomize=True), actions, seed=11) for _ in range(2)]
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    other = _run(gym.make(ENV_ID, randomize=True), actions, seed=12)
+    assert not np.array_equal(runs[0][0], other[0])
+
+
+def test_pickle_round_trip_continues_identically():
+    env = gym.make(ENV_ID)
+    env.reset(seed=5)
+    a = np.array([0.3, 0.2, 0.9, 0.5, 0.1], dtype=np.float32)
+    env.step(a)
+    clone = pickle.loads(pickle.dumps(env))
+    for _ in range(3):
+        o1, r1, *_ = env.step(a)
+        o2, r2, *_ = clone.step(a)
+        np.testing.assert_array_equal(o1, o2)
+        assert r1 == r2
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_action_raises_naming_action(bad):
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    a = np.zeros(5, dtype=np.float32)
+    a[2] = bad
+    with pytest.raises(ValueError, match="action"):
+        env.step(a)
+
+
+def test_out_of_range_action_is_clipped():
+    big = np.array([3.0, -7.0, 2.0, 1.5, -4.0], dtype=np.float32)
+    obs_big, r_big = _run(_quiet_env(), [big] * 3, options=HOME)
+    obs_clip, r_clip = _run(_quiet_env(), [np.clip(big, -1, 1)] * 3, options=HOME)
+    np.testing.assert_array_equal(obs_big, obs_clip)
+    np.testing.assert_array_equal(r_big, r_clip)
+    np.testing.assert_array_equal(obs_big[-1, 3:], np.clip(big, -1, 1))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"axis": "Z"}, "axis"),
+        ({"fidelity": "exact"}, "fidelity"),
+        ({"params": "lab"}, "params"),
+        ({"control_interval": 1e-8}, "control_interval"),
+        ({"tolerance": -1.0}, "tolerance"),
+        ({"randomize": {"gravity": (0.9, 1.1)}}, "randomize"),
+        ({"params": "thesis", "randomize": True}, "randomize"),
+        ({"render_mode": "human"}, "render_mode"),
+    ],
+)
+def test_bad_kwargs_raise_naming_field(kwargs, field):
+    with pytest.raises(ValueError, match=field):
+        PiezoTurntableEnv(**kwargs)
+
+
+def test_reset_options_validated():
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match="target_angle"):
+        env.reset(options={"target_angle": 1.0})  # beyond the detector's range
+    with pytest.raises(ValueError, match="options"):
+        env.reset(options={"speed": 1.0})
+
+
+def test_fuzz_random_actions_stay_in_spaces():
+    """10⁴ random (partly out-of-range) actions over many seeds: no exception, finite rewards,
+    observations inside the observation space."""
+    env = gym.make(ENV_ID, randomize=True)
+    rng = np.random.default_rng(0)
+    n_steps, seed = 0, 0
+    while n_steps < 10_000:
+        obs, _ = env.reset(seed=seed)
+        assert env.observation_space.contains(obs)
+        seed += 1
+        for _ in range(int(rng.integers(20, 200))):
+            a = rng.uniform(-1.5, 1.5, size=5).astype(np.float32)
+            obs, r, term, trunc, info = env.step(a)
+            n_steps += 1
+            assert env.observation_space.contains(obs), obs
+            assert np.isfinite(r)
+            assert r == pytest.approx(info["reward_distance"] + info["reward_energy"])
+            if term or trunc:
+                break
+    assert seed > 50
+
+
+# --- vectorisation -----------------------------------------------------------------------------
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_make_vec_modes(mode):
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode)
+    obs, _ = envs.reset(seed=1)
+    assert obs.shape == (2, 8)
+    obs, r, term, trunc, _ = envs.step(envs.action_space.sample())
+    assert envs.observation_space.contains(obs) and np.isfinite(r).all()
+    envs.close()
+
+
+@pytest.mark.parametrize("vec_cls", ["DummyVecEnv", "SubprocVecEnv"])
+def test_sb3_make_vec_env(vec_cls):
+    from stable_baselines3.common import vec_env
+    from stable_baselines3.common.env_util import make_vec_env
+
+    # worker processes start fresh: the module prefix imports (and registers) the package
+    envs = make_vec_env(
+        f"turntable_env:{ENV_ID}", n_envs=2, seed=0, vec_env_cls=getattr(vec_env, vec_cls)
+    )
+    obs = envs.reset()
+    assert obs.shape == (2, 8)
+    obs, r, done, infos = envs.step(np.zeros((2, 5), dtype=np.float32))
+    assert np.isfinite(r).all() and "reward_energy" in infos[0]
+    envs.close()
+
+
+def test_native_vector_env_matches_single_envs():
+    """The batched env integrates each turntable exactly as the single env does."""
+    n = 4
+    vec = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", noise=False)
+    assert isinstance(vec, PiezoTurntableVectorEnv)
+    starts = np.linspace(-2e-4, 2e-4, n)
+    vec.reset(seed=0)
+    for b in range(n):
+        vec.task.reset_row(b, vec.np_random, {"start_angle": starts[b], "target_angle": 0.0})
+    rng = np.random.default_rng(7)
+    acts = rng.uniform(-1, 1, size=(6, n, 5)).astype(np.float32)
+    vec_obs = [vec.step(a)[0] for a in acts]
+    for b in range(n):
+        env = _quiet_env()
+        env.reset(seed=0, options={"start_angle": starts[b], "target_angle": 0.0})
+        for i in range(len(acts)):
+            np.testing.assert_array_equal(env.step(acts[i, b])[0], vec_obs[i][b])
+
+
+def test_native_vector_env_time_limit_and_autoreset():
+    vec = PiezoTurntableVectorEnv(num_envs=3, max_episode_steps=2, noise=False)
+    vec.reset(seed=0)
+    zero = np.zeros((3, 5), dtype=np.float32)
+    _, _, _, trunc1, _ = vec.step(zero)
+    _, _, _, trunc2, _ = vec.step(zero)
+    assert not trunc1.any() and trunc2.all()
+    obs, r, term, trunc, _ = vec.step(zero)  # NEXT_STEP autoreset: fresh episodes
+    assert (r == 0).all() and not term.any() and not trunc.any()
+    assert (vec.task.step_index == 0).all()
+    np.testing.assert_array_equal(obs[:, 1], vec.task.target.astype(np.float32))
+
+
+# --- the task's physics and reward ---------------------------------------------------------------
+def test_scan_mode_bends_tubes_without_slip():
+    """Amplitude 0 with a scan level u_0: the table follows the tubes, θ = G·g·u_0/ρ
+    (g the free contact displacement per channel volt), and every element sticks."""
+    env = _quiet_env()
+    env.reset(seed=0, options=HOME)
+    u0 = 3.0  # V input
+    for _ in range(3):
+        *_, info = env.step(SCALE.encode(0.0, 100.0, 0.9, 0.0, u0))
+    task = env.task
+    ap = task.backend.model(0).axis_params
+    expected = task.nominal.amplifier.gain * ap.tube_gain[0] * u0 / ap.lever[0]
+    assert info["angle_rad"] == pytest.approx(expected, rel=0.01)
+    np.testing.assert_array_equal(task.backend.snapshot(0)["stick_fraction"], [1.0, 1.0])
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_amplitude_sign_sets_direction_and_steps_repeat(sign):
+    env = _quiet_env()
+    env.reset(seed=0, options=HOME)
+    angles = []
+    for _ in range(4):  # 100 Hz: one slew-adapted period per 10 ms interval
+        *_, info = env.step(SCALE.encode(sign * 2.0, 100.0, 0.95, 1.0))
+        angles.append(info["angle_rad"])
+    steps = np.diff(angles)
+    assert (np.sign(steps) == sign).all()
+    assert steps.std() < 0.05 * abs(steps.mean())  # periodic: equal steps
+
+
+def test_energy_cost_is_capacitive_per_period():
+    """Plain sawtooth 0 → V → 0 costs C·V² per period; slew adaptation k = 1 doubles it."""
+    env = _quiet_env()
+    env.reset(seed=0, options=HOME)
+    task = env.task
+    v_out = task.nominal.amplifier.gain * 2.0
+    for k, factor in ((0.0, 1.0), (1.0, 2.0)):
+        env.step(SCALE.encode(2.0, 200.0, 0.9, k))  # latch the setting
+        *_, info = env.step(SCALE.encode(2.0, 200.0, 0.9, k))  # two whole periods
+        assert info["energy_J"] == pytest.approx(2 * factor * task.c_load * v_out**2, rel=1e-6)
+        assert info["reward_energy"] == pytest.approx(
+            -0.01 * info["energy_J"] / task.e_ref, rel=1e-12
+        )
+    assert capacitive_energy(np.array([0.0, 5.0, -5.0, 0.0]), 2.0) == pytest.approx(100.0)
+
+
+def test_terminates_inside_tolerance():
+    env = gym.make(ENV_ID, noise=False)
+    env.reset(seed=0, options={"start_angle": 1e-4, "target_angle": 1e-4 + 0.5e-6})
+    _, r, term, trunc, info = env.step(np.zeros(5, dtype=np.float32))
+    assert term and not trunc and info["is_success"]
+    assert r == pytest.approx(-info["distance_rad"] / env.unwrapped.task.angle_range)
+
+
+def test_detector_saturates_at_linear_range():
+    env = gym.make(ENV_ID, noise=False)
+    lim = env.unwrapped.task.angle_range
+    obs, _ = env.reset(seed=0, options={"start_angle": 1.5 * lim, "target_angle": 0.0})
+    assert obs[0] == np.float32(lim) == env.observation_space.high[0]
+    obs, _ = env.reset(seed=0, options={"start_angle": 0.5 * lim, "target_angle": 0.0})
+    assert obs[0] == pytest.approx(0.5 * lim, rel=1e-6)
+
+
+def test_sensor_noise_level():
+    env = gym.make(ENV_ID, sensor_noise=1e-3)
+    det = env.unwrapped.task.detector
+    readings = []
+    for s in range(300):
+        obs, info = env.reset(seed=s, options={"start_angle": 0.0, "target_angle": 0.0})
+        readings.append(info["detector_V"])
+    assert np.std(readings) == pytest.approx(1e-3, rel=0.15)
+    assert det.saturation_voltage > 1e-3
+
+
+def test_randomisation_within_documented_ranges():
+    env = gym.make(ENV_ID, randomize=True)
+    fn0 = env.unwrapped.task.nominal.contact.preload
+    for s in range(5):
+        _, info = env.reset(seed=s)
+        f = info["parameter_factors"]
+        assert set(f) == set(DEFAULT_RANDOMIZATION)
+        for key, (lo, hi) in DEFAULT_RANDOMIZATION.items():
+            assert lo <= f[key] <= hi
+        ps = env.unwrapped.task.params[0]
+        assert ps.contact.preload == pytest.approx(fn0 * f["preload"])
+        assert env.unwrapped.task.backend.model(0).axis_params.normal_force[0] == pytest.approx(
+            fn0 * f["preload"]
+        )
+
+
+def test_full_fidelity_scan_agrees_with_reduced():
+    """The 3-D model under the same scan action: same angle within 5 %."""
+    angles = {}
+    for fid in ("reduced", "full"):
+        env = _quiet_env(fidelity=fid)
+        env.reset(seed=0, options=HOME)
+        *_, info = env.step(SCALE.encode(0.0, 100.0, 0.9, 0.0, 2.0))
+        angles[fid] = info["angle_rad"]
+    assert angles["full"] == pytest.approx(angles["reduced"], rel=0.05)
+
+
+def test_render_fps_and_detector_spot():
+    env = gym.make(ENV_ID, render_mode="rgb_array", noise=False, control_interval=0.005)
+    assert env.metadata["render_fps"] == pytest.approx(200.0)
+    xs = []
+    for start in (-3e-4, 0.0, 3e-4):
+        env.reset(seed=0, options={"start_angle": start, "target_angle": 0.0})
+        img = env.render()
+        assert img.shape == (320, 640, 3) and img.dtype == np.uint8
+        right = img[:, 400:]
+        red = (right[..., 0] > 200) & (right[..., 1] < 60) & (right[..., 2] < 60)
+        xs.append(np.nonzero(red)[1].mean())
+    assert xs[0] < xs[1] < xs[2]  # the spot moves with the angle

@@ -1,0 +1,215 @@
+"""``PiezoTurntable-v0``: position the stick–slip turntable at a target angle."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, Literal
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ..params import ParameterSet
+from .config import ACTION_NAMES, OBSERVATION_NAMES, EnvConfig
+from .core import TurntableTask
+
+__all__ = ["PiezoTurntableEnv", "action_space", "observation_space"]
+
+
+def action_space() -> spaces.Box:
+    """Box(-1, 1, (5,), float32): see :class:`~turntable_env.envs.config.ActionScaling`."""
+    return spaces.Box(-1.0, 1.0, shape=(len(ACTION_NAMES),), dtype=np.float32)
+
+
+def observation_space(task: TurntableTask) -> spaces.Box:
+    """Box of (measured angle, target, phase, last action) with the detector's bounds."""
+    lim = task.angle_range
+    low = np.array([-lim, -lim, 0.0, -1, -1, -1, -1, -1], dtype=np.float32)
+    high = np.array([lim, lim, 1.0, 1, 1, 1, 1, 1], dtype=np.float32)
+    return spaces.Box(low, high, dtype=np.float32)
+
+
+class PiezoTurntableEnv(gym.Env):
+    """
+    ## Description
+
+    The piezoelectric stick–slip turntable of Schepers' thesis (U. Twente): a steel half
+    sphere rests on three orthogonal piezo tubes and turns by inertial stick–slip steps
+    (slow bend: the table sticks and follows; fast flyback: it slips and stays). The
+    task is to turn the table about one axis (default B) from a start angle to a target
+    angle, reading only what the laser/quadrant-photodiode detector reports, and to do
+    it with little electrical energy. The physics is the reduced per-axis model derived
+    from the 3-D model (:mod:`turntable_env.reduced`; ``fidelity="full"`` runs the 3-D
+    model itself) with the real turntable's parameters (Table D.1).
+
+    Each step is one **fixed control interval** Δt (``control_interval``, 10 ms: one
+    period of the real turntable's 100 Hz nominal drive, §4.1.3). A fixed interval keeps
+    time uniform for the controller (rewards per unit time, a time limit in seconds, a
+    detector sampled at a constant rate, ``render_fps`` = 1/Δt) while the frequency
+    sets how many stick–slip periods fall in it (0.1 at 10 Hz, 20 at 2 kHz). The
+    waveform generator is free-running and phase continuous: a new setting takes over
+    at the next period start, where every waveform is zero, so a change of action never
+    makes the input jump (an idle generator starts at once); periods longer than Δt
+    run on over several steps (the phase is observed).
+
+    ## Action Space
+
+    ``Box(-1, 1, (5,), float32)``; finite values outside [-1, 1] are clipped, NaN or
+    infinite values raise ValueError.
+
+    | index | name            | physical value                                                 |
+    |-------|-----------------|----------------------------------------------------------------|
+    | 0     | amplitude       | input amplitude u_A = a·10 V (amplifier ±10 V input, gain 45); |
+    |       |                 | sign = direction, 0 = generator idle                           |
+    | 1     | frequency       | f = 10 Hz·200^((a+1)/2), 10 Hz … 2 kHz (log scale)             |
+    | 2     | ramp_ratio      | a = 0.5 … 0.99, the position of the sawtooth maximum (Fig 3.14)|
+    | 3     | slew_adaptation | a ≤ 0: plain sawtooth, flyback ramp over (1 − a)/f;            |
+    |       |                 | a > 0: slew-adapted step flyback with overshoot k = a (Fig 4.3)|
+    | 4     | scan_offset     | scan level u_0 = a·10 V the sawtooth sits on, ramped linearly  |
+    |       |                 | over the interval: the tubes bend, the table sticks and        |
+    |       |                 | follows (sub-step "scan" positioning, ±~150 µrad)              |
+
+    The amplifier clips u_0 + sawtooth to its ±10 V input. Scan and stepping combine:
+    amplitude 0 with a scan offset bends the tubes without slipping.
+
+    ## Observation Space
+
+    ``Box(low, high, (8,), float32)``:
+
+    | index | name               | unit | bounds                                         |
+    |-------|--------------------|------|------------------------------------------------|
+    | 0     | measured_angle_rad | rad  | ±θ_lin = ±½·arctan(0.2 mm/L) = ±5.71e-4 (real) |
+    | 1     | target_angle_rad   | rad  | ±θ_lin                                         |
+    | 2     | generator_phase    | -    | [0, 1]: position in the running period         |
+    | 3–7   | last_<action>      | -    | [-1, 1]: the last action, clipped              |
+
+    The measured angle is Eq. 4.1 applied to the detector voltage with Gaussian noise
+    (``sensor_noise``, 1 mV ≈ 0.28 µrad) and saturation at the ±0.2 mm linear range:
+    beyond ±θ_lin the reading sticks at the edge.
+
+    ## Rewards
+
+    r = −|θ* − θ|/θ_lin − w·E/E_ref, with θ the true angle at the end of the interval,
+    E = C∫|V dV| the energy the amplifier moved through the channel's quadrants
+    (capacitance C) during the interval and E_ref = C·(45·10 V)² the energy of one
+    full-amplitude period; w = ``energy_weight`` = 0.01. ``info`` holds
+    ``reward_distance``, ``reward_energy``, ``distance_rad``, ``energy_J``,
+    ``angle_rad`` (true), ``target_rad``, ``detector_V``, ``is_success``,
+    ``out_of_workspace`` and ``time_s``.
+
+    ## Starting State
+
+    The table at rest (every friction element stuck, holding the small pendulum torque)
+    at a start angle drawn uniformly in ±0.8·θ_lin, target uniformly in ±0.8·θ_lin, the
+    generator idle, tubes unbent. ``reset(options={"start_angle": ..., "target_angle":
+    ...})`` sets them [rad] (start within ±``angle_limit``, target within ±θ_lin). With
+    ``randomize``, the friction coefficients, preload, amplifier slew and sensor noise
+    are redrawn each episode (ranges: :data:`~turntable_env.envs.config.DEFAULT_RANDOMIZATION`).
+
+    ## Episode End
+
+    * Termination: |θ* − θ| ≤ ``tolerance`` (1 µrad = 10 nm at the 10 mm table radius)
+      at the end of an interval (``info["is_success"]``).
+    * Truncation: |θ| > ``angle_limit`` (0.05 rad; the model's small-angle workspace),
+      or the registration's time limit, ``max_episode_steps=200`` (2 s).
+
+    ## Arguments
+
+    ```python
+    import gymnasium as gym
+    env = gym.make("PiezoTurntable-v0", params="real", fidelity="reduced", axis="B",
+                   control_interval=0.01, randomize=False, noise=True, sensor_noise=1e-3,
+                   tolerance=1e-6, energy_weight=0.01, render_mode="rgb_array")
+    envs = gym.make_vec("PiezoTurntable-v0", num_envs=64,
+                        vectorization_mode="vector_entry_point")  # one compiled call
+    ```
+
+    See :class:`~turntable_env.envs.config.EnvConfig` for every argument.
+
+    ## Version History
+
+    * v0: initial version (reduced per-axis model, real parameters).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
+
+    def __init__(
+        self,
+        params: str | ParameterSet = "real",
+        fidelity: Literal["reduced", "full"] = "reduced",
+        axis: str = "B",
+        control_interval: float = 0.01,
+        randomize: bool | dict[str, tuple[float, float]] = False,
+        noise: bool = True,
+        sensor_noise: float = 1e-3,
+        tolerance: float = 1e-6,
+        energy_weight: float = 0.01,
+        start_range: float = 0.8,
+        target_range: float = 0.8,
+        angle_limit: float = 0.05,
+        render_mode: str | None = None,
+    ) -> None:
+        self.config = EnvConfig(
+            params=params, fidelity=fidelity, axis=axis, control_interval=control_interval,
+            randomize=randomize, noise=noise, sensor_noise=sensor_noise, tolerance=tolerance,
+            energy_weight=energy_weight, start_range=start_range, target_range=target_range,
+            angle_limit=angle_limit,
+        )  # fmt: skip
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r}: must be None or 'rgb_array'")
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": 1.0 / control_interval}
+        self.task = TurntableTask(self.config, 1)
+        self.action_space = action_space()
+        self.observation_space = observation_space(self.task)
+        self._renderer: Any = None
+
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        return OBSERVATION_NAMES
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self.task.reset_row(0, self.np_random, options)
+        t = self.task
+        info = {
+            "angle_rad": float(t.angle[0]),
+            "target_rad": float(t.target[0]),
+            "detector_V": float(t.detector_v[0]),
+            "parameter_factors": dict(t.factors[0]),
+        }
+        return t.observation()[0], info
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (5,):
+            raise ValueError(f"action={action!r}: shape {a.shape}, expected (5,)")
+        res = self.task.step(a[None, :], self.np_random)
+        info = {k: v[0].item() for k, v in res.info.items()}
+        return (
+            res.obs[0],
+            float(res.reward[0]),
+            bool(res.terminated[0]),
+            bool(res.truncated[0]),
+            info,
+        )
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            from .render import TurntableRenderer
+
+            self._renderer = TurntableRenderer(self.task)
+        return self._renderer.draw(0)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_renderer"] = None  # matplotlib figures are rebuilt on demand
+        return state
