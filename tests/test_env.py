@@ -178,7 +178,7 @@ def test_make_vec_modes(mode):
     envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode)
     obs, _ = envs.reset(seed=1)
     assert obs.shape == (2, 8)
-    obs, r, term, trunc, _ = envs.step(envs.action_space.sample())
+    obs, r, _term, _trunc, _ = envs.step(envs.action_space.sample())
     assert envs.observation_space.contains(obs) and np.isfinite(r).all()
     envs.close()
 
@@ -194,7 +194,7 @@ def test_sb3_make_vec_env(vec_cls):
     )
     obs = envs.reset()
     assert obs.shape == (2, 8)
-    obs, r, done, infos = envs.step(np.zeros((2, 5), dtype=np.float32))
+    obs, r, _done, infos = envs.step(np.zeros((2, 5), dtype=np.float32))
     assert np.isfinite(r).all() and "reward_energy" in infos[0]
     envs.close()
 
@@ -298,7 +298,7 @@ def test_sensor_noise_level():
     det = env.unwrapped.task.detector
     readings = []
     for s in range(300):
-        obs, info = env.reset(seed=s, options={"start_angle": 0.0, "target_angle": 0.0})
+        _obs, info = env.reset(seed=s, options={"start_angle": 0.0, "target_angle": 0.0})
         readings.append(info["detector_V"])
     assert np.std(readings) == pytest.approx(1e-3, rel=0.15)
     assert det.saturation_voltage > 1e-3
