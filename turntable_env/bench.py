@@ -14,7 +14,10 @@ implementation of the reduced model — it measures, in one process:
   compared with the reduced model's converged reference over its own window);
 * peak traced memory (``tracemalloc``: NumPy and Python allocations) in a separate call
   (full model: the reference window; SciPy: its first 1 ms);
-* the JIT compile (or cache-load) time of the compiled kernels, separately.
+* the JIT compile (or cache-load) time of the compiled kernels, separately;
+* environment throughput (:func:`env_throughput`): ``PiezoTurntable-v0`` steps per second
+  at the default 10 ms control interval, single env and native vector env (N = 64),
+  reduced model, for uniformly random actions and for the nominal drive.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from .baseline import simulate_scipy
 from .reduced import ReducedModel, simulate_batch
 from .simulation import simulate, stepping_drive
 
-__all__ = ["STANDARD", "converge", "run_bench"]
+__all__ = ["STANDARD", "converge", "env_throughput", "run_bench"]
 
 STANDARD = {"amplitude": 2.0, "frequency": 100.0, "a": 0.95, "amplifier": "adapted"}
 REF_PERIODS = 10  # periods over which step errors are measured
@@ -160,7 +163,67 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     for key in ("full", "reduced", "batched"):
         rtf = out["batched_rtf_aggregate"] if key == "batched" else out[f"{key}_rtf"]
         out[f"{key}_vs_scipy"] = rtf / out["scipy_rtf"]
+    out.update(env_throughput(num_envs=batch))
     return out
+
+
+def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> dict[str, Any]:
+    """Env steps per second of ``PiezoTurntable-v0`` (default kwargs, reduced model).
+
+    Two action streams: ``random`` — uniform in the action Box (seeded; frequencies are
+    log-uniform 10 Hz–2 kHz, 3.7 periods per 10 ms step on average) and ``nominal`` — the
+    real turntable's 100 Hz slew-adapted 2 V drive (one stick–slip period per step).
+    Episodes are reset when they end (resets included in the time). The vector figure is
+    the aggregate over ``num_envs`` turntables of the native vector env.
+    """
+    import gymnasium as gym
+
+    from .envs import ActionScaling, PiezoTurntableVectorEnv
+
+    nominal = ActionScaling().encode(2.0, 100.0, 0.95, 1.0)
+    out: dict[str, Any] = {"env_num_envs": num_envs}
+    for stream in ("random", "nominal"):
+        env = gym.make("PiezoTurntable-v0")
+        env.action_space.seed(seed)
+        env.reset(seed=seed)
+        acts = [
+            env.action_space.sample() if stream == "random" else nominal for _ in range(n_steps)
+        ]
+        env.step(acts[0])  # warm-up (compile or cache load)
+        t0 = time.perf_counter()
+        for a in acts:
+            _o, _r, term, trunc, _i = env.step(a)
+            if term or trunc:
+                env.reset()
+        out[f"env_steps_per_s_{stream}"] = n_steps / (time.perf_counter() - t0)
+        vec = PiezoTurntableVectorEnv(num_envs=num_envs)
+        vec.action_space.seed(seed)
+        vec.reset(seed=seed)
+        n_vec = max(n_steps // num_envs, 5)
+        batch = [
+            vec.action_space.sample() if stream == "random" else np.tile(nominal, (num_envs, 1))
+            for _ in range(n_vec)
+        ]
+        vec.step(batch[0])
+        t0 = time.perf_counter()
+        for a in batch:
+            vec.step(a)
+        out[f"vector_env_steps_per_s_{stream}"] = num_envs * n_vec / (time.perf_counter() - t0)
+    return out
+
+
+def format_env_table(res: dict[str, Any]) -> str:
+    """Env throughput as a markdown table (see :func:`env_throughput`)."""
+    lines = [
+        "| env steps/s (10 ms interval, reduced) | random actions | nominal 100 Hz drive |",
+        "|---|---:|---:|",
+        f"| single env | {res['env_steps_per_s_random']:.0f} | "
+        f"{res['env_steps_per_s_nominal']:.0f} |",
+        f"| native vector env N={res['env_num_envs']} (aggregate) | "
+        f"{res['vector_env_steps_per_s_random']:.0f} | "
+        f"{res['vector_env_steps_per_s_nominal']:.0f} |",
+    ]
+    return "\n".join(lines)
 
 
 def format_table(res: dict[str, Any]) -> str:
@@ -194,4 +257,6 @@ def format_table(res: dict[str, Any]) -> str:
         f"{res['batched_rtf_per_turntable']:.3g}; reduced vs full step "
         f"{100 * res['reduced_vs_full']:+.1f} %"
     )
+    if "env_steps_per_s_random" in res:
+        lines.append("\n" + format_env_table(res))
     return "\n".join(lines)
