@@ -107,3 +107,56 @@ def test_drive_signal_uses_amplifier_hold_time():
 def test_drive_rejects_bad_input(call, field):
     with pytest.raises(ValueError, match=field):
         call()
+
+
+# --- free-running generator (environment drive) ----------------------------------------------
+def _segments(settings, dt=0.01):
+    """Chain generator_segment over consecutive intervals; returns the pieces."""
+    from turntable_env.drive import StepSetting, generator_segment
+
+    phase, running, out = 0.0, StepSetting(), []
+    for i, s in enumerate(settings):
+        t, v, phase, running = generator_segment(i * dt, (i + 1) * dt, phase, running, s)
+        out.append((t, v, phase, running))
+    return out
+
+
+def test_generator_pieces_join_without_jumps_and_keep_phase():
+    from turntable_env.drive import StepSetting
+
+    a = StepSetting(2.0, 150.0, 0.9)
+    b = StepSetting(-1.0, 400.0, 0.6, slew_adaptation=0.5, hold_time=1e-4)
+    pieces = _segments([a, b, b])
+    for (t0, v0, *_), (t1, v1, *_) in zip(pieces, pieces[1:], strict=False):
+        assert t0[-1] == t1[0] and v0[-1] == pytest.approx(v1[0], abs=1e-12)
+    # 150 Hz over 10 ms: 1.5 periods, so the first interval ends mid-period at phase 0.5
+    assert pieces[0][2] == pytest.approx(0.5)
+    # the new setting waits for the running period to end (t = 2/150 s), then takes over
+    t, v, _ph, running = pieces[1]
+    assert running == b
+    i_end = int(np.nonzero(np.isclose(t, 2 / 150, rtol=0, atol=1e-12))[0][0])
+    assert v[i_end] == pytest.approx(0.0, abs=1e-12)
+    assert (v[:i_end] >= 0).all() and (v[i_end:] <= 0).all()
+
+
+def test_idle_generator_starts_at_once_and_idle_setting_stops():
+    from turntable_env.drive import StepSetting, generator_segment
+
+    s = StepSetting(1.0, 100.0, 0.5)
+    t, v, ph, run = generator_segment(0.0, 0.005, 0.0, StepSetting(), s)
+    assert run == s and ph == pytest.approx(0.5) and v[-1] == pytest.approx(1.0)
+    t, v, ph, run = generator_segment(0.005, 0.02, ph, run, StepSetting())
+    assert run.idle and ph == 0.0 and v[-1] == 0.0
+    assert t[np.argmax(v == 0.0)] == pytest.approx(0.01)  # running period finished first
+
+
+def test_grid_breakpoints_keep_at_most_two_per_time():
+    from turntable_env.drive import grid_breakpoints
+
+    g, v = grid_breakpoints(
+        np.array([0.0, 1.0, 1.0 + 1e-12, 1.0 + 2e-12, 2.0, 2.0]),
+        np.array([0.0, 1.0, 0.5, -1.0, 0.0, 0.0]),
+        0.5,
+    )
+    np.testing.assert_array_equal(g, [0.0, 2.0, 2.0, 4.0])
+    np.testing.assert_array_equal(v, [0.0, 1.0, -1.0, 0.0])
