@@ -36,7 +36,7 @@ from ..drive import (
 )
 from ..model import TurntableModel
 from ..params import ParameterSet
-from ..reduced import REDUCED_AXES, ReducedBatch, ReducedModel
+from ..reduced import H_MIN, REDUCED_AXES, ReducedBatch, ReducedModel
 from ..reduced_kernel import N_REC
 from ..screw import exp_so3, log_so3
 from .config import EnvConfig, check_action, sample_parameters
@@ -122,7 +122,7 @@ class _FullBackend:
         self.axis = axis
         self.c = "ABC".index(axis)
         self.unit = self.nominal.layout.axis_units[self.c]
-        self.grid = 62.5e-9  # s, breakpoint grid shared with the reduced model
+        self.grid = H_MIN  # s, breakpoint grid shared with the reduced model
 
     def model(self, b: int) -> TurntableModel:
         return self.models[b]
@@ -216,7 +216,6 @@ class TurntableTask:
         self.detector_v = np.zeros(num)  # V
         self.angle = np.zeros(num)  # rad
         self.factors: list[dict[str, float]] = [{} for _ in range(num)]
-        self.last_wave: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(1), np.zeros(1))] * num
 
     # ------------------------------------------------------------------------------
     @property
@@ -310,7 +309,6 @@ class TurntableTask:
             g, v = grid_breakpoints(tt, vv, h)
             waves.append((g, v))
             energy[b] = capacitive_energy(v * amp_in.gain, self.c_load)
-        self.last_wave = waves
         self.backend.advance(waves, n0 + self.steps_per_interval)
         self.step_index += 1
         self.last_action[:] = acts
