@@ -118,7 +118,8 @@ class EnvConfig:
 
     Args:
         params: ``"real"`` (Table D.1, default), ``"thesis"`` (Table D.2) or a ParameterSet.
-        fidelity: ``"reduced"`` (per-axis model, default) or ``"full"`` (3-D model, ~100× slower).
+        fidelity: ``"reduced"`` (per-axis model, default) or ``"full"`` (3-D model;
+            ``turntable bench`` compares the two real-time factors).
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.
         control_interval: time per env step [s] (0.01: one period of the 100 Hz nominal drive).
         randomize: domain randomisation: False, True (:data:`DEFAULT_RANDOMIZATION`) or a

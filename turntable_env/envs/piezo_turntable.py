@@ -66,7 +66,7 @@ class PiezoTurntableEnv(gym.Env):
     |       |                 | a > 0: slew-adapted step flyback with overshoot k = a (Fig 4.3)|
     | 4     | scan_offset     | scan level u_0 = a·10 V the sawtooth sits on, ramped linearly  |
     |       |                 | over the interval: the tubes bend, the table sticks and        |
-    |       |                 | follows (sub-step "scan" positioning, ±~150 µrad)              |
+    |       |                 | follows (sub-step "scan" positioning, θ = G·g·u_0/ρ)           |
 
     The amplifier clips u_0 + sawtooth to its ±10 V input. Scan and stepping combine:
     amplitude 0 with a scan offset bends the tubes without slipping.
@@ -83,7 +83,7 @@ class PiezoTurntableEnv(gym.Env):
     | 3–7   | last_<action>      | -    | [-1, 1]: the last action, clipped              |
 
     The measured angle is Eq. 4.1 applied to the detector voltage with Gaussian noise
-    (``sensor_noise``, 1 mV ≈ 0.28 µrad) and saturation at the ±0.2 mm linear range:
+    (``sensor_noise``, 1 mV; angle noise ≈ S·σ/(2L)) and saturation at the ±0.2 mm linear range:
     beyond ±θ_lin the reading sticks at the edge.
 
     ## Rewards
