@@ -295,13 +295,11 @@ def test_detector_saturates_at_linear_range():
 
 def test_sensor_noise_level():
     env = gym.make(ENV_ID, sensor_noise=1e-3)
-    det = env.unwrapped.task.detector
     readings = []
     for s in range(300):
         _obs, info = env.reset(seed=s, options={"start_angle": 0.0, "target_angle": 0.0})
         readings.append(info["detector_V"])
     assert np.std(readings) == pytest.approx(1e-3, rel=0.15)
-    assert det.saturation_voltage > 1e-3
 
 
 def test_randomisation_within_documented_ranges():
