@@ -163,3 +163,39 @@ def test_grid_breakpoints_keep_at_most_two_per_time():
     )
     np.testing.assert_array_equal(g, [0.0, 2.0, 2.0, 4.0])
     np.testing.assert_array_equal(v, [0.0, 1.0, -1.0, 0.0])
+
+
+def _drops(t, v, t0, t1):
+    """Flybacks in a chain of breakpoints: starts of falling pieces in [t0, t1)."""
+    dv = np.diff(v)
+    falling = dv < 0
+    start = np.concatenate([[True], ~falling[:-1]]) & falling  # first piece of each fall
+    return int(np.sum(start & (t[:-1] >= t0 - 1e-15) & (t[:-1] < t1 - 1e-15)))
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        [(2.0, 150.0, 0.9, 0.0)] * 3,
+        [(1.0, 400.0, 0.6, 0.5), (2.0, 100.0, 0.95, 1.0), (0.0, 100.0, 0.9, 0.0)],
+        [(3.0, 2000.0, 0.99, 0.0), (1.0, 70.0, 0.5, 1.0), (1.0, 70.0, 0.5, 1.0)],
+        [(-2.0, 300.0, 0.9, 1.0), (-2.0, 300.0, 0.9, 1.0)],
+    ],
+)
+def test_generator_flybacks_count_the_falls_of_the_segment(settings):
+    """generator_flybacks equals the falls of generator_segment's own waveform."""
+    from turntable_env.drive import StepSetting, generator_flybacks, generator_segment
+
+    dt, phase, running = 0.01, 0.0, StepSetting()
+    tt, vv, counts = [], [], []
+    for i, (amp, f, a, k) in enumerate(settings):
+        s = StepSetting(amp, f, a, k, hold_time=5e-6 if k else 0.0)
+        counts.append(generator_flybacks(i * dt, (i + 1) * dt, phase, running, s))
+        t, v, phase, running = generator_segment(i * dt, (i + 1) * dt, phase, running, s)
+        tt.append(t)
+        vv.append(v)
+    t, v = np.concatenate(tt), np.concatenate(vv)
+    v = v * np.sign(settings[0][0])  # flybacks are the falls of a forward sawtooth
+    expect = [_drops(t, v, i * dt, (i + 1) * dt) for i in range(len(settings))]
+    assert counts == expect
+    assert sum(counts) > 0

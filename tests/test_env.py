@@ -135,6 +135,7 @@ def test_out_of_range_action_is_clipped():
         ({"randomize": {"gravity": (0.9, 1.1)}}, "randomize"),
         ({"params": "thesis", "randomize": True}, "randomize"),
         ({"render_mode": "human"}, "render_mode"),
+        ({"terminate_on_success": 1}, "terminate_on_success"),
     ],
 )
 def test_bad_kwargs_raise_naming_field(kwargs, field):
@@ -282,6 +283,26 @@ def test_terminates_inside_tolerance():
     _, r, term, trunc, info = env.step(np.zeros(5, dtype=np.float32))
     assert term and not trunc and info["is_success"]
     assert r == pytest.approx(-info["distance_rad"] / env.unwrapped.task.angle_range)
+
+
+def test_without_termination_the_episode_runs_to_the_time_limit():
+    env = gym.make(ENV_ID, noise=False, terminate_on_success=False, max_episode_steps=3)
+    env.reset(seed=0, options={"start_angle": 1e-4, "target_angle": 1e-4 + 0.5e-6})
+    flags = [env.step(np.zeros(5, dtype=np.float32))[2:5] for _ in range(3)]
+    assert [f[0] for f in flags] == [False] * 3  # never terminated
+    assert [f[1] for f in flags] == [False, False, True]  # truncated by the time limit
+    assert all(f[2]["is_success"] for f in flags)
+
+
+@pytest.mark.parametrize(("frequency", "expected"), [(100.0, 1), (1000.0, 10), (250.0, 2)])
+def test_info_counts_flybacks_per_interval(frequency, expected):
+    """info["steps"] counts the generator's flybacks: f·Δt per 10 ms interval (2.5 → 2, 3)."""
+    env = gym.make(ENV_ID, noise=False)
+    env.reset(seed=0, options=HOME)
+    act = ActionScaling().encode(2.0, frequency, 0.9, 1.0)
+    counts = [env.step(act)[4]["steps"] for _ in range(4)]
+    assert sum(counts) == int(frequency * 0.04)
+    assert counts[0] == expected
 
 
 def test_detector_saturates_at_linear_range():

@@ -3,6 +3,8 @@
 Subcommands:
     params     print a parameter set (Table D.1 ``real`` or D.2 ``thesis``), given and derived
     simulate   run the full 3-D model with a stepping drive and print its figures
+    bench      speed and accuracy of every simulation path; env throughput
+    benchmark  every registered controller on the fixed task suite (controllers package)
 """
 
 from __future__ import annotations
@@ -119,6 +121,28 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_benchmark(args: argparse.Namespace) -> int:
+    from controllers.benchmark import run_benchmark, write_outputs
+
+    names = args.controllers.split(",") if args.controllers else None
+    res = run_benchmark(
+        names,
+        seeds=args.seeds,
+        horizon=args.horizon,
+        conditions=args.conditions.split(","),
+        progress=not args.json,
+    )
+    paths = write_outputs(res, args.out)
+    if args.json:
+        summ = res.summary()
+        print(json.dumps(summ, indent=2))
+    else:
+        print(res.markdown())
+        print(f"\n{len(res.rows)} episodes in {res.settings['wall_s']:.1f} s; "
+              f"files in {paths['summary_md'].parent}")  # fmt: skip
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="turntable", description="piezo stick-slip turntable tools")
     sub = p.add_subparsers(dest="command", required=True)
@@ -186,6 +210,22 @@ def build_parser() -> argparse.ArgumentParser:
         "--env-only", action="store_true", help="only the environment throughput (about 30 s)"
     )
     pb.set_defaults(func=_cmd_bench)
+
+    pk = sub.add_parser(
+        "benchmark",
+        help="run every registered controller on the fixed task suite",
+        description="50 nm, 2 µm and 50 µm moves at the table radius about A, B and C, on "
+        "the nominal plant and on randomised plants (friction and preload ±30 %%, amplifier "
+        "slew ±20 %%); per controller: success rate, median final error [nm], median time "
+        "to settle inside ±10 nm [s]. Writes CSV, markdown, JSON and trajectory plots.",
+    )
+    pk.add_argument("--controllers", default=None, help="comma-separated names (default: all)")
+    pk.add_argument("--seeds", type=int, default=20, help="randomised plants per task")
+    pk.add_argument("--horizon", type=int, default=200, help="control intervals per episode")
+    pk.add_argument("--conditions", default="nominal,randomized", help="plants: nominal,randomized")
+    pk.add_argument("--out", default="benchmark_results", help="output directory")
+    pk.add_argument("--json", action="store_true", help="print the JSON summary")
+    pk.set_defaults(func=_cmd_benchmark)
     return p
 
 

@@ -17,7 +17,8 @@ All functions are vectorised over a time array [s] and return the amplifier
 * :class:`DriveSignal` — one object that composes these for the simulator.
 * :class:`StepSetting` and :func:`generator_segment` — a free-running, phase-continuous
   generator for closed-loop control: each control interval gets a setting, which
-  takes over at the next period start (a running period is never cut).
+  takes over at the next period start (a running period is never cut);
+  :func:`generator_flybacks` counts the steps it starts in an interval.
 * :class:`Waveform` — a piecewise-linear amplifier input given by breakpoints
   (jumps are two breakpoints at the same time). Every signal above is piecewise
   linear, so :meth:`DriveSignal.waveform` represents it exactly; the simulator
@@ -46,6 +47,7 @@ __all__ = [
     "StepSetting",
     "Waveform",
     "capacitive_energy",
+    "generator_flybacks",
     "generator_segment",
     "grid_breakpoints",
     "one_directional",
@@ -507,6 +509,33 @@ def generator_segment(
         ph = (t1 - t_latch) / T - (n - 1)
         return np.concatenate(ts), np.concatenate(vs), (0.0 if ph >= 1.0 - 1e-12 else ph), pending
     return np.concatenate(ts), np.concatenate(vs), 0.0, pending
+
+
+def generator_flybacks(
+    t0: float, t1: float, phase: float, running: StepSetting, pending: StepSetting
+) -> int:
+    """Number of flybacks (stick–slip steps) the generator starts in [t0, t1): the
+    same interval and latching as :func:`generator_segment`. A period's flyback starts
+    at the fraction ``a`` of the period (Fig. 3.14 / Fig. 4.3)."""
+    if not t1 > t0:
+        raise ValueError(f"t1={t1!r}: must be > t0={t0!r}")
+    if not 0.0 <= phase < 1.0:
+        raise ValueError(f"phase={phase!r}: must be in [0, 1)")
+    count = 0
+    t_latch = t0
+    if not running.idle and phase > 0.0:
+        T = 1.0 / running.frequency
+        p_start = t0 - phase * T
+        if phase <= running.a and p_start + running.a * T < t1:
+            count += 1
+        if p_start + T > t1:
+            return count
+        t_latch = p_start + T
+    if t_latch < t1 and not pending.idle:
+        # periods j = 0, 1, ... from t_latch flyback at t_latch + (j + a)T < t1
+        span = (t1 - t_latch) * pending.frequency - pending.a
+        count += max(math.ceil(span - 1e-9), 0)
+    return count
 
 
 def capacitive_energy(values: np.ndarray, capacitance: float) -> float:

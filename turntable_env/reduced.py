@@ -288,6 +288,15 @@ class ReducedModel:
             a[iv] -= frow / m
         return a
 
+    def stick_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """Linear dynamics with every GMS element stuck: ẏ = A y + b V for the state
+        y = (θ, θ̇, u1, u̇1, u2, u̇2) [rad, rad/s, m, m/s, m, m/s] and the channel voltage V
+        [V] (amplifier output), element forces at their current offset held constant.
+        Returns (A (6, 6), b (6,))."""
+        kk = float(np.sum(self._arrays["kk"]))
+        a = self._system((kk, kk))
+        return a[:6, :6].copy(), a[:6, 6].copy()
+
     def _pack(self) -> None:
         fr = self.params.friction
         assert fr is not None

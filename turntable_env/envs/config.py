@@ -127,6 +127,9 @@ class EnvConfig:
         noise: detector noise on (True) or off.
         sensor_noise: detector voltage noise standard deviation [V] when ``noise`` (1 mV).
         tolerance: |target − angle| that ends the episode successfully [rad].
+        terminate_on_success: end the episode when the tolerance is reached (True, default);
+            False keeps it running to the time limit, so a controller must also hold the
+            target (the controller benchmark measures settling this way).
         energy_weight: weight of the electrical-energy cost in the reward [-].
         start_range, target_range: start and target angles are drawn uniformly within
             ±range·θ_lin, θ_lin the detector's linear angle range [-].
@@ -142,6 +145,7 @@ class EnvConfig:
     noise: bool = True
     sensor_noise: float = 1e-3
     tolerance: float = 1e-6
+    terminate_on_success: bool = True
     energy_weight: float = 0.01
     start_range: float = 0.8
     target_range: float = 0.8
@@ -162,6 +166,8 @@ class EnvConfig:
             raise ValueError(f"noise={self.noise!r}: must be a bool")
         check_nonnegative("sensor_noise", self.sensor_noise)
         check_positive("tolerance", self.tolerance)
+        if not isinstance(self.terminate_on_success, bool):
+            raise ValueError(f"terminate_on_success={self.terminate_on_success!r}: must be a bool")
         check_nonnegative("energy_weight", self.energy_weight)
         for name in ("start_range", "target_range"):
             v = check_nonnegative(name, getattr(self, name))

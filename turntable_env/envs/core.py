@@ -31,6 +31,7 @@ from ..drive import (
     StepSetting,
     Waveform,
     capacitive_energy,
+    generator_flybacks,
     generator_segment,
     grid_breakpoints,
 )
@@ -284,6 +285,7 @@ class TurntableTask:
         h = self.grid
         waves = []
         energy = np.zeros(self.num)
+        flybacks = np.zeros(self.num, dtype=np.int64)
         n0 = self.step_index * self.steps_per_interval
         for b in range(self.num):
             amp_v, freq, a, k, off = self.scaling.decode(acts[b])
@@ -296,6 +298,7 @@ class TurntableTask:
             pending = StepSetting(amp_v, freq, a, k, min(hold, (1.0 - a) / freq))
             t0 = float(n0[b]) * h
             t1 = t0 + dt
+            flybacks[b] = generator_flybacks(t0, t1, float(self.phase[b]), self.running[b], pending)
             tt, vv, ph, self.running[b] = generator_segment(
                 t0, t1, float(self.phase[b]), self.running[b], pending
             )
@@ -324,6 +327,7 @@ class TurntableTask:
             "target_rad": self.target.copy(),
             "distance_rad": dist,
             "energy_J": energy,
+            "steps": flybacks,
             "reward_distance": r_dist,
             "reward_energy": r_energy,
             "detector_V": self.detector_v.copy(),
@@ -331,7 +335,9 @@ class TurntableTask:
             "out_of_workspace": out,
             "time_s": self.time.astype(float),
         }
-        return StepResult(self.observation(), r_dist + r_energy, success, out & ~success, info)
+        terminated = success if cfg.terminate_on_success else np.zeros(self.num, dtype=bool)
+        truncated = out & ~terminated
+        return StepResult(self.observation(), r_dist + r_energy, terminated, truncated, info)
 
 
 def _option_angle(name: str, value: Any, limit: float) -> float:

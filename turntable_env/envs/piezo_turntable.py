@@ -93,8 +93,9 @@ class PiezoTurntableEnv(gym.Env):
     (capacitance C) during the interval and E_ref = C·(45·10 V)² the energy of one
     full-amplitude period; w = ``energy_weight`` = 0.01. ``info`` holds
     ``reward_distance``, ``reward_energy``, ``distance_rad``, ``energy_J``,
-    ``angle_rad`` (true), ``target_rad``, ``detector_V``, ``is_success``,
-    ``out_of_workspace`` and ``time_s``.
+    ``angle_rad`` (true), ``target_rad``, ``detector_V``, ``steps`` (flybacks the
+    generator started in the interval, :func:`~turntable_env.drive.generator_flybacks`),
+    ``is_success``, ``out_of_workspace`` and ``time_s``.
 
     ## Starting State
 
@@ -108,7 +109,9 @@ class PiezoTurntableEnv(gym.Env):
     ## Episode End
 
     * Termination: |θ* − θ| ≤ ``tolerance`` (1 µrad = 10 nm at the 10 mm table radius)
-      at the end of an interval (``info["is_success"]``).
+      at the end of an interval (``info["is_success"]``); with
+      ``terminate_on_success=False`` the episode runs on to the time limit (the target
+      must be held).
     * Truncation: |θ| > ``angle_limit`` (0.05 rad; the model's small-angle workspace),
       or the registration's time limit, ``max_episode_steps=200`` (2 s).
 
@@ -118,7 +121,8 @@ class PiezoTurntableEnv(gym.Env):
     import gymnasium as gym
     env = gym.make("PiezoTurntable-v0", params="real", fidelity="reduced", axis="B",
                    control_interval=0.01, randomize=False, noise=True, sensor_noise=1e-3,
-                   tolerance=1e-6, energy_weight=0.01, render_mode="rgb_array")
+                   tolerance=1e-6, terminate_on_success=True, energy_weight=0.01,
+                   render_mode="rgb_array")
     envs = gym.make_vec("PiezoTurntable-v0", num_envs=64,
                         vectorization_mode="vector_entry_point")  # one compiled call
     ```
@@ -127,7 +131,8 @@ class PiezoTurntableEnv(gym.Env):
 
     ## Version History
 
-    * v0: initial version (reduced per-axis model, real parameters).
+    * v0: initial version (reduced per-axis model, real parameters). Later additions that
+      keep v0's behaviour: ``info["steps"]`` and ``terminate_on_success``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
@@ -142,6 +147,7 @@ class PiezoTurntableEnv(gym.Env):
         noise: bool = True,
         sensor_noise: float = 1e-3,
         tolerance: float = 1e-6,
+        terminate_on_success: bool = True,
         energy_weight: float = 0.01,
         start_range: float = 0.8,
         target_range: float = 0.8,
@@ -151,7 +157,8 @@ class PiezoTurntableEnv(gym.Env):
         self.config = EnvConfig(
             params=params, fidelity=fidelity, axis=axis, control_interval=control_interval,
             randomize=randomize, noise=noise, sensor_noise=sensor_noise, tolerance=tolerance,
-            energy_weight=energy_weight, start_range=start_range, target_range=target_range,
+            terminate_on_success=terminate_on_success, energy_weight=energy_weight,
+            start_range=start_range, target_range=target_range,
             angle_limit=angle_limit,
         )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:

@@ -1,0 +1,221 @@
+"""The controller interface (observation → action) and the step-then-scan machinery.
+
+Every controller answers :meth:`Controller.act` with an action of ``PiezoTurntable-v0``'s
+Box and is told about a new episode by :meth:`Controller.reset` (the reset observation
+and info). :class:`ControllerContext` carries what a controller may know about the plant
+it was designed for: the nominal parameters, the axis, the control interval, the action
+scaling, the detector range and the scan gain of the linear stick plant.
+
+:class:`StepScanController` is the common two-mode skeleton of the baselines:
+
+* **step** mode: each interval a whole number of stick–slip periods at one setting
+  (frequency m/Δt, so every interval holds m periods and the generator's phase is 0 at
+  each interval start); a subclass chooses the setting (:meth:`StepScanController.choose_move`).
+  The scan offset ramps back to 0 during a stepping interval, and the move accounts for it.
+* **scan** mode (generator idle): the python-control-designed PID of
+  :mod:`controllers.scan_pid` drives the scan offset from the detector reading. It hands
+  back to step mode when the error leaves the scan range K·u_max (or the reading
+  saturates).
+"""
+
+from __future__ import annotations
+
+import abc
+import functools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from turntable_env.envs.config import ActionScaling, EnvConfig
+from turntable_env.linear import scan_plant, stick_plant
+from turntable_env.params import ParameterSet
+
+from .scan_pid import PIDGains, ScanPID, design_scan_pid
+
+__all__ = ["Controller", "ControllerContext", "Move", "StepScanController"]
+
+SATURATION_FRACTION = 0.995  # of θ_lin: readings beyond it count as saturated
+
+
+@dataclass(frozen=True)
+class ControllerContext:
+    """What a controller knows about its plant (nominal model; SI units).
+
+    Attributes:
+        params: nominal parameter set; axis: "A"/"B"/"C"; control_interval: Δt [s];
+        scaling: action scaling; angle_range: detector linear range θ_lin [rad];
+        scan_gain: K, angle per scan-offset volt of the stick plant [rad/V];
+        input_limit: amplifier input limit u_max [V]; tolerance: success band [rad].
+    """
+
+    params: ParameterSet
+    axis: str
+    control_interval: float
+    scaling: ActionScaling
+    angle_range: float
+    scan_gain: float
+    input_limit: float
+    tolerance: float
+
+    @classmethod
+    def from_config(cls, config: EnvConfig) -> ControllerContext:
+        ps = config.parameter_set
+        return cls(
+            params=ps,
+            axis=config.axis,
+            control_interval=config.control_interval,
+            scaling=config.scaling,
+            angle_range=ps.detector.angle_range,
+            scan_gain=_scan_design(ps, config.axis, config.control_interval)[0],
+            input_limit=ps.amplifier.input_limit,
+            tolerance=config.tolerance,
+        )
+
+    @classmethod
+    def from_env(cls, env: Any) -> ControllerContext:
+        """From a ``PiezoTurntable-v0`` env (wrappers allowed)."""
+        config = getattr(env.unwrapped, "config", None)
+        if not isinstance(config, EnvConfig):
+            raise ValueError(f"env={env!r}: not a PiezoTurntable environment")
+        return cls.from_config(config)
+
+    @property
+    def scan_range(self) -> float:
+        """Largest angle the scan offset reaches, K·u_max [rad]."""
+        return self.scan_gain * self.input_limit
+
+    @property
+    def pid_gains(self) -> PIDGains:
+        return _scan_design(self.params, self.axis, self.control_interval)[1]
+
+
+@functools.lru_cache(maxsize=16)
+def _scan_design_cached(ps: ParameterSet, axis: str, dt: float) -> tuple[float, PIDGains]:
+    plant = scan_plant(stick_plant(ps, axis), dt)[0, 0]
+    k = float(np.real(plant.dcgain()))
+    return k, design_scan_pid(plant)
+
+
+def _scan_design(ps: ParameterSet, axis: str, dt: float) -> tuple[float, PIDGains]:
+    """Scan gain K [rad/V] and PID gains of the nominal plant (cached per plant)."""
+    try:
+        return _scan_design_cached(ps, axis, dt)
+    except TypeError:  # an unhashable parameter set: design without the cache
+        return _scan_design_cached.__wrapped__(ps, axis, dt)
+
+
+class Controller(abc.ABC):
+    """Observation → action for ``PiezoTurntable-v0`` (see the module docstring)."""
+
+    name: str = "controller"
+
+    @abc.abstractmethod
+    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Start an episode from the reset observation and info."""
+
+    @abc.abstractmethod
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The next action (float32, shape (5,), within [-1, 1])."""
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.act(obs)
+
+
+@dataclass(frozen=True)
+class Move:
+    """One stepping interval: input amplitude [V] (signed), frequency [Hz] (m/Δt), ramp
+    ratio a, slew adaptation k and the displacement the controller expects [rad]."""
+
+    amplitude: float
+    frequency: float
+    a: float
+    k: float
+    expected: float
+
+
+class StepScanController(Controller):
+    """Step mode to get within the scan range, then scan-mode PID (module docstring).
+
+    Args:
+        ctx: the plant context.
+        scan_fraction: |error| below which stepping stops, as a fraction of the scan
+            range K·u_max [-]; scan mode hands back to step mode above ``scan_exit``.
+    """
+
+    def __init__(
+        self, ctx: ControllerContext, *, scan_fraction: float = 0.5, scan_exit: float = 0.9
+    ) -> None:
+        self.ctx = ctx
+        self.scan_fraction = scan_fraction
+        self.scan_exit = scan_exit
+        self.pid = ScanPID(ctx.pid_gains, ctx.input_limit)
+        # a saturated reading sits at the edge plus the detector's noise (1 mV ≈ 0.3 µrad)
+        self._sat = ctx.angle_range * SATURATION_FRACTION
+
+    # --- episode ----------------------------------------------------------------------
+    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        self.target = float(obs[1])
+        meas = float(obs[0])
+        self.estimate = float(info.get("angle_rad", meas))  # rad, believed angle
+        self.mode = "step"
+        self.offset = 0.0  # V, scan offset commanded for the interval now ending
+        self.last_move: Move | None = None
+        self.last_measured: float | None = None if self.saturated(meas) else meas
+        self.pid.reset(0.0)
+
+    def saturated(self, measured: float) -> bool:
+        return abs(measured) >= self._sat
+
+    # --- hooks ------------------------------------------------------------------------
+    def observe(self, measured: float, saturated: bool) -> None:
+        """Update the angle estimate after an interval (default: the model's expectation
+        while stepping; the reading when it is valid and no move was made)."""
+        if self.last_move is not None:
+            self.estimate += self.last_move.expected
+        elif not saturated:
+            self.estimate = measured
+
+    @abc.abstractmethod
+    def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
+        """The setting for the next interval, to cover ``remaining`` [rad] (None: scan)."""
+
+    # --- control law ------------------------------------------------------------------
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        meas = float(obs[0])
+        sat = self.saturated(meas)
+        self.observe(meas, sat)
+        k_scan = self.ctx.scan_gain
+        if sat:  # beyond the detector: at least at its edge on the reading's side
+            edge = math.copysign(self.ctx.angle_range * 1.05, meas)
+            if abs(self.estimate) < abs(edge) or np.sign(self.estimate) != np.sign(meas):
+                self.estimate = edge
+        if self.mode == "scan":
+            err = self.target - meas
+            if sat or abs(err) > self.scan_exit * self.ctx.scan_range:
+                self.mode = "step"
+                self.estimate = meas if not sat else self.estimate
+            else:
+                return self._scan(err, meas)
+        # step mode: the offset ramps to 0 during the interval (the table follows it back)
+        remaining = self.target - self.estimate + k_scan * self.offset
+        move = None
+        if abs(remaining) > self.scan_fraction * self.ctx.scan_range or sat:
+            move = self.choose_move(remaining, meas, sat)
+        if move is None:
+            self.mode = "scan"
+            self.pid.reset(self.offset)
+            return self._scan(self.target - meas if not sat else 0.0, meas)
+        self.last_move = move
+        self.estimate -= k_scan * self.offset
+        self.offset = 0.0
+        self.last_measured = None if sat else meas
+        return self.ctx.scaling.encode(move.amplitude, move.frequency, move.a, move.k, 0.0)
+
+    def _scan(self, err: float, meas: float) -> np.ndarray:
+        u = self.pid.update(err)
+        self.last_move = None
+        self.offset = u
+        self.last_measured = meas
+        return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, u)

@@ -1,0 +1,202 @@
+"""Fuzzy step-count controller (Mamdani, scikit-fuzzy's control API), the thesis's §5.2.
+
+Inputs, from the detector each control interval:
+
+* error e = θ* − θ_measured [µrad], universe ±1200 (the reading spans ±571 µrad and the
+  targets ±457 µrad, so |e| < 1030 µrad; a saturated reading gives the largest error);
+* error change Δe = e_k − e_{k−1} [µrad per interval], universe ±1200.
+
+Output: n, signed stick–slip steps per interval, universe ±``max_steps`` (10); the
+generator runs |n| periods per interval at f = |n|/Δt with the fixed waveform
+``amplitude`` (6 V), a = 0.9, k = 1, sign(n) the direction. Mamdani inference (min for
+AND, max aggregation), centroid defuzzification; n is rounded, and n = 0 inside the scan
+range hands over to the scan PID (:mod:`controllers.scan_pid`).
+
+Membership functions (µrad for e and Δe, steps for n; L = the universe bound):
+
+======  ==================================  ======================================
+set     e (trapezoid / triangle)             n
+======  ==================================  ======================================
+NL      (−L, −L, −500, −250)                 (−N, −N, −0.8N, −0.5N)
+NM      (−500, −250, −90)                    (−0.8N, −0.5N, −0.2N)
+NS      (−250, −90, 0)                       (−0.5N, −0.2N, 0)
+ZE      (−90, 0, 90)                         (−0.2N, 0, 0.2N)
+PS/PM/PL  mirror images                      mirror images
+======  ==================================  ======================================
+
+Δe has three sets: N (−L, −L, −300, 0), Z (−300, 0, 300), P (0, 300, L, L).
+
+Rule base (rows e, columns Δe; Δe < 0 means the error shrinks when e > 0):
+
+======  ====  ====  ====
+e \\ Δe  N     Z     P
+======  ====  ====  ====
+NL      NL    NL    NL
+NM      NM    NM    NM
+NS      NS    NS    ZE
+ZE      ZE    ZE    ZE
+PS      ZE    PS    PS
+PM      PM    PM    PM
+PL      PL    PL    PL
+======  ====  ====  ====
+
+Every column is non-decreasing from NL to PL, so the output is monotone in the error
+(tested). Near the target a shrinking error (Δe against e) stops the stepping early and
+a growing one keeps the small step count: a larger count there would overshoot by more
+than the band it came from and ring (a limit cycle between NS and PS).
+
+For speed the control surface is tabulated once per process on ``grid`` × ``grid``
+points by one vectorised scikit-fuzzy ``ControlSystemSimulation`` run, and interpolated
+bilinearly.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .base import ControllerContext, Move, StepScanController
+
+__all__ = ["FuzzyStepController", "fuzzy_system"]
+
+E_MAX = 1200.0  # µrad, error universe bound
+DE_MAX = 1200.0  # µrad per interval, error-change universe bound
+RULES = {  # (e set, Δe set) → n set, see the module docstring
+    "NL": ("NL", "NL", "NL"),
+    "NM": ("NM", "NM", "NM"),
+    "NS": ("NS", "NS", "ZE"),
+    "ZE": ("ZE", "ZE", "ZE"),
+    "PS": ("ZE", "PS", "PS"),
+    "PM": ("PM", "PM", "PM"),
+    "PL": ("PL", "PL", "PL"),
+}
+
+
+def fuzzy_system(max_steps: float = 10.0) -> Any:
+    """The Mamdani system as a scikit-fuzzy ``ControlSystem`` (inputs ``error``,
+    ``error_change`` [µrad], output ``steps``)."""
+    import skfuzzy as fuzz
+    from skfuzzy import control as ctrl
+
+    n_max = float(max_steps)
+    e = ctrl.Antecedent(np.linspace(-E_MAX, E_MAX, 241), "error")
+    de = ctrl.Antecedent(np.linspace(-DE_MAX, DE_MAX, 121), "error_change")
+    n = ctrl.Consequent(np.linspace(-n_max, n_max, 201), "steps", defuzzify_method="centroid")
+    L = E_MAX
+    e["NL"] = fuzz.trapmf(e.universe, [-L, -L, -500, -250])
+    e["NM"] = fuzz.trimf(e.universe, [-500, -250, -90])
+    e["NS"] = fuzz.trimf(e.universe, [-250, -90, 0])
+    e["ZE"] = fuzz.trimf(e.universe, [-90, 0, 90])
+    e["PS"] = fuzz.trimf(e.universe, [0, 90, 250])
+    e["PM"] = fuzz.trimf(e.universe, [90, 250, 500])
+    e["PL"] = fuzz.trapmf(e.universe, [250, 500, L, L])
+    D = DE_MAX
+    de["N"] = fuzz.trapmf(de.universe, [-D, -D, -300, 0])
+    de["Z"] = fuzz.trimf(de.universe, [-300, 0, 300])
+    de["P"] = fuzz.trapmf(de.universe, [0, 300, D, D])
+    N = n_max
+    n["NL"] = fuzz.trapmf(n.universe, [-N, -N, -0.8 * N, -0.5 * N])
+    n["NM"] = fuzz.trimf(n.universe, [-0.8 * N, -0.5 * N, -0.2 * N])
+    n["NS"] = fuzz.trimf(n.universe, [-0.5 * N, -0.2 * N, 0])
+    n["ZE"] = fuzz.trimf(n.universe, [-0.2 * N, 0, 0.2 * N])
+    n["PS"] = fuzz.trimf(n.universe, [0, 0.2 * N, 0.5 * N])
+    n["PM"] = fuzz.trimf(n.universe, [0.2 * N, 0.5 * N, 0.8 * N])
+    n["PL"] = fuzz.trapmf(n.universe, [0.5 * N, 0.8 * N, N, N])
+    rules = [
+        ctrl.Rule(e[es] & de[ds], n[out])
+        for es, outs in RULES.items()
+        for ds, out in zip(("N", "Z", "P"), outs, strict=True)
+    ]
+    return ctrl.ControlSystem(rules)
+
+
+def control_surface(system: Any, errors: np.ndarray, changes: np.ndarray) -> np.ndarray:
+    """Defuzzified output n on the grid errors × changes [µrad]: one vectorised
+    scikit-fuzzy ``ControlSystemSimulation`` run over every grid point."""
+    from skfuzzy import control as ctrl
+
+    e, d = np.meshgrid(errors, changes, indexing="ij")
+    sim = ctrl.ControlSystemSimulation(system, flush_after_run=e.size + 1)
+    sim.input["error"] = e.ravel()
+    sim.input["error_change"] = d.ravel()
+    sim.compute()
+    return np.asarray(sim.output["steps"], dtype=float).reshape(e.shape)
+
+
+class FuzzyStepController(StepScanController):
+    """Fuzzy choice of the step count per interval, scan PID at the end (module docstring).
+
+    Args:
+        ctx: plant context; amplitude: input amplitude of the steps [V]; max_steps: |n|
+        bound; grid: points per axis of the tabulated control surface.
+    """
+
+    name = "fuzzy"
+
+    def __init__(
+        self,
+        ctx: ControllerContext,
+        *,
+        amplitude: float = 6.0,
+        max_steps: int = 10,
+        grid: int = 61,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(ctx, **kwargs)
+        if max_steps < 1 or max_steps * 1.0 / ctx.control_interval > 2000.0:
+            raise ValueError(f"max_steps={max_steps!r}: need 1 ≤ n and n/Δt ≤ 2 kHz")
+        self.amplitude = amplitude
+        self.max_steps = max_steps
+        self.system = fuzzy_system(max_steps)
+        self.errors = np.linspace(-E_MAX, E_MAX, grid)
+        self.changes = np.linspace(-DE_MAX, DE_MAX, grid)
+        self.surface = _surface(max_steps, grid)
+
+    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        super().reset(obs, info)
+        self.last_error: float | None = None
+
+    def steps(self, error: float, change: float) -> float:
+        """Defuzzified n for e, Δe [rad] (bilinear in the tabulated surface)."""
+        e = float(np.clip(error * 1e6, -E_MAX, E_MAX))
+        d = float(np.clip(change * 1e6, -DE_MAX, DE_MAX))
+        i = int(np.clip(np.searchsorted(self.errors, e) - 1, 0, self.errors.size - 2))
+        j = int(np.clip(np.searchsorted(self.changes, d) - 1, 0, self.changes.size - 2))
+        te = (e - self.errors[i]) / (self.errors[i + 1] - self.errors[i])
+        td = (d - self.changes[j]) / (self.changes[j + 1] - self.changes[j])
+        s = self.surface
+        return float(
+            (1 - te) * (1 - td) * s[i, j]
+            + te * (1 - td) * s[i + 1, j]
+            + (1 - te) * td * s[i, j + 1]
+            + te * td * s[i + 1, j + 1]
+        )
+
+    def observe(self, measured: float, saturated: bool) -> None:
+        self.estimate = measured  # the fuzzy controller believes the detector only
+
+    def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
+        err = self.target - measured
+        fresh = self.last_error is None or self.last_move is None  # first stepping interval
+        change = 0.0 if fresh else err - self.last_error
+        self.last_error = err
+        n = round(self.steps(err, change))
+        if n == 0:
+            return None
+        f = abs(n) / self.ctx.control_interval
+        amp = min(self.amplitude, self.ctx.input_limit - abs(self.offset))
+        return Move(float(np.sign(n)) * amp, f, 0.9, 1.0, 0.0)
+
+
+_SURFACES: dict[tuple[int, int], np.ndarray] = {}
+
+
+def _surface(max_steps: int, grid: int) -> np.ndarray:
+    """The tabulated control surface, computed once per (max_steps, grid)."""
+    key = (max_steps, grid)
+    if key not in _SURFACES:
+        e = np.linspace(-E_MAX, E_MAX, grid)
+        d = np.linspace(-DE_MAX, DE_MAX, grid)
+        _SURFACES[key] = control_surface(fuzzy_system(max_steps), e, d)
+    return _SURFACES[key]

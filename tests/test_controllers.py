@@ -1,0 +1,229 @@
+"""Baseline controllers, step map, scan PID design, registry and benchmark contracts."""
+
+import json
+import math
+
+import control as ct
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import turntable_env  # noqa: F401  (registers the env)
+from controllers import (
+    ClosedLoopStepController,
+    ControllerContext,
+    FeedForwardController,
+    FuzzyStepController,
+    StepMap,
+    available,
+    make,
+    register,
+    run_episode,
+)
+from controllers.episode import EpisodeResult
+from controllers.scan_pid import ScanPID, design_scan_pid, pid_transfer_function
+from controllers.step_map import sweep_step_map
+from turntable_env.linear import scan_plant, stick_plant
+
+R_TABLE = 0.01  # m
+
+
+def _env(**kwargs):
+    return gym.make("PiezoTurntable-v0", terminate_on_success=False, max_episode_steps=60, **kwargs)
+
+
+def _move(move_m, target=1e-4):
+    d = move_m / R_TABLE
+    return {"start_angle": target - d, "target_angle": target}
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    return ControllerContext.from_env(_env())
+
+
+# --- each controller reaches a target -----------------------------------------------------
+@pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
+@pytest.mark.parametrize("move_m", [2e-6, -20e-6])
+def test_controller_reaches_target_within_10_nm(name, move_m):
+    env = _env()
+    res = run_episode(env, make(name, env), seed=3, options=_move(move_m))
+    m = res.metrics()
+    assert m["final_error_nm"] <= 10.0
+    assert m["settle_time_s"] <= 0.3  # settled well before the 0.6 s horizon
+    assert m["steps"] > 0  # it stepped: the move exceeds the scan range
+
+
+def test_scan_pid_alone_reaches_a_move_inside_the_scan_range_only(ctx):
+    env = _env()
+    small = run_episode(env, make("scan_pid", env), seed=3, options=_move(50e-9)).metrics()
+    big = run_episode(env, make("scan_pid", env), seed=3, options=_move(2e-6)).metrics()
+    assert small["final_error_nm"] <= 10.0 and small["steps"] == 0
+    # it stops at the scan range K·u_max: 2 µm − 1.47 µm short
+    expect = (2e-6 - ctx.scan_range * R_TABLE) * 1e9
+    assert big["final_error_nm"] == pytest.approx(expect, rel=0.02)
+
+
+def test_feedforward_inverts_the_map_on_the_nominal_plant(ctx):
+    """With the detector noise off, the plan alone lands within ½ scan range, and the
+    expected displacement of each stepping interval matches the plant within 5 %."""
+    env = _env(noise=False)
+    ff = FeedForwardController(ctx)
+    obs, info = env.reset(seed=0, options=_move(-30e-6))
+    ff.reset(obs, info)
+    for _ in range(30):
+        before = env.unwrapped.task.angle[0]
+        obs, *_, info = env.step(ff.act(obs))
+        if ff.last_move is None:
+            break
+        moved = info["angle_rad"] - before
+        assert moved == pytest.approx(ff.last_move.expected, rel=0.05)
+    assert abs(info["angle_rad"] - info["target_rad"]) <= 0.5 * ctx.scan_range
+
+
+def test_closed_loop_learns_a_plant_that_differs_from_the_model():
+    """Friction and preload ×1.3, amplifier ×0.8: the step-size gain estimate leaves 1 and
+    the controller still settles within ±10 nm on a 50 µm move."""
+    rnd = {"friction": (1.3, 1.3), "preload": (1.3, 1.3), "amplifier": (0.8, 0.8)}
+    env = _env(randomize=rnd)
+    ctl = ClosedLoopStepController(ControllerContext.from_env(env))
+    res = run_episode(env, ctl, seed=1, options=_move(50e-6, target=-2e-4))
+    assert res.metrics()["final_error_nm"] <= 10.0
+    assert abs(ctl.gain[1] - 1.0) > 0.1
+
+
+# --- fuzzy rule base ----------------------------------------------------------------------
+def test_fuzzy_output_is_monotone_in_the_error(ctx):
+    """Evaluated by scikit-fuzzy itself, for several error changes: non-decreasing in e,
+    zero at e = 0 and odd."""
+    from controllers.fuzzy import control_surface, fuzzy_system
+
+    e = np.linspace(-1100.0, 1100.0, 45)
+    de = np.array([-600.0, -150.0, 0.0, 150.0, 600.0])
+    s = control_surface(fuzzy_system(10), e, de)
+    assert (np.diff(s, axis=0) >= -1e-9).all()
+    assert s[22, 2] == pytest.approx(0.0, abs=1e-9)  # e = 0, Δe = 0
+    np.testing.assert_allclose(s, -s[::-1, ::-1], atol=1e-9)
+    assert s[-1, 2] > 7.0  # a large error asks for nearly the most steps
+    ctl = FuzzyStepController(ctx)  # the tabulated surface reproduces skfuzzy
+    assert ctl.steps(500e-6, 0.0) == pytest.approx(s[np.argmin(abs(e - 500)), 2], abs=0.3)
+
+
+# --- step map -----------------------------------------------------------------------------
+def test_shipped_step_map_is_what_the_sweep_regenerates():
+    shipped = StepMap.load()
+    fresh = sweep_step_map(
+        axes=("B",), amplitudes=(2.0, 6.0), frequencies=(100.0, 1000.0), ramp_ratios=(0.9,),
+        slew_adaptations=(1.0,),
+    )  # fmt: skip
+    for i in range(len(fresh)):
+        A, f = fresh.amplitude[i], fresh.frequency[i]
+        # the file keeps 7 significant digits
+        assert shipped.step_size("B", A, f, 0.9, 1.0) == pytest.approx(fresh.step[i], rel=1e-6)
+    assert shipped.control_interval == 0.01 and shipped.params == "real"
+
+
+def test_step_grows_with_amplitude_and_sign_sets_direction():
+    m = StepMap.load()
+    for f in np.unique(m.frequency):
+        fwd = m.step[m.family("B", f, 0.9, 1.0, 1)]
+        back = m.step[m.family("B", f, 0.9, 1.0, -1)]
+        assert (fwd[2:] > 0).all() and (back[2:] < 0).all()
+        assert fwd[-1] > fwd[2]  # 10 V steps further than 2 V
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (lambda t: t.replace("amplitude_V", "amp"), "header"),
+        (lambda t: t.replace("# params: real\n", ""), "params"),
+        (lambda t: t.replace(",100,0.9,", ",abc,0.9,", 1), r":\d+: column 'frequency_Hz'"),
+        (lambda t: t.replace("\nB,", "\nQ,", 1), "column 'axis'"),
+        (lambda t: t.replace(",100,0.9,", ",nan,0.9,", 1), "not finite"),
+    ],
+)
+def test_step_map_loader_names_file_line_and_column(tmp_path, edit, match):
+    from controllers.step_map import DEFAULT_PATH
+
+    p = tmp_path / "map.csv"
+    p.write_text(edit(DEFAULT_PATH.read_text(encoding="utf-8")), encoding="utf-8")
+    with pytest.raises(ValueError, match=match) as exc:
+        StepMap.load(p)
+    assert str(p) in str(exc.value)
+
+
+# --- scan PID -----------------------------------------------------------------------------
+def test_scan_pid_design_meets_its_margins(ctx):
+    g = ctx.pid_gains
+    assert g.phase_margin >= 59.5 and g.stability_margin >= 0.59
+    assert g.gain_margin >= 1.0 / (1.0 - 0.6) - 0.01  # implied by min|1 + L| ≥ 0.6
+    pd = scan_plant(stick_plant("real", "B"), 0.01)[0, 0]
+    closed = ct.feedback(ct.series(pid_transfer_function(g), pd), 1)
+    assert (np.abs(ct.poles(closed)) < 1.0).all()
+    assert float(ct.dcgain(closed)) == pytest.approx(1.0, abs=1e-9)  # integral action
+
+
+def test_scan_pid_design_rejects_continuous_plants():
+    with pytest.raises(ValueError, match="dt"):
+        design_scan_pid(stick_plant()[0, 0])
+
+
+def test_scan_pid_incremental_form_equals_its_transfer_function(ctx):
+    """The time-domain PID (unsaturated) reproduces C(z) on an error sequence."""
+    g = ctx.pid_gains
+    e = np.sin(np.arange(12) * 0.7) * 1e-6
+    pid = ScanPID(g, limit=1e9)
+    u = np.array([pid.update(x) for x in e])
+    ref = ct.forced_response(pid_transfer_function(g), T=np.arange(12) * g.dt, U=e)
+    np.testing.assert_allclose(u, np.asarray(ref.outputs).ravel(), rtol=1e-9, atol=1e-12)
+
+
+# --- registry and benchmark ---------------------------------------------------------------
+def test_registry_contract(ctx):
+    assert {"feedforward", "fuzzy", "closed_loop", "scan_pid"} <= set(available())
+    with pytest.raises(ValueError, match="not registered"):
+        make("pid9000", ctx)
+    with pytest.raises(ValueError, match="already registered"):
+        register("fuzzy", FuzzyStepController, "again")
+    with pytest.raises(ValueError, match="not a PiezoTurntable"):
+        ControllerContext.from_env(gym.make("CartPole-v1"))
+
+
+def test_episode_metrics_definitions():
+    t = np.arange(6) * 0.01
+    ang = np.array([0.0, 1.2e-6, 0.5e-6, 1.05e-6, 0.98e-6, 1.0e-6])  # rad; target 1 µrad
+    res = EpisodeResult(
+        time=t, angle=ang, measured=ang, target=1e-6, actions=np.zeros((6, 5)),
+        energy=np.full(6, 1e-3), steps=np.array([0, 2, 0, 0, 0, 0]), table_radius=R_TABLE,
+    )  # fmt: skip
+    m = res.metrics(band=1e-9)  # ±1 nm = ±0.1 µrad at R_table
+    # errors −10, 2, −5, 0.5, −0.2, 0 nm: inside ±1 nm from sample 3 on
+    assert m["settle_time_s"] == pytest.approx(0.03)
+    assert m["overshoot_nm"] == pytest.approx(2.0)  # 0.2 µrad past the target
+    assert m["final_error_nm"] == pytest.approx(0.0, abs=1e-9) and m["success"] == 1.0
+    assert m["steps"] == 2 and m["energy_J"] == pytest.approx(6e-3)
+    res2 = EpisodeResult(t, ang + 1e-6, ang, 1e-6, np.zeros((6, 5)), np.zeros(6),
+                         np.zeros(6), R_TABLE)  # fmt: skip
+    assert math.isnan(res2.metrics(band=1e-9)["settle_time_s"])
+
+
+def test_benchmark_json_keys_and_files(tmp_path):
+    from controllers.benchmark import run_benchmark, task_suite, write_outputs
+
+    tasks = task_suite()
+    assert len(tasks) == 9 and {t.axis for t in tasks} == {"A", "B", "C"}
+    moves = sorted({round(abs(t.move_m) * 1e9) for t in tasks})
+    assert moves == [50, 2000, 50000]
+    assert all(abs(t.target_rad) <= 0.5 * 5.715e-4 for t in tasks)
+    res = run_benchmark(
+        ["closed_loop"], seeds=1, horizon=40, conditions=["nominal"], axes=["A"], sizes=["small"]
+    )
+    paths = write_outputs(res, tmp_path)
+    summ = json.loads(paths["summary_json"].read_text())["controllers"]
+    entry = summ["closed_loop"]
+    assert {"success_rate", "median_final_error_nm", "median_settle_time_s"} <= set(entry)
+    assert entry["success_rate"] == 1.0 and entry["median_final_error_nm"] <= 10.0
+    for key in ("episodes", "summary_csv", "summary_md", "trajectories_closed_loop"):
+        assert paths[key].stat().st_size > 0
+    with pytest.raises(ValueError, match="conditions"):
+        run_benchmark(["closed_loop"], conditions=["lunar"])
