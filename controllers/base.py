@@ -92,18 +92,11 @@ class ControllerContext:
 
 
 @functools.lru_cache(maxsize=16)
-def _scan_design_cached(ps: ParameterSet, axis: str, dt: float) -> tuple[float, PIDGains]:
+def _scan_design(ps: ParameterSet, axis: str, dt: float) -> tuple[float, PIDGains]:
+    """Scan gain K [rad/V] and PID gains of the nominal plant (cached per plant)."""
     plant = scan_plant(stick_plant(ps, axis), dt)[0, 0]
     k = float(np.real(plant.dcgain()))
     return k, design_scan_pid(plant)
-
-
-def _scan_design(ps: ParameterSet, axis: str, dt: float) -> tuple[float, PIDGains]:
-    """Scan gain K [rad/V] and PID gains of the nominal plant (cached per plant)."""
-    try:
-        return _scan_design_cached(ps, axis, dt)
-    except TypeError:  # an unhashable parameter set: design without the cache
-        return _scan_design_cached.__wrapped__(ps, axis, dt)
 
 
 class Controller(abc.ABC):

@@ -197,6 +197,7 @@ def run_benchmark(
     rows: list[dict[str, Any]] = []
     episodes: dict[tuple[str, str, str], EpisodeResult] = {}
     jobs = []
+    run_tasks: dict[str, Task] = {}
     for cond in conditions:
         for axis in axes:
             env = gym.make(
@@ -213,6 +214,7 @@ def run_benchmark(
                 for t in task_suite(det.table_radius, det.angle_range)
                 if t.axis == axis and t.size in sizes
             ]
+            run_tasks.update({f"{t.axis}-{t.size}": t for t in tasks})
             n_seeds = 1 if cond == "nominal" else seeds
             jobs.append((cond, axis, env, tasks, n_seeds))
     total = len(names) * sum(len(j[3]) * j[4] for j in jobs)
@@ -260,7 +262,7 @@ def run_benchmark(
         "horizon": horizon,
         "conditions": {c: CONDITIONS[c] for c in conditions},
         "band_m": BAND,
-        "tasks": [asdict(t) for t in task_suite()],
+        "tasks": [asdict(t) for t in run_tasks.values()],
         "wall_s": time.perf_counter() - t0,
     }
     return BenchmarkResult(rows, episodes, settings)

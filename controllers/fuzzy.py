@@ -58,7 +58,7 @@ import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
 
-__all__ = ["FuzzyStepController", "fuzzy_system"]
+__all__ = ["FuzzyStepController", "control_surface", "fuzzy_system"]
 
 E_MAX = 1200.0  # µrad, error universe bound
 DE_MAX = 1200.0  # µrad per interval, error-change universe bound
@@ -148,7 +148,6 @@ class FuzzyStepController(StepScanController):
             raise ValueError(f"max_steps={max_steps!r}: need 1 ≤ n and n/Δt ≤ 2 kHz")
         self.amplitude = amplitude
         self.max_steps = max_steps
-        self.system = fuzzy_system(max_steps)
         self.errors = np.linspace(-E_MAX, E_MAX, grid)
         self.changes = np.linspace(-DE_MAX, DE_MAX, grid)
         self.surface = _surface(max_steps, grid)

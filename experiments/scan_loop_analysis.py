@@ -6,13 +6,14 @@ DC gain, first resonance and damping; the sine sweep on the nonlinear simulators
 the scan PID's gains and margins on the sampled plant. ``--out DIR`` writes the Bode
 plot of the plant with the sweep points and the Bode plot of the scan loop.
 
-    python experiments/scan_loop_analysis.py [--axis B] [--out DIR]   (about 10 s)
+    python experiments/scan_loop_analysis.py [--axis B] [--out DIR]   (prints its wall time)
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import time
 from pathlib import Path
 
 import control as ct
@@ -31,6 +32,7 @@ def main() -> None:
     ap.add_argument("--axis", default="B")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
+    t0 = time.perf_counter()
     plant = stick_plant("real", args.axis)
     p_angle = plant[0, 0]
     k0 = float(ct.dcgain(p_angle))
@@ -98,6 +100,7 @@ def main() -> None:
         )
         plt.savefig(out / "scan_loop_bode.png", dpi=100)
         print(f"plots in {out}")
+    print(f"wall time {time.perf_counter() - t0:.1f} s")
 
 
 if __name__ == "__main__":
