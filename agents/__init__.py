@@ -1,4 +1,49 @@
-"""Reinforcement-learning agents (stable-baselines3) for the turntable environment.
+"""Reinforcement-learning agents (stable-baselines3) for ``PiezoTurntable-v0``.
 
-Populated by the RL issue.
+* :mod:`.interface` — the agent's observation features and reduced action;
+* :mod:`.vec_env` — the native batched vector env as an SB3 ``VecEnv``;
+* :mod:`.train` — training from ``hyperparams/<algo>.yml`` (rl-baselines3-zoo layout);
+* :mod:`.controller` — a trained agent behind the common controller interface.
+
+Importing the package registers every shipped agent in ``agents/pretrained/<algo>/`` as
+a controller named after its algorithm, so ``turntable benchmark`` includes it.
 """
+
+from pathlib import Path
+
+from controllers.registry import available, register
+
+from .controller import AgentController, load_agent
+from .interface import AgentInterface, AgentWrapper, InterfaceConfig
+
+__all__ = [
+    "PRETRAINED_DIR",
+    "AgentController",
+    "AgentInterface",
+    "AgentWrapper",
+    "InterfaceConfig",
+    "load_agent",
+    "pretrained",
+]
+
+PRETRAINED_DIR = Path(__file__).parent / "pretrained"
+
+
+def pretrained() -> dict[str, Path]:
+    """Shipped agents: algorithm → run directory."""
+    if not PRETRAINED_DIR.is_dir():
+        return {}
+    return {
+        d.name: d
+        for d in sorted(PRETRAINED_DIR.iterdir())
+        if d.is_dir() and (d / "model.zip").is_file()
+    }
+
+
+def _factory(run: Path, name: str):
+    return lambda ctx: AgentController(ctx, run, name)
+
+
+for _name, _run in pretrained().items():
+    if _name not in available():
+        register(_name, _factory(_run, _name), f"stable-baselines3 {_name.upper()} agent ({_run})")

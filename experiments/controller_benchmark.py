@@ -31,6 +31,13 @@ def main() -> None:
     print(res.markdown())
     print(json.dumps({k: {m: v[m] for m in ("success_rate", "median_final_error_nm",
           "median_settle_time_s")} for k, v in res.summary().items()}, indent=2))  # fmt: skip
+    print("randomised plants: success rate, median settle time [s] (∞: most never settle)")
+    for name, entry in res.summary().items():
+        r = entry["conditions"].get("randomized")
+        if r is not None:
+            settle = r["median_settle_time_s"]
+            settle_s = "∞" if settle is None else f"{settle:.3g}"
+            print(f"  {name:<12} {r['success_rate']:.3f}  {settle_s}")
     print(f"{len(res.rows)} episodes in {res.settings['wall_s']:.1f} s; files in "
           f"{paths['summary_md'].parent}")  # fmt: skip
 

@@ -136,6 +136,10 @@ def test_out_of_range_action_is_clipped():
         ({"params": "thesis", "randomize": True}, "randomize"),
         ({"render_mode": "human"}, "render_mode"),
         ({"terminate_on_success": 1}, "terminate_on_success"),
+        ({"move_range": (1e-3, 1e-4)}, "move_range"),
+        ({"move_range": (1e-6, 0.06)}, "move_range"),
+        ({"reward": "square"}, "reward"),
+        ({"success_bonus": -1.0}, "success_bonus"),
     ],
 )
 def test_bad_kwargs_raise_naming_field(kwargs, field):
@@ -303,6 +307,33 @@ def test_info_counts_flybacks_per_interval(frequency, expected):
     counts = [env.step(act)[4]["steps"] for _ in range(4)]
     assert sum(counts) == int(frequency * 0.04)
     assert counts[0] == expected
+
+
+def test_move_range_draws_log_uniform_moves():
+    env = gym.make(ENV_ID, move_range=(1e-6, 5e-3), target_range=0.5)
+    moves = []
+    for seed in range(200):
+        _, info = env.reset(seed=seed)
+        moves.append(info["target_rad"] - info["angle_rad"])
+    mag = np.abs(moves)
+    assert mag.min() >= 1e-6 * (1 - 1e-12) and mag.max() <= 5e-3 * (1 + 1e-12)
+    assert 0.3 < np.mean(np.array(moves) > 0) < 0.7  # both directions
+    # log-uniform: the median is the geometric mean of the bounds (within sampling error)
+    assert np.median(np.log(mag)) == pytest.approx(np.log(np.sqrt(1e-6 * 5e-3)), abs=0.6)
+
+
+@pytest.mark.parametrize("bonus", [0.0, 1.0])
+def test_log_reward_and_success_bonus(bonus):
+    """reward="log": −ln(1 + d/tol)/ln(1 + θ_lin/tol), plus the bonus inside tolerance."""
+    env = gym.make(ENV_ID, noise=False, reward="log", success_bonus=bonus, energy_weight=0.0)
+    lim = env.unwrapped.task.angle_range
+    for d, inside in ((0.5e-6, True), (30e-6, False)):
+        env.reset(seed=0, options={"start_angle": 1e-4, "target_angle": 1e-4 + d})
+        _, r, *_, info = env.step(np.zeros(5, dtype=np.float32))
+        dist = info["distance_rad"]
+        expect = -np.log1p(dist / 1e-6) / np.log1p(lim / 1e-6) + (bonus if inside else 0.0)
+        assert r == pytest.approx(expect, rel=1e-9)
+        assert info["is_success"] == inside
 
 
 def test_detector_saturates_at_linear_range():

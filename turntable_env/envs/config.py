@@ -133,6 +133,15 @@ class EnvConfig:
         energy_weight: weight of the electrical-energy cost in the reward [-].
         start_range, target_range: start and target angles are drawn uniformly within
             ±range·θ_lin, θ_lin the detector's linear angle range [-].
+        move_range: (smallest, largest) move [rad]: when given, the start is the target
+            less a move of log-uniform size in this range and random sign (moves may start
+            beyond the detector range, as the controller benchmark's do); ``start_range``
+            is then unused.
+        reward: ``"linear"`` (default): distance term −|θ* − θ|/θ_lin; ``"log"``:
+            −ln(1 + d/tol)/ln(1 + θ_lin/tol), which resolves every decade from the
+            tolerance up (d = |θ* − θ|, tol = ``tolerance``).
+        success_bonus: reward added in every interval that ends within ``tolerance`` [-]
+            (0: none; a training aid for holding the target).
         angle_limit: |θ| beyond which the episode is truncated (the table leaves the
             small-angle workspace the model covers) [rad].
     """
@@ -150,6 +159,9 @@ class EnvConfig:
     start_range: float = 0.8
     target_range: float = 0.8
     angle_limit: float = 0.05
+    move_range: tuple[float, float] | None = None
+    reward: Literal["linear", "log"] = "linear"
+    success_bonus: float = 0.0
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict, init=False)
 
     def __post_init__(self) -> None:
@@ -174,6 +186,17 @@ class EnvConfig:
             if v > 1.0:
                 raise ValueError(f"{name}={v!r}: must be <= 1 (fraction of the detector range)")
         check_positive("angle_limit", self.angle_limit)
+        if self.move_range is not None:
+            try:
+                lo, hi = (check_positive("move_range", float(x)) for x in self.move_range)
+            except TypeError:
+                raise ValueError(f"move_range={self.move_range!r}: must be (low, high)") from None
+            if lo > hi or hi >= self.angle_limit:
+                raise ValueError(f"move_range={self.move_range!r}: need low <= high < angle_limit")
+            object.__setattr__(self, "move_range", (lo, hi))
+        check_nonnegative("success_bonus", self.success_bonus)
+        if self.reward not in ("linear", "log"):
+            raise ValueError(f"reward={self.reward!r}: must be 'linear' or 'log'")
         object.__setattr__(self, "ranges", _randomization_ranges(self.randomize))
         if self.ranges and self.parameter_set.name != "real":
             raise ValueError(

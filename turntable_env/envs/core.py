@@ -14,7 +14,8 @@ Per step (control interval Δt) and turntable:
 2. the simulator integrates Δt (amplifier slew, tubes, GMS contacts, table);
 3. the detector reports the angle (Eq. 4.1 with noise and saturation at ±0.2 mm);
 4. reward r = −|θ* − θ|/θ_lin − w·E/E_ref: distance to the target in units of the
-   detector's linear range θ_lin, plus w times the electrical energy E = C∫|V dV| the
+   detector's linear range θ_lin (or, with ``reward="log"``, −ln(1 + d/tol)/ln(1 +
+   θ_lin/tol)), plus w times the electrical energy E = C∫|V dV| the
    amplifier moved through the channel's quadrants during Δt in units of one
    full-amplitude period, E_ref = C(G·u_max)².
 """
@@ -243,6 +244,10 @@ class TurntableTask:
         lim = self.angle_range
         start = rng.uniform(-1.0, 1.0) * cfg.start_range * lim
         target = rng.uniform(-1.0, 1.0) * cfg.target_range * lim
+        if cfg.move_range is not None:
+            lo, hi = cfg.move_range
+            move = math.exp(rng.uniform(math.log(lo), math.log(hi))) * rng.choice((-1.0, 1.0))
+            start = target - move
         if "start_angle" in opts:
             start = _option_angle("start_angle", opts["start_angle"], cfg.angle_limit)
         if "target_angle" in opts:
@@ -318,9 +323,13 @@ class TurntableTask:
         self.angle[:] = self.backend.angles()
         self._measure(np.arange(self.num), rng)
         dist = np.abs(self.target - self.angle)
-        r_dist = -dist / self.angle_range
+        if cfg.reward == "log":
+            r_dist = -np.log1p(dist / cfg.tolerance) / math.log1p(self.angle_range / cfg.tolerance)
+        else:
+            r_dist = -dist / self.angle_range
         r_energy = -cfg.energy_weight * energy / self.e_ref
         success = dist <= cfg.tolerance
+        r_dist = r_dist + cfg.success_bonus * success
         out = np.abs(self.angle) > cfg.angle_limit
         info = {
             "angle_rad": self.angle.copy(),

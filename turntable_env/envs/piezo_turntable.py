@@ -88,7 +88,9 @@ class PiezoTurntableEnv(gym.Env):
 
     ## Rewards
 
-    r = −|θ* − θ|/θ_lin − w·E/E_ref, with θ the true angle at the end of the interval,
+    r = −|θ* − θ|/θ_lin − w·E/E_ref, with θ the true angle at the end of the interval
+    (``reward="log"``: the distance term is −ln(1 + d/tol)/ln(1 + θ_lin/tol) instead;
+    ``success_bonus`` is added to it in every interval that ends within ``tolerance``),
     E = C∫|V dV| the energy the amplifier moved through the channel's quadrants
     (capacitance C) during the interval and E_ref = C·(45·10 V)² the energy of one
     full-amplitude period; w = ``energy_weight`` = 0.01. ``info`` holds
@@ -102,7 +104,8 @@ class PiezoTurntableEnv(gym.Env):
     The table at rest (every friction element stuck, holding the small pendulum torque)
     at a start angle drawn uniformly in ±0.8·θ_lin, target uniformly in ±0.8·θ_lin, the
     generator idle, tubes unbent. ``reset(options={"start_angle": ..., "target_angle":
-    ...})`` sets them [rad] (start within ±``angle_limit``, target within ±θ_lin). With
+    ...})`` sets them [rad] (start within ±``angle_limit``, target within ±θ_lin);
+    ``move_range`` draws the start as the target less a log-uniform move instead. With
     ``randomize``, the friction coefficients, preload, amplifier slew and sensor noise
     are redrawn each episode (ranges: :data:`~turntable_env.envs.config.DEFAULT_RANDOMIZATION`).
 
@@ -132,7 +135,8 @@ class PiezoTurntableEnv(gym.Env):
     ## Version History
 
     * v0: initial version (reduced per-axis model, real parameters). Later additions that
-      keep v0's behaviour: ``info["steps"]`` and ``terminate_on_success``.
+      keep v0's behaviour: ``info["steps"]``, ``terminate_on_success``, ``move_range``,
+      ``reward="log"`` and ``success_bonus``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
@@ -152,6 +156,9 @@ class PiezoTurntableEnv(gym.Env):
         start_range: float = 0.8,
         target_range: float = 0.8,
         angle_limit: float = 0.05,
+        move_range: tuple[float, float] | None = None,
+        reward: Literal["linear", "log"] = "linear",
+        success_bonus: float = 0.0,
         render_mode: str | None = None,
     ) -> None:
         self.config = EnvConfig(
@@ -159,7 +166,8 @@ class PiezoTurntableEnv(gym.Env):
             randomize=randomize, noise=noise, sensor_noise=sensor_noise, tolerance=tolerance,
             terminate_on_success=terminate_on_success, energy_weight=energy_weight,
             start_range=start_range, target_range=target_range,
-            angle_limit=angle_limit,
+            angle_limit=angle_limit, move_range=move_range, reward=reward,
+            success_bonus=success_bonus,
         )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r}: must be None or 'rgb_array'")

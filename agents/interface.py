@@ -1,0 +1,146 @@
+"""What an RL agent sees and does: features of the env observation and a reduced action.
+
+The agents act on ``PiezoTurntable-v0`` through :class:`AgentInterface`, the same in
+training (:class:`AgentWrapper`, :class:`NativeVecEnv`) and in the benchmark
+(:class:`~agents.controller.AgentController`).
+
+Observation (8 features, from the env's observation o and the plant context):
+
+====  ==============================================================================
+0     e/θ_lin, clipped at ±2: the error e = θ* − θ_measured in detector ranges
+1     sign(e)·ln(1 + |e|/tol)/ln(1 + θ_lin/tol): the error in decades of the tolerance
+2     e/(K·u_max), clipped at ±2: the error in scan ranges
+3     saturation of the reading: +1 / −1 at the detector's edges, else 0
+4     last scan offset (o[7], fraction of u_max)
+5     last amplitude (o[3]) — 6  last frequency (o[4]) — 7  generator phase (o[2])
+====  ==============================================================================
+
+Action (3 values in [-1, 1]):
+
+====  ==============================================================================
+0     amplitude: |a| < ``deadzone`` → generator idle; otherwise sign(a)·(A_min + (A_max −
+      A_min)·(|a| − deadzone)/(1 − deadzone)) [V] input
+1     steps per interval m = 1 … ``max_steps`` (frequency m/Δt, whole periods)
+2     scan-offset change: u ← clip(u + a·``offset_step``, ±u_max) [V]
+====  ==============================================================================
+
+The waveform is the slew-adapted flyback (a = ``ramp_ratio``, k = ``slew_adaptation``),
+whose step grows with the amplitude at every frequency (``controllers/data/step_map.csv``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from controllers.base import SATURATION_FRACTION, ControllerContext
+
+__all__ = ["AgentInterface", "AgentWrapper", "InterfaceConfig"]
+
+
+@dataclass(frozen=True)
+class InterfaceConfig:
+    """Parameters of the agent's action map (SI units; see the module docstring)."""
+
+    deadzone: float = 0.2
+    amplitude_min: float = 2.0  # V input
+    amplitude_max: float = 10.0  # V input
+    max_steps: int = 20
+    offset_step: float = 2.0  # V per interval
+    ramp_ratio: float = 0.9
+    slew_adaptation: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.deadzone < 1.0:
+            raise ValueError(f"deadzone={self.deadzone!r}: must be in [0, 1)")
+        if not 0.0 < self.amplitude_min <= self.amplitude_max:
+            raise ValueError(
+                f"amplitude_min={self.amplitude_min!r}, amplitude_max={self.amplitude_max!r}: "
+                "need 0 < min <= max"
+            )
+        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
+            raise ValueError(f"max_steps={self.max_steps!r}: must be a positive integer")
+        if self.offset_step <= 0.0:
+            raise ValueError(f"offset_step={self.offset_step!r}: must be > 0")
+
+
+class AgentInterface:
+    """Feature and action maps for one plant context (module docstring)."""
+
+    observation_space = gym.spaces.Box(-3.0, 3.0, (8,), np.float32)
+    action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+
+    def __init__(self, ctx: ControllerContext, config: InterfaceConfig | None = None) -> None:
+        self.ctx = ctx
+        self.config = config or InterfaceConfig()
+        if self.config.max_steps / ctx.control_interval > 2000.0 + 1e-9:
+            raise ValueError(
+                f"max_steps={self.config.max_steps!r}: above 2 kHz at Δt = {ctx.control_interval}"
+            )
+        self._log_norm = math.log1p(ctx.angle_range / ctx.tolerance)
+
+    def features(self, obs: np.ndarray) -> np.ndarray:
+        """(8,) float32 features of one env observation."""
+        c = self.ctx
+        meas, target = float(obs[0]), float(obs[1])
+        e = target - meas
+        sat = 0.0
+        if abs(meas) >= c.angle_range * SATURATION_FRACTION:
+            sat = math.copysign(1.0, meas)
+        return np.array(
+            [
+                np.clip(e / c.angle_range, -2.0, 2.0),
+                math.copysign(math.log1p(abs(e) / c.tolerance) / self._log_norm, e),
+                np.clip(e / c.scan_range, -2.0, 2.0),
+                sat,
+                obs[7],
+                obs[3],
+                obs[4],
+                obs[2],
+            ],
+            dtype=np.float32,
+        )
+
+    def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """The env action for an agent action, given the env observation it answered."""
+        cfg, c = self.config, self.ctx
+        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        mag = abs(a[0])
+        amp = 0.0
+        if mag >= cfg.deadzone:
+            frac = (mag - cfg.deadzone) / (1.0 - cfg.deadzone) if cfg.deadzone < 1.0 else 1.0
+            amp = math.copysign(
+                cfg.amplitude_min + (cfg.amplitude_max - cfg.amplitude_min) * frac, a[0]
+            )
+        m = 1 + round((cfg.max_steps - 1) * 0.5 * (a[1] + 1.0))
+        offset = float(obs[7]) * c.input_limit + a[2] * cfg.offset_step
+        offset = float(np.clip(offset, -c.input_limit, c.input_limit))
+        return c.scaling.encode(
+            amp, m / c.control_interval, cfg.ramp_ratio, cfg.slew_adaptation, offset
+        )
+
+
+class AgentWrapper(gym.Wrapper):
+    """``PiezoTurntable-v0`` seen through :class:`AgentInterface` (single env)."""
+
+    def __init__(self, env: gym.Env, config: InterfaceConfig | None = None) -> None:
+        super().__init__(env)
+        self.interface = AgentInterface(ControllerContext.from_env(env), config)
+        self.observation_space = self.interface.observation_space
+        self.action_space = self.interface.action_space
+        self._raw: np.ndarray | None = None
+
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        self._raw = obs
+        return self.interface.features(obs), info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        assert self._raw is not None, "reset() first"
+        obs, r, term, trunc, info = self.env.step(self.interface.env_action(action, self._raw))
+        self._raw = obs
+        return self.interface.features(obs), r, term, trunc, info

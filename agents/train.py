@@ -1,0 +1,236 @@
+"""Train a stable-baselines3 agent on ``PiezoTurntable-v0`` from a hyperparameter file.
+
+:func:`train` reads ``agents/hyperparams/<algo>.yml`` (rl-baselines3-zoo layout), builds
+the native batched vector env (:class:`~agents.vec_env.NativeVecEnv`, domain
+randomisation on) under ``VecMonitor`` and ``VecNormalize``, seeds everything, and
+learns with an ``EvalCallback`` (a separate, differently seeded set of randomised
+turntables, deterministic policy), a ``CheckpointCallback`` (with the VecNormalize
+statistics) and SB3's progress bar. Logs: CSV (``logs/progress.csv``), optional
+TensorBoard. The run directory receives
+
+* ``model.zip`` and ``vecnormalize.pkl`` — the agent (:func:`agents.load_agent`);
+* ``config.yml`` — the effective hyperparameters, seed, timesteps and versions;
+* ``eval/evaluations.npz``, ``checkpoints/``, ``learning_curve.png``.
+
+``python experiments/train_rl.py --algo ppo --timesteps N --seed S --out DIR`` is the
+command line.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .interface import InterfaceConfig
+
+__all__ = [
+    "ALGOS",
+    "HYPERPARAMS_DIR",
+    "TrainedAgent",
+    "load_hyperparams",
+    "make_vec_env",
+    "ship",
+    "train",
+]
+
+HYPERPARAMS_DIR = Path(__file__).parent / "hyperparams"
+ENV_ID = "PiezoTurntable-v0"
+PROJECT_KEYS = (
+    "n_envs", "n_timesteps", "policy", "normalize", "max_episode_steps", "env_kwargs",
+    "interface", "eval", "checkpoint_freq",
+)  # fmt: skip
+
+
+@dataclass
+class TrainedAgent:
+    """What :func:`train` returns: the run directory, the model and its VecNormalize."""
+
+    run: Path
+    model: Any
+    vecnormalize: Any
+
+
+def _algos() -> dict[str, Any]:
+    from stable_baselines3 import PPO, SAC, TD3
+
+    return {"ppo": PPO, "sac": SAC, "td3": TD3}
+
+
+ALGOS = ("ppo", "sac", "td3")
+
+
+def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any]:
+    """The ``PiezoTurntable-v0`` entry of ``<algo>.yml`` (or of ``path``)."""
+    if algo not in ALGOS:
+        raise ValueError(f"algo={algo!r}: must be one of {', '.join(ALGOS)}")
+    p = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.yml"
+    if not p.is_file():
+        raise ValueError(f"hyperparameters: {p} does not exist")
+    data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    if not isinstance(data, dict) or ENV_ID not in data:
+        raise ValueError(f"{p}: no '{ENV_ID}' entry")
+    cfg = dict(data[ENV_ID])
+    for key in ("n_envs", "n_timesteps", "policy", "env_kwargs", "max_episode_steps"):
+        if key not in cfg:
+            raise ValueError(f"{p}: '{ENV_ID}.{key}' missing")
+    return cfg
+
+
+def make_vec_env(cfg: dict[str, Any], n_envs: int, seed: int) -> Any:
+    """The monitored native vector env of a hyperparameter entry, seeded."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from .vec_env import NativeVecEnv
+
+    env = NativeVecEnv(
+        n_envs,
+        int(cfg["max_episode_steps"]),
+        InterfaceConfig(**cfg.get("interface", {})),
+        **cfg["env_kwargs"],
+    )
+    env.seed(seed)
+    return VecMonitor(env)
+
+
+def train(
+    algo: str,
+    *,
+    timesteps: int | None = None,
+    seed: int = 0,
+    out: str | Path = "runs/agent",
+    hyperparams: str | Path | None = None,
+    tensorboard: bool = False,
+    progress: bool = True,
+) -> TrainedAgent:
+    """Train ``algo`` (module docstring)."""
+    import stable_baselines3
+    import torch
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    cfg = load_hyperparams(algo, hyperparams)
+    n_steps = int(timesteps if timesteps is not None else cfg["n_timesteps"])
+    if n_steps < 1:
+        raise ValueError(f"timesteps={timesteps!r}: must be >= 1")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    set_random_seed(seed)
+    torch.set_num_threads(1)  # the simulator takes the other core
+    n_envs = int(cfg["n_envs"])
+    norm = dict(cfg.get("normalize", {"norm_obs": True, "norm_reward": False}))
+    gamma = float(cfg.get("gamma", 0.99))
+    venv = VecNormalize(make_vec_env(cfg, n_envs, seed), gamma=gamma, **norm)
+    ev = dict(cfg.get("eval", {}))
+    eval_env = VecNormalize(
+        make_vec_env(cfg, int(ev.get("n_envs", 4)), seed + 10_000),
+        training=False,
+        norm_obs=norm.get("norm_obs", True),
+        norm_reward=False,
+    )
+    hyper = {k: v for k, v in cfg.items() if k not in PROJECT_KEYS}
+    model = _algos()[algo](cfg["policy"], venv, seed=seed, verbose=0, **copy.deepcopy(hyper))
+    formats = ["csv"] + (["tensorboard"] if tensorboard else [])
+    model.set_logger(configure(str(out / "logs"), formats))
+    callbacks = [
+        EvalCallback(
+            eval_env,
+            n_eval_episodes=int(ev.get("episodes", 16)),
+            eval_freq=max(int(ev.get("freq", 10_000)) // n_envs, 1),
+            log_path=str(out / "eval"),
+            deterministic=True,
+            verbose=0,
+        ),
+        CheckpointCallback(
+            save_freq=max(int(cfg.get("checkpoint_freq", 100_000)) // n_envs, 1),
+            save_path=str(out / "checkpoints"),
+            name_prefix=algo,
+            save_vecnormalize=True,
+        ),
+    ]
+    t0 = time.perf_counter()
+    model.learn(total_timesteps=n_steps, callback=callbacks, progress_bar=progress)
+    wall = time.perf_counter() - t0
+    model.save(out / "model.zip")
+    venv.save(str(out / "vecnormalize.pkl"))
+    effective = {
+        ENV_ID: cfg,
+        "run": {
+            "algo": algo,
+            "seed": seed,
+            "timesteps": n_steps,
+            "wall_s": round(wall, 1),
+            "versions": {
+                "stable_baselines3": stable_baselines3.__version__,
+                "torch": str(torch.__version__),
+                "numpy": np.__version__,
+            },
+        },
+    }
+    (out / "config.yml").write_text(yaml.safe_dump(effective, sort_keys=False), encoding="utf-8")
+    plot_learning_curve(out)
+    eval_env.close()
+    return TrainedAgent(out, model, venv)
+
+
+SHIPPED_FILES = (
+    "model.zip", "vecnormalize.pkl", "config.yml", "learning_curve.png",
+    "eval/evaluations.npz", "logs/progress.csv",
+)  # fmt: skip
+
+
+def ship(run: str | Path, dest: str | Path) -> Path:
+    """Copy a run's agent, statistics, config and logs (not the checkpoints) to ``dest``
+    and redraw its learning curve there — how ``agents/pretrained/<algo>/`` is made."""
+    import shutil
+
+    src, dst = Path(run), Path(dest)
+    for name in SHIPPED_FILES:
+        if not (src / name).is_file():
+            raise ValueError(f"ship: {src / name} missing")
+    for name in SHIPPED_FILES:
+        (dst / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src / name, dst / name)
+    plot_learning_curve(dst)  # titled with the shipped name
+    return dst
+
+
+def plot_learning_curve(run: str | Path) -> Path | None:
+    """``learning_curve.png``: evaluation return (mean ± std) and training episode return
+    vs timesteps, from ``eval/evaluations.npz`` and ``logs/progress.csv``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    run = Path(run)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ev = run / "eval" / "evaluations.npz"
+    if ev.is_file():
+        d = np.load(ev)
+        m, s = d["results"].mean(axis=1), d["results"].std(axis=1)
+        ax.plot(d["timesteps"], m, "o-", label="evaluation (deterministic)")
+        ax.fill_between(d["timesteps"], m - s, m + s, alpha=0.2)
+    prog = run / "logs" / "progress.csv"
+    if prog.is_file() and prog.stat().st_size > 0:
+        import pandas as pd
+
+        df = pd.read_csv(prog)
+        if {"time/total_timesteps", "rollout/ep_rew_mean"} <= set(df.columns):
+            ax.plot(df["time/total_timesteps"], df["rollout/ep_rew_mean"], label="training")
+    ax.set_xlabel("timesteps")
+    ax.set_ylabel("episode return")
+    ax.legend()
+    ax.set_title(run.name)
+    p = run / "learning_curve.png"
+    fig.tight_layout()
+    fig.savefig(p, dpi=90)
+    plt.close(fig)
+    return p

@@ -1,0 +1,127 @@
+"""RL agents: training smoke tests, save/reload, the shipped agents, the SB3 vector env."""
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import turntable_env  # noqa: F401
+from agents import AgentWrapper, InterfaceConfig, load_agent, pretrained
+from agents.train import load_hyperparams, train
+from agents.vec_env import NativeVecEnv
+from controllers import make
+
+FIXED_OBS = np.random.default_rng(7).uniform(-2.0, 2.0, size=(16, 8)).astype(np.float32)
+
+
+def _smoke_hyperparams(algo, tmp_path):
+    cfg = load_hyperparams(algo)
+    cfg.update(n_envs=2, max_episode_steps=20, checkpoint_freq=200)
+    cfg["eval"] = {"freq": 200, "n_envs": 2, "episodes": 2}
+    if algo == "ppo":
+        cfg.update(n_steps=64, batch_size=64, n_epochs=2)
+    else:
+        cfg.update(learning_starts=50, batch_size=32, buffer_size=1000)
+    p = tmp_path / f"{algo}.yml"
+    p.write_text(yaml.safe_dump({"PiezoTurntable-v0": cfg}))
+    return p
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_train_save_reload_gives_identical_actions(algo, tmp_path):
+    res = train(
+        algo, timesteps=300, seed=1, out=tmp_path / "run",
+        hyperparams=_smoke_hyperparams(algo, tmp_path), progress=False,
+    )  # fmt: skip
+    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "learning_curve.png"):
+        assert (res.run / name).stat().st_size > 0
+    assert (res.run / "logs" / "progress.csv").is_file()
+    assert (res.run / "eval" / "evaluations.npz").is_file()
+    assert any((res.run / "checkpoints").iterdir())
+    model, vecnorm, cfg = load_agent(res.run)
+    assert cfg["run"]["seed"] == 1 and cfg["run"]["timesteps"] == 300
+    obs_a = res.vecnormalize.normalize_obs(FIXED_OBS)
+    obs_b = vecnorm.normalize_obs(FIXED_OBS)
+    np.testing.assert_array_equal(obs_a, obs_b)
+    act_a, _ = res.model.predict(obs_a, deterministic=True)
+    act_b, _ = model.predict(obs_b, deterministic=True)
+    np.testing.assert_array_equal(act_a, act_b)
+    space = model.action_space
+    assert all(space.contains(a.astype(np.float32)) for a in act_b)
+
+
+def test_shipped_agents_load_and_act():
+    shipped = pretrained()
+    assert {"ppo", "sac"} <= set(shipped)
+    env = gym.make("PiezoTurntable-v0", randomize=True)
+    for name, run in shipped.items():
+        size = sum(f.stat().st_size for f in Path(run).rglob("*") if f.is_file())
+        assert size < 5e6, f"{name}: {size} bytes"
+        ctl = make(name, env)
+        obs, info = env.reset(seed=0)
+        ctl.reset(obs, info)
+        for _ in range(3):
+            action = ctl.act(obs)
+            assert env.action_space.contains(action)
+            obs, *_ = env.step(action)
+
+
+def test_native_vec_env_equals_the_wrapped_single_env():
+    """Same seed and actions: NativeVecEnv (N = 1) and AgentWrapper see the same features."""
+    kwargs = {"noise": True, "randomize": True, "move_range": (1e-6, 1e-3)}
+    venv = NativeVecEnv(1, max_episode_steps=5, **kwargs)
+    venv.seed(3)
+    single = AgentWrapper(gym.make("PiezoTurntable-v0", max_episode_steps=5, **kwargs))
+    f_vec = venv.reset()
+    f_one, _ = single.reset(seed=3)
+    np.testing.assert_array_equal(f_vec[0], f_one)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        a = rng.uniform(-1, 1, size=3).astype(np.float32)
+        f_vec, r_vec, done, infos = venv.step(a[None, :])
+        f_one, r_one, term, trunc, _ = single.step(a)
+        if done[0]:  # finished: SB3 gets the last features as terminal_observation
+            np.testing.assert_array_equal(infos[0]["terminal_observation"], f_one)
+            assert term or trunc
+        else:
+            np.testing.assert_array_equal(f_vec[0], f_one)
+        assert r_vec[0] == pytest.approx(r_one, rel=1e-6)
+    assert done[0]  # the time limit of 5 steps ended the episode
+
+
+@pytest.mark.parametrize(("a1", "steps"), [(-1.0, 1), (1.0, 20), (0.0, 11)])
+def test_agent_action_sets_whole_steps_per_interval(a1, steps):
+    env = AgentWrapper(gym.make("PiezoTurntable-v0", noise=False))
+    env.reset(seed=0, options={"start_angle": 0.0, "target_angle": 0.0})
+    info = env.step(np.array([0.8, a1, 0.0], dtype=np.float32))[4]
+    assert info["steps"] == steps
+
+
+def test_agent_deadzone_idles_and_offset_accumulates():
+    env = AgentWrapper(gym.make("PiezoTurntable-v0", noise=False))
+    env.reset(seed=0, options={"start_angle": 0.0, "target_angle": 0.0})
+    k = env.interface.ctx.scan_gain
+    for n in range(1, 4):
+        info = env.step(np.array([0.1, 0.0, 0.5], dtype=np.float32))[4]
+        assert info["steps"] == 0
+        assert info["angle_rad"] == pytest.approx(n * 1.0 * k, rel=0.01)  # +1 V per step
+    for _ in range(10):  # the offset saturates at the amplifier's 10 V input limit
+        info = env.step(np.array([0.0, 0.0, 1.0], dtype=np.float32))[4]
+    assert info["angle_rad"] == pytest.approx(10.0 * k, rel=0.01)
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: load_hyperparams("dqn"), "algo"),
+        (lambda: load_hyperparams("ppo", "/nonexistent.yml"), "does not exist"),
+        (lambda: InterfaceConfig(deadzone=1.0), "deadzone"),
+        (lambda: InterfaceConfig(max_steps=0), "max_steps"),
+        (lambda: load_agent("/nonexistent"), "model.zip missing"),
+    ],
+)
+def test_agent_configuration_errors(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
