@@ -39,6 +39,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from turntable_env.detector import Detector
+from turntable_env.params import real_parameters
+
 from .episode import EpisodeResult, run_episode
 from .registry import available, load_plugins, make
 
@@ -80,10 +83,11 @@ class Task:
     target_rad: float
 
 
-def task_suite(
-    table_radius: float = 0.01, angle_range: float = 5.714e-4, seed: int = SUITE_SEED
-) -> list[Task]:
-    """The nine tasks (module docstring) for a table radius [m] and detector range [rad]."""
+def task_suite(detector: Detector | None = None, seed: int = SUITE_SEED) -> list[Task]:
+    """The nine tasks (module docstring) for a detector (default: the real set's), whose
+    table radius [m] converts the moves and whose linear range [rad] bounds the targets."""
+    det = detector if detector is not None else real_parameters().detector
+    table_radius, angle_range = det.table_radius, det.angle_range
     rng = np.random.default_rng(seed)
     tasks = []
     for i, axis in enumerate("ABC"):
@@ -209,11 +213,7 @@ def run_benchmark(
             )
             cfg = env.unwrapped.config
             det = cfg.parameter_set.detector
-            tasks = [
-                t
-                for t in task_suite(det.table_radius, det.angle_range)
-                if t.axis == axis and t.size in sizes
-            ]
+            tasks = [t for t in task_suite(det) if t.axis == axis and t.size in sizes]
             run_tasks.update({f"{t.axis}-{t.size}": t for t in tasks})
             n_seeds = 1 if cond == "nominal" else seeds
             jobs.append((cond, axis, env, tasks, n_seeds))

@@ -24,6 +24,7 @@ from controllers.episode import EpisodeResult
 from controllers.scan_pid import ScanPID, design_scan_pid, pid_transfer_function
 from controllers.step_map import sweep_step_map
 from turntable_env.linear import scan_plant, stick_plant
+from turntable_env.params import real_parameters
 
 R_TABLE = 0.01  # m
 
@@ -214,7 +215,9 @@ def test_benchmark_json_keys_and_files(tmp_path):
     assert len(tasks) == 9 and {t.axis for t in tasks} == {"A", "B", "C"}
     moves = sorted({round(abs(t.move_m) * 1e9) for t in tasks})
     assert moves == [50, 2000, 50000]
-    assert all(abs(t.target_rad) <= 0.5 * 5.715e-4 for t in tasks)
+    lim = real_parameters().detector.angle_range
+    assert all(abs(t.target_rad) <= 0.5 * lim for t in tasks)
+    assert sum(abs(t.start_rad) > lim for t in tasks) == 3  # the large moves start outside
     res = run_benchmark(
         ["closed_loop"], seeds=1, horizon=40, conditions=["nominal"], axes=["A"], sizes=["small"]
     )
