@@ -1,0 +1,140 @@
+"""Measurement file format (loader contract) and the thesis's summary-level data."""
+
+import numpy as np
+import pytest
+
+from turntable_env.calibration import (
+    Measurement,
+    load_measurement,
+    thesis_detector,
+    thesis_targets,
+)
+from turntable_env.detector import Detector
+from turntable_env.params import real_parameters
+
+GOOD = """# axis: B
+# amplifier_gain: 45
+# detector_sensitivity_m_per_V: 9.9e-5
+# detector_distance_m: 0.175
+# table_radius_m: 0.01
+# operator: lab notebook 12
+t_s,drive_B_V,detector_V,detector_y_V
+0.0,0.0,0.010,0.001
+0.001,0.5,0.012,0.001
+0.002,1.0,0.015,0.002
+0.003,-2.0,0.020,0.002
+"""
+
+
+def _write(tmp_path, text, name="m.csv"):
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_loads_every_field(tmp_path):
+    m = load_measurement(_write(tmp_path, GOOD))
+    assert m.axis == "B" and m.amplifier_gain == 45.0
+    assert m.detector.sensitivity == 9.9e-5 and m.detector.table_radius == 0.01
+    np.testing.assert_array_equal(m.time, [0.0, 0.001, 0.002, 0.003])
+    np.testing.assert_array_equal(m.drives["B"], [0.0, 0.5, 1.0, -2.0])
+    np.testing.assert_array_equal(m.detector_y_v, [0.001, 0.001, 0.002, 0.002])
+    assert m.meta == {"operator": "lab notebook 12"}
+    # Eq. 4.1: θ = ½·arctan(V·S/L)
+    assert m.angle()[2] == pytest.approx(0.5 * np.arctan(0.015 * 9.9e-5 / 0.175), rel=1e-12)
+
+
+def test_save_and_load_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(1e-6, 1e-5, 50))
+    m = Measurement(
+        axis="C", amplifier_gain=45.0, detector=Detector(table_radius=0.012),
+        time=t, drives={"A": rng.uniform(-10, 10, 50), "C": rng.uniform(-1, 1, 50)},
+        detector_v=rng.normal(0, 0.5, 50), meta={"protocol": "steps"},
+    )  # fmt: skip
+    back = load_measurement(m.save(tmp_path / "rt.csv"))
+    np.testing.assert_array_equal(back.time, m.time)
+    for k in ("A", "C"):
+        np.testing.assert_array_equal(back.drives[k], m.drives[k])
+    np.testing.assert_array_equal(back.detector_v, m.detector_v)
+    assert back.detector_y_v is None and back.meta == {"protocol": "steps"}
+    assert back.detector == m.detector and back.axis == "C"
+
+
+@pytest.mark.parametrize(
+    ("edit", "line", "match"),
+    [
+        (lambda t: t.replace("# axis: B\n", ""), 1, "'# axis: ...' missing"),
+        (lambda t: t.replace("# axis: B", "# axis: Q"), 1, "axis"),
+        (
+            lambda t: t.replace("# amplifier_gain: 45", "# amplifier_gain: 4.5e4"),
+            2,
+            "amplifier_gain",
+        ),
+        (
+            lambda t: t.replace("# table_radius_m: 0.01", "# table_radius_m: ten"),
+            5,
+            "table_radius_m",
+        ),
+        (lambda t: t.replace(",detector_V,", ",det_V,"), 7, "'det_V'"),
+        (
+            lambda t: t.replace("t_s,drive_B_V,detector_V,", "t_s,drive_Q_V,detector_V,"),
+            7,
+            "'drive_Q_V'",
+        ),
+        (lambda t: t.replace("t_s,drive_B_V,", "t_s,"), 7, "drive"),
+        (lambda t: t.replace("0.001,0.5,", "0.001,abc,"), 9, "'drive_B_V' = 'abc'"),
+        (lambda t: t.replace("0.001,0.5,", "0.001,nan,"), 9, "not finite"),
+        (lambda t: t.replace("0.002,1.0,", "0.0005,1.0,"), 10, "'t_s'.*not increasing"),
+        (lambda t: t.replace("0.003,-2.0,", "0.003,-12.0,"), 11, "'drive_B_V'.*±10"),
+        (lambda t: t.replace("0.003,-2.0,0.020,0.002", "0.003,-2.0,0.020"), 11, "3 cells"),
+    ],
+)
+def test_malformed_file_names_file_line_and_column(tmp_path, edit, line, match):
+    p = _write(tmp_path, edit(GOOD))
+    with pytest.raises(ValueError, match=match) as exc:
+        load_measurement(p)
+    assert f"{p}:{line}" in str(exc.value)
+
+
+def test_unreadable_or_empty_files(tmp_path):
+    p = tmp_path / "latin1.csv"
+    p.write_bytes(GOOD.replace("operator: lab", "operator: l\xe4b").encode("latin-1"))
+    with pytest.raises(ValueError, match="not UTF-8"):
+        load_measurement(p)
+    header_only = GOOD.split("0.0,0.0")[0]
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        load_measurement(_write(tmp_path, header_only, "h.csv"))
+
+
+# --- the thesis's data ----------------------------------------------------------------------
+def test_thesis_targets_are_the_chapter_4_figures():
+    t = {x.name: x for x in thesis_targets()}
+    assert t["amplifier_slew_1V"].value == 0.9e6 and t["amplifier_slew_3V"].value == 2.7e6
+    assert t["amplifier_slew_900V"].value == 12e6 and t["amplifier_slew_adapted"].value == 8.0e6
+    two, one = t["detector_dV_two_directional"], t["detector_dV_one_directional"]
+    assert (two.value, two.drive["steps"]) == (0.53, 5)
+    assert (one.value, one.drive["steps"]) == (1.19, 9)
+    assert two.drive["axis"] == "B" and two.drive["amplitude_V"] == 2.0
+    assert t["return_two_directional"].value == 0.0
+    assert t["net_rotation_unadapted"].drive["amplifier"] == "unadapted"
+    assert all(x.source.startswith("§4.1") for x in t.values())
+
+
+@pytest.mark.parametrize(
+    ("dv", "steps", "x_um", "step_um"), [(0.53, 5, 1.5, 0.30), (1.19, 9, 3.4, 0.37)]
+)
+def test_eq_4_1_and_4_2_reproduce_the_thesis_displacements(dv, steps, x_um, step_um):
+    """0.53 V → 1.5 µm (0.30 µm per step), 1.19 V → 3.4 µm (0.37), §4.1.3."""
+    x = float(thesis_detector().table_displacement(dv))
+    assert x * 1e6 == pytest.approx(x_um, abs=0.05)
+    assert x / steps * 1e6 == pytest.approx(step_um, abs=0.005)
+
+
+def test_thesis_detector_is_the_parameter_sets_detector():
+    d, p = thesis_detector(), real_parameters().detector
+    assert (d.sensitivity, d.distance, d.linear_range) == (
+        p.sensitivity,
+        p.distance,
+        p.linear_range,
+    )

@@ -1,0 +1,18 @@
+"""Calibration with measured data (issue 8, in progress).
+
+* :mod:`.measurement` — the measurement file format, its validating loader and writer;
+* :mod:`.thesis_data` — the thesis's chapter-4 measurements as summary-level targets.
+"""
+
+from .measurement import AXES, Measurement, load_measurement
+from .thesis_data import THESIS_DATA_FILE, SummaryTarget, thesis_detector, thesis_targets
+
+__all__ = [
+    "AXES",
+    "THESIS_DATA_FILE",
+    "Measurement",
+    "SummaryTarget",
+    "load_measurement",
+    "thesis_detector",
+    "thesis_targets",
+]

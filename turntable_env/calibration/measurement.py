@@ -1,0 +1,244 @@
+"""Measured data: the file format, its validating loader and its writer.
+
+A measurement file is CSV in UTF-8 — only what a laboratory records:
+
+* leading comment lines ``# key: value`` with the metadata. Required: ``axis`` (A, B, C
+  or Z: the axis the detector watches), ``amplifier_gain`` [-],
+  ``detector_sensitivity_m_per_V``, ``detector_distance_m`` and ``table_radius_m``;
+  any further keys are kept as text (``Measurement.meta``);
+* a header row, then one sample per row:
+
+  ==================  =====================================================  ==========
+  column              meaning                                                required
+  ==================  =====================================================  ==========
+  ``t_s``             time [s], strictly increasing, ≥ 0                     yes
+  ``drive_<X>_V``     amplifier INPUT voltage of channel X ∈ {A, B, C, Z}    at least 1
+                      [V] (what the lab commands), |u| ≤ 10 V
+  ``detector_V``      quadrant-photodiode output of the watched channel [V]  yes
+  ``detector_y_V``    the photodiode's other output [V]                      no
+  ==================  =====================================================  ==========
+
+Physical ranges (checked): amplifier gain 1–1000, S 1e-7–1e-2 m/V, L 1 mm–10 m,
+R_table 0.1 mm–1 m, |detector| ≤ 15 V. Any defect — a missing key or column, an unknown
+column, a non-numeric or non-finite cell, time not increasing, an unknown axis, a value
+out of range — raises ValueError naming the file, the line and the column; nothing is
+returned half-loaded.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..detector import Detector
+
+__all__ = ["AXES", "Measurement", "load_measurement"]
+
+AXES = ("A", "B", "C", "Z")
+INPUT_LIMIT = 10.0  # V, amplifier input range (§4.1.1: LabView signal between ±10 V)
+DETECTOR_LIMIT = 15.0  # V, photodiode electronics supply
+META_RANGES = {  # key: (low, high, unit)
+    "amplifier_gain": (1.0, 1000.0, "-"),
+    "detector_sensitivity_m_per_V": (1e-7, 1e-2, "m/V"),
+    "detector_distance_m": (1e-3, 10.0, "m"),
+    "table_radius_m": (1e-4, 1.0, "m"),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Measurement:
+    """One measurement file's content (SI units; time is axis 0 of every array).
+
+    Attributes:
+        axis: the axis the detector watches; amplifier_gain: [-]; detector: sensitivity,
+        distance and table radius as a :class:`~turntable_env.detector.Detector`;
+        time [s]; drives: channel → amplifier input [V]; detector_v [V];
+        detector_y_v [V] or None; meta: the other metadata (text); source: file path.
+    """
+
+    axis: str
+    amplifier_gain: float
+    detector: Detector
+    time: np.ndarray
+    drives: dict[str, np.ndarray]
+    detector_v: np.ndarray
+    detector_y_v: np.ndarray | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+    source: str = ""
+
+    def angle(self) -> np.ndarray:
+        """Table angle from the detector, Eq. 4.1 [rad]."""
+        return self.detector.angle(self.detector_v)
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1] - self.time[0])
+
+    def to_pandas(self) -> Any:
+        import pandas as pd
+
+        cols: dict[str, np.ndarray] = {f"drive_{k}_V": v for k, v in self.drives.items()}
+        cols["detector_V"] = self.detector_v
+        if self.detector_y_v is not None:
+            cols["detector_y_V"] = self.detector_y_v
+        return pd.DataFrame(cols, index=pd.Index(self.time, name="t_s"))
+
+    def plot(self, axes: Any = None) -> Any:
+        """Drives and detector voltage vs time."""
+        import matplotlib.pyplot as plt
+
+        if axes is None:
+            _fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
+        for k, v in self.drives.items():
+            axes[0].plot(self.time, v, label=f"drive {k}")
+        axes[0].set_ylabel("amplifier input [V]")
+        axes[0].legend()
+        axes[1].plot(self.time, self.detector_v)
+        axes[1].set_ylabel(f"detector ({self.axis}) [V]")
+        axes[1].set_xlabel("time [s]")
+        return axes
+
+    def save(self, path: str | Path) -> Path:
+        """Write in the format above (full float precision); :func:`load_measurement`
+        reads it back unchanged."""
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        det = self.detector
+        meta = {
+            "axis": self.axis,
+            "amplifier_gain": repr(self.amplifier_gain),
+            "detector_sensitivity_m_per_V": repr(det.sensitivity),
+            "detector_distance_m": repr(det.distance),
+            "table_radius_m": repr(det.table_radius),
+            **self.meta,
+        }
+        cols = ["t_s", *(f"drive_{k}_V" for k in self.drives), "detector_V"]
+        data = [self.time, *self.drives.values(), self.detector_v]
+        if self.detector_y_v is not None:
+            cols.append("detector_y_V")
+            data.append(self.detector_y_v)
+        with p.open("w", newline="", encoding="utf-8") as fh:
+            for k, v in meta.items():
+                fh.write(f"# {k}: {v}\n")
+            w = csv.writer(fh)
+            w.writerow(cols)
+            for row in np.column_stack(data):
+                w.writerow([repr(float(x)) for x in row])
+        return p
+
+
+def _meta_float(path: Path, line: int, key: str, text: str) -> float:
+    lo, hi, unit = META_RANGES[key]
+    try:
+        v = float(text)
+    except ValueError:
+        raise ValueError(f"{path}:{line}: metadata {key!r} = {text!r} is not a number") from None
+    if not (math.isfinite(v) and lo <= v <= hi):
+        raise ValueError(f"{path}:{line}: metadata {key!r} = {text!r} outside {lo:g}…{hi:g} {unit}")
+    return v
+
+
+def load_measurement(path: str | Path) -> Measurement:
+    """Read and validate a measurement file (module docstring)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{p}: not UTF-8 ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise ValueError(f"{p}: cannot be read ({exc.strerror})") from None
+    lines = text.splitlines()
+    meta: dict[str, tuple[int, str]] = {}
+    i = 0
+    while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
+        key, sep, val = lines[i][1:].partition(":")
+        if lines[i].startswith("#") and sep:
+            meta[key.strip()] = (i + 1, val.strip())
+        i += 1
+    for key in ("axis", *META_RANGES):
+        if key not in meta:
+            raise ValueError(f"{p}:1: metadata '# {key}: ...' missing")
+    ln, axis = meta["axis"]
+    if axis not in AXES:
+        raise ValueError(f"{p}:{ln}: metadata 'axis' = {axis!r}, must be one of {', '.join(AXES)}")
+    values = {k: _meta_float(p, meta[k][0], k, meta[k][1]) for k in META_RANGES}
+    if i >= len(lines):
+        raise ValueError(f"{p}: no header row")
+    header_line = i + 1
+    header = [c.strip() for c in next(csv.reader([lines[i]]))]
+    drive_cols = [c for c in header if c.startswith("drive_") and c.endswith("_V")]
+    for c in drive_cols:
+        if c[6:-2] not in AXES:
+            raise ValueError(f"{p}:{header_line}: column {c!r}: unknown channel {c[6:-2]!r}")
+    known = {"t_s", "detector_V", "detector_y_V", *drive_cols}
+    for c in header:
+        if c not in known:
+            raise ValueError(f"{p}:{header_line}: column {c!r} is not part of the format")
+    for c in ("t_s", "detector_V"):
+        if c not in header:
+            raise ValueError(f"{p}:{header_line}: column {c!r} missing")
+    if not drive_cols:
+        raise ValueError(f"{p}:{header_line}: no drive_<axis>_V column")
+    if len(set(header)) != len(header):
+        raise ValueError(f"{p}:{header_line}: a column appears twice")
+    rows: list[list[float]] = []
+    for j in range(i + 1, len(lines)):
+        if not lines[j].strip():
+            continue
+        cells = next(csv.reader([lines[j]]))
+        if len(cells) != len(header):
+            raise ValueError(f"{p}:{j + 1}: {len(cells)} cells, the header has {len(header)}")
+        row = []
+        for name, cell in zip(header, cells, strict=True):
+            try:
+                v = float(cell)
+            except ValueError:
+                raise ValueError(
+                    f"{p}:{j + 1}: column {name!r} = {cell!r} is not a number"
+                ) from None
+            if not math.isfinite(v):
+                raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
+            row.append(v)
+        rows.append(row)
+        rec = dict(zip(header, row, strict=True))
+        if rec["t_s"] < 0.0:
+            raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is negative")
+        if len(rows) > 1 and rec["t_s"] <= rows[-2][header.index("t_s")]:
+            raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is not increasing")
+        for c in drive_cols:
+            if abs(rec[c]) > INPUT_LIMIT:
+                raise ValueError(
+                    f"{p}:{j + 1}: column {c!r} = {rec[c]!r} V beyond the ±{INPUT_LIMIT:g} V "
+                    "amplifier input"
+                )
+        for c in ("detector_V", "detector_y_V"):
+            if c in rec and abs(rec[c]) > DETECTOR_LIMIT:
+                raise ValueError(
+                    f"{p}:{j + 1}: column {c!r} = {rec[c]!r} V beyond ±{DETECTOR_LIMIT:g} V"
+                )
+    if len(rows) < 2:
+        raise ValueError(f"{p}: need at least 2 samples, found {len(rows)}")
+    data = np.array(rows)
+    col = {c: data[:, k] for k, c in enumerate(header)}
+    det = Detector(
+        sensitivity=values["detector_sensitivity_m_per_V"],
+        distance=values["detector_distance_m"],
+        table_radius=values["table_radius_m"],
+    )
+    extra = {k: v for k, (_ln, v) in meta.items() if k not in ("axis", *META_RANGES)}
+    return Measurement(
+        axis=axis,
+        amplifier_gain=values["amplifier_gain"],
+        detector=det,
+        time=col["t_s"],
+        drives={c[6:-2]: col[c] for c in drive_cols},
+        detector_v=col["detector_V"],
+        detector_y_v=col.get("detector_y_V"),
+        meta=extra,
+        source=str(p),
+    )
