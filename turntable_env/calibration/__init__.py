@@ -1,7 +1,10 @@
 """Calibration with measured data (issue 8, in progress).
 
 * :mod:`.measurement` — the measurement file format, its validating loader and writer;
-* :mod:`.thesis_data` — the thesis's chapter-4 measurements as summary-level targets.
+* :mod:`.thesis_data` — the thesis's chapter-4 measurements as summary-level targets;
+* :mod:`.effects` — the catalogue of switchable model augmentations;
+* :mod:`.trace` — a measured trace simulated with effects on;
+* :mod:`.virtual_lab` — drive protocols and measurement files from the simulator.
 """
 
 from .measurement import AXES, Measurement, load_measurement

@@ -1,0 +1,196 @@
+"""Effect catalogue, trace simulation and the virtual lab: each effect's signature."""
+
+import math
+
+import numpy as np
+import pytest
+
+from turntable_env.calibration import load_measurement
+from turntable_env.calibration.effects import CATALOGUE, check_effects, parse_effects
+from turntable_env.calibration.trace import simulate_trace
+from turntable_env.calibration.virtual_lab import PROTOCOLS, protocol_drive, run_virtual_lab
+from turntable_env.params import real_parameters
+
+REQUIRED = {
+    "amplifier_dynamics", "piezo_hysteresis", "piezo_creep", "sensor_drift",
+    "axis_misalignment", "detector_nonlinearity", "friction_asymmetry", "friction_wear",
+    "vibration",
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def ps():
+    return real_parameters()
+
+
+@pytest.fixture(scope="module")
+def drive(ps):
+    return protocol_drive("standard", ps, "B")
+
+
+def _trace(ps, drive, effects):
+    return simulate_trace(ps, "B", *drive, effects)
+
+
+@pytest.fixture(scope="module")
+def clean(ps, drive):
+    return _trace(ps, drive, {})
+
+
+def test_catalogue_names_bounds_and_basis():
+    assert REQUIRED <= set(CATALOGUE)
+    for e in CATALOGUE.values():
+        assert e.basis and e.stage in ("parameters", "input", "friction", "output")
+        for p in e.parameters:
+            assert p.low <= p.neutral <= p.high and p.low <= p.typical <= p.high and p.unit
+
+
+@pytest.mark.parametrize("name", sorted(REQUIRED))
+def test_neutral_parameters_change_nothing(ps, drive, clean, name):
+    """Neutral values reproduce the nominal trace; friction-stage effects integrate in
+    5 ms segments, whose step boundaries move the result by < 1 % of the 1 mV noise."""
+    res = _trace(ps, drive, {name: CATALOGUE[name].neutral()})
+    tol = 1e-5 if CATALOGUE[name].stage == "friction" else 1e-12
+    np.testing.assert_allclose(res.detector_v, clean.detector_v, rtol=0, atol=tol)
+
+
+@pytest.mark.parametrize("name", sorted(REQUIRED))
+def test_typical_parameters_leave_a_trace_above_the_noise(ps, drive, clean, name):
+    """Each effect at its typical value moves the detector's x or y channel by more than
+    the thesis-level noise (1 mV) somewhere in the standard protocol."""
+    res = _trace(ps, drive, {name: CATALOGUE[name].defaults()})
+    dx = np.abs(res.detector_v - clean.detector_v).max()
+    dy = np.abs(res.detector_y_v - clean.detector_y_v).max()
+    assert max(dx, dy) > 5e-3
+
+
+def test_sensor_drift_is_offset_plus_rate_times_time(ps, drive, clean):
+    res = _trace(ps, drive, {"sensor_drift": {"offset": 0.02, "rate": 0.1}})
+    np.testing.assert_allclose(res.detector_v - clean.detector_v, 0.02 + 0.1 * drive[0], atol=1e-12)
+
+
+def test_vibration_adds_a_sinusoidal_angle(ps, drive, clean):
+    v = {"amplitude": 4e-6, "frequency": 37.0, "phase": 0.3}
+    res = _trace(ps, drive, {"vibration": v})
+    det = ps.detector
+    dth = det.angle(res.detector_v) - det.angle(clean.detector_v)
+    expect = 4e-6 * np.sin(2 * math.pi * 37.0 * drive[0] + 0.3)
+    np.testing.assert_allclose(dth, expect, atol=2e-8)
+
+
+def test_misalignment_moves_the_other_channel_by_tan_phi(ps, drive, clean):
+    res = _trace(ps, drive, {"axis_misalignment": {"phi": 0.1}})
+    big = np.abs(res.detector_v) > 0.2
+    ratio = res.detector_y_v[big] / res.detector_v[big]
+    np.testing.assert_allclose(ratio, math.tan(0.1), rtol=2e-3)
+    assert np.abs(clean.detector_y_v).max() < 1e-12
+
+
+def test_detector_nonlinearity_is_cubic_in_the_reading(ps, drive, clean):
+    res = _trace(ps, drive, {"detector_nonlinearity": {"kappa": 0.2}})
+    vs = ps.detector.saturation_voltage
+    v = clean.detector_v
+    np.testing.assert_allclose(res.detector_v, v * (1 + 0.2 * (v / vs) ** 2), atol=1e-12)
+
+
+def _at(t, x, times):
+    return np.interp(times, t, x)
+
+
+def test_hysteresis_opens_a_loop_in_the_scan_ramps(ps, drive, clean):
+    """Standard protocol: scan 0 → +4 V (20–70 ms), hold, → −4 V (130–230 ms). At the same
+    input (0 V) the angle differs between the falling and the rising pass with h > 0."""
+    t, u = drive
+    res = _trace(ps, drive, {"piezo_hysteresis": {"h": 0.15, "width": 2.0}})
+    i = np.searchsorted(t, 0.13 + 0.05)  # u = 0 on the way down from +4 V
+    assert abs(u[i]) < 0.05
+    assert abs(clean.theta[i] - clean.theta[0]) < 0.2e-6
+    # after a swing beyond every threshold r_i = width·i/8, each play sits at +r_i: the
+    # effective input is h·mean(r_i) = h·width·9/16, times the scan gain K = G·g/ρ
+    k_scan = (clean.theta[np.searchsorted(t, 0.1)] - clean.theta[0]) / 4.0
+    expect = 0.15 * 2.0 * 9 / 16 * k_scan
+    assert res.theta[i] - res.theta[0] == pytest.approx(expect, rel=0.05)
+
+
+def test_creep_keeps_moving_after_a_scan_ramp(ps, drive, clean):
+    t, _ = drive
+    res = _trace(ps, drive, {"piezo_creep": {"gamma": 0.02}})
+    i0, i1 = np.searchsorted(t, [0.075, 0.125])  # the hold after the +4 V ramp
+    drift = res.theta[i1] - res.theta[i0]
+    drift_clean = clean.theta[i1] - clean.theta[i0]
+    assert abs(drift_clean) < 0.1e-6
+    assert drift > 0.5e-6  # creeping on in the ramp's direction
+
+
+def _block_steps(ps, drive, res):
+    """Net angle change over the first forward and backward 2 V, 100 Hz blocks."""
+    t = drive[0]
+    edges = [0.38, 0.46, 0.49, 0.57]  # s: forward block, hold, backward block
+    th = np.interp(edges, t, res.theta)
+    return th[1] - th[0], th[3] - th[2]
+
+
+def test_amplifier_slew_scale_shrinks_the_adapted_steps(ps, drive, clean):
+    res = _trace(ps, drive, {"amplifier_dynamics": {"slew_scale": 0.5, "current_scale": 1.0}})
+    fwd, _ = _block_steps(ps, drive, res)
+    fwd0, _ = _block_steps(ps, drive, clean)
+    assert 0.0 < fwd < 0.8 * fwd0
+
+
+@pytest.mark.parametrize("alpha", [0.25, -0.25])
+def test_friction_asymmetry_makes_forward_and_backward_steps_differ(ps, drive, clean, alpha):
+    res = _trace(ps, drive, {"friction_asymmetry": {"alpha": alpha}})
+    fwd, back = _block_steps(ps, drive, res)
+    f0, b0 = _block_steps(ps, drive, clean)
+    assert abs(f0 + b0) < 0.05 * f0  # the nominal model is symmetric
+    assert abs(fwd + back) > 0.1 * abs(fwd)
+    res_flip = _trace(ps, drive, {"friction_asymmetry": {"alpha": -alpha}})
+    ff, bf = _block_steps(ps, drive, res_flip)
+    assert np.sign(fwd + back) == -np.sign(ff + bf)
+
+
+def test_friction_wear_changes_the_steps_with_travel(ps, drive, clean):
+    res = _trace(ps, drive, {"friction_wear": {"beta": 0.3}})
+    fwd, back = _block_steps(ps, drive, res)
+    f0, b0 = _block_steps(ps, drive, clean)
+    # friction grows with travel: the later (backward) block steps less than the first,
+    # and both less than the nominal ones (about 2.4 µm of scan travel came before)
+    assert abs(abs(b0) - abs(f0)) < 0.01 * abs(f0)
+    assert abs(back) < 0.98 * abs(fwd) and abs(fwd) < 0.97 * abs(f0)
+
+
+def test_parse_effects_spec():
+    e = parse_effects("piezo_creep=0.02,sensor_drift.rate=0.1,vibration")
+    assert e["piezo_creep"] == {"gamma": 0.02}
+    assert e["sensor_drift"] == {"offset": 0.0, "rate": 0.1}
+    assert e["vibration"] == CATALOGUE["vibration"].defaults()
+    for bad, match in [
+        ("magic=1", "not in the catalogue"),
+        ("piezo_creep=abc", "not a number"),
+        ("piezo_creep=0.5", r"piezo_creep.gamma=0.5: outside"),
+        ("sensor_drift.speed=1", "unknown parameter"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            parse_effects(bad)
+    with pytest.raises(ValueError, match="catalogue"):
+        check_effects({"gremlins": {}})
+
+
+def test_virtual_lab_file_reproduces_its_own_simulation(tmp_path, ps):
+    """The written file holds the drive the simulator ran: simulating the loaded drive
+    with the same effects (noise off) reproduces the detector trace."""
+    eff = {"piezo_creep": {"gamma": 0.02}, "friction_asymmetry": {"alpha": 0.2}}
+    m = run_virtual_lab("thesis", eff, noise_std=0.0, out=tmp_path / "lab.csv")
+    back = load_measurement(tmp_path / "lab.csv")
+    assert back.meta == {"protocol": "thesis"} and back.axis == "B"
+    res = simulate_trace(ps, "B", back.time, back.drives["B"], eff)
+    np.testing.assert_allclose(res.detector_v, m.detector_v, atol=1e-9)
+    assert np.abs(back.drives["B"]).max() <= 10.0
+
+
+@pytest.mark.parametrize("name", sorted(PROTOCOLS))
+def test_protocols_drive_both_directions_inside_the_detector_range(ps, name):
+    m = run_virtual_lab(name, {}, noise_std=0.0)
+    u = m.drives["B"]
+    assert u.max() > 1.0 and u.min() < -1.0
+    assert np.abs(m.detector_v).max() < 0.9 * ps.detector.saturation_voltage

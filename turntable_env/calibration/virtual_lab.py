@@ -1,0 +1,173 @@
+"""The virtual lab: measurement files written by the simulator, with any effects on.
+
+A **protocol** is a drive sequence designed so that the catalogue's effects leave
+distinguishable signatures. Each is a list of blocks on the watched axis's channel:
+``("steps", amplitude V (signed), frequency Hz, periods, a, k)`` (the Fig. 4.3 adapted
+flyback for k > 0) or ``("hold", seconds)`` or ``("scan", level V, ramp seconds)``:
+
+* ``standard`` (0.82 s): scan ramps up and down (hysteresis: a loop; creep: drift after
+  the ramp), holds (drift, vibration), stepping forward and backward at two amplitudes
+  and two frequencies (asymmetry: forward ≠ backward; amplifier dynamics: amplitude and
+  frequency dependence; wear: step size over travel), pauses between blocks;
+* ``long`` (about 2.3 s): ``standard``, a variant with other amplitudes and frequencies,
+  ``standard`` again — so fit and held-out portions can differ in their drive settings;
+* ``thesis``: the §4.1.3 inputs, 5 steps forward and back (two-directional), then 9 steps
+  one way at 2 V, 100 Hz, adapted.
+
+Samples: every drive breakpoint (a jump is two samples 1 ns apart) plus detector samples
+every ``sample_dt`` (50 µs), so the file holds exactly what the simulator was driven with.
+``turntable virtual-lab --effects piezo_creep=0.02,... --protocol standard --out F.csv``
+writes one; the effects are recorded nowhere in the file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..drive import StepSetting
+from ..params import ParameterSet, real_parameters
+from .measurement import Measurement
+from .trace import simulate_trace
+
+__all__ = ["PROTOCOLS", "protocol_drive", "run_virtual_lab"]
+
+Block = tuple[Any, ...]
+_STANDARD: list[Block] = [
+    ("hold", 0.02),
+    ("scan", 4.0, 0.05),
+    ("hold", 0.06),
+    ("scan", -4.0, 0.1),
+    ("hold", 0.06),
+    ("scan", 0.0, 0.05),
+    ("hold", 0.04),
+    ("steps", 2.0, 100.0, 8, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", -2.0, 100.0, 8, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", 4.0, 1000.0, 5, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", -4.0, 1000.0, 5, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", 3.0, 500.0, 6, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", -3.0, 500.0, 6, 0.9, 1.0),
+    ("hold", 0.04),
+]
+_VARIANT: list[Block] = [
+    ("steps", 3.0, 100.0, 6, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", -3.0, 100.0, 6, 0.9, 1.0),
+    ("hold", 0.03),
+    ("scan", 3.0, 0.08),
+    ("hold", 0.06),
+    ("scan", 0.0, 0.08),
+    ("hold", 0.04),
+    ("steps", 2.0, 1000.0, 8, 0.9, 1.0),
+    ("hold", 0.03),
+    ("steps", -2.0, 1000.0, 8, 0.9, 1.0),
+    ("hold", 0.04),
+]
+PROTOCOLS: dict[str, list[Block]] = {
+    "standard": _STANDARD,
+    "long": [*_STANDARD, *_VARIANT, *_STANDARD],
+    "thesis": [
+        ("hold", 0.01),
+        ("steps", 2.0, 100.0, 5, 0.95, 1.0),
+        ("steps", -2.0, 100.0, 5, 0.95, 1.0),
+        ("hold", 0.02),
+        ("steps", 2.0, 100.0, 9, 0.95, 1.0),
+        ("hold", 0.02),
+    ],
+}
+
+
+def protocol_drive(
+    protocol: str | Sequence[Block], params: ParameterSet, axis: str, sample_dt: float = 5e-5
+) -> tuple[np.ndarray, np.ndarray]:
+    """(time [s], amplifier input [V]) samples of a protocol (module docstring)."""
+    blocks = PROTOCOLS[protocol] if isinstance(protocol, str) else list(protocol)
+    if isinstance(protocol, str) and protocol not in PROTOCOLS:
+        raise ValueError(f"protocol={protocol!r}: choose from {', '.join(PROTOCOLS)}")
+    amp = params.amplifier
+    c_load = None
+    tt: list[float] = [0.0]
+    uu: list[float] = [0.0]
+    level = 0.0
+    for blk in blocks:
+        kind = blk[0]
+        t0 = tt[-1]
+        if kind == "hold":
+            tt.append(t0 + blk[1])
+            uu.append(level)
+        elif kind == "scan":
+            level = float(blk[1])
+            tt.append(t0 + blk[2])
+            uu.append(level)
+        elif kind == "steps":
+            a_v, f, n, a, k = blk[1:]
+            hold = 0.0
+            if k > 0.0:
+                if c_load is None:
+                    from ..model import TurntableModel
+
+                    c_load = TurntableModel(params).load_capacitance(axis)
+                hold = amp.adapted_hold_time(abs(a_v), 0.0, k, c_load)
+            s = StepSetting(a_v, f, a, k, min(hold, (1.0 - a) / f))
+            tp, vp = s.template()
+            for i in range(int(n)):
+                start = t0 + i / f
+                tt.extend((start + tp[1:]).tolist())
+                uu.extend((level + vp[1:]).tolist())
+        else:
+            raise ValueError(f"protocol block {blk!r}: kind must be hold, scan or steps")
+    t = np.array(tt)
+    u = np.clip(np.array(uu), -amp.input_limit, amp.input_limit)
+    # jumps (equal times) → 1 ns apart; add detector samples on a uniform grid
+    for i in range(1, t.size):
+        if t[i] <= t[i - 1]:
+            t[i] = t[i - 1] + 1e-9
+    grid = np.arange(0.0, t[-1], sample_dt)
+    idx = np.searchsorted(t, grid)
+    lo, hi = t[np.clip(idx - 1, 0, t.size - 1)], t[np.clip(idx, 0, t.size - 1)]
+    grid = grid[(np.abs(grid - lo) > 2e-9) & (np.abs(grid - hi) > 2e-9)]
+    allt = np.concatenate([t, grid])
+    order = np.argsort(allt, kind="stable")
+    allu = np.concatenate([u, np.interp(grid, t, u)])[order]
+    allt = allt[order]
+    return allt, allu
+
+
+def run_virtual_lab(
+    protocol: str | Sequence[Block] = "standard",
+    effects: Mapping[str, Mapping[str, float]] | None = None,
+    *,
+    params: ParameterSet | None = None,
+    axis: str = "B",
+    noise_std: float = 1e-3,
+    seed: int = 0,
+    sample_dt: float = 5e-5,
+    out: str | Path | None = None,
+) -> Measurement:
+    """Simulate a protocol with effects and detector noise; write it if ``out`` is given."""
+    ps = params if params is not None else real_parameters()
+    t, u = protocol_drive(protocol, ps, axis, sample_dt)
+    res = simulate_trace(
+        ps, axis, t, u, effects, noise_std=noise_std, rng=np.random.default_rng(seed)
+    )
+    m = Measurement(
+        axis=axis,
+        amplifier_gain=ps.amplifier.gain,
+        detector=ps.detector,
+        time=t,
+        drives={axis: u},
+        detector_v=res.detector_v,
+        detector_y_v=res.detector_y_v,
+        meta={"protocol": protocol if isinstance(protocol, str) else "custom"},
+    )
+    if out is not None:
+        m.save(out)
+    return m
