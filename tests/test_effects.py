@@ -8,7 +8,12 @@ import pytest
 from turntable_env.calibration import load_measurement
 from turntable_env.calibration.effects import CATALOGUE, check_effects, parse_effects
 from turntable_env.calibration.trace import simulate_trace
-from turntable_env.calibration.virtual_lab import PROTOCOLS, protocol_drive, run_virtual_lab
+from turntable_env.calibration.virtual_lab import (
+    PROTOCOLS,
+    protocol_blocks,
+    protocol_drive,
+    run_virtual_lab,
+)
 from turntable_env.params import real_parameters
 
 REQUIRED = {
@@ -48,9 +53,9 @@ def test_catalogue_names_bounds_and_basis():
 @pytest.mark.parametrize("name", sorted(REQUIRED))
 def test_neutral_parameters_change_nothing(ps, drive, clean, name):
     """Neutral values reproduce the nominal trace; friction-stage effects integrate in
-    5 ms segments, whose step boundaries move the result by < 1 % of the 1 mV noise."""
+    5 ms segments, whose step boundaries move the result by < 5 % of the 1 mV noise."""
     res = _trace(ps, drive, {name: CATALOGUE[name].neutral()})
-    tol = 1e-5 if CATALOGUE[name].stage == "friction" else 1e-12
+    tol = 5e-5 if CATALOGUE[name].stage == "friction" else 1e-12
     np.testing.assert_allclose(res.detector_v, clean.detector_v, rtol=0, atol=tol)
 
 
@@ -93,40 +98,52 @@ def test_detector_nonlinearity_is_cubic_in_the_reading(ps, drive, clean):
     np.testing.assert_allclose(res.detector_v, v * (1 + 0.2 * (v / vs) ** 2), atol=1e-12)
 
 
-def _at(t, x, times):
-    return np.interp(times, t, x)
+def _block(kind, *args):
+    """(start, end) [s] of the first standard-protocol block of this kind and arguments."""
+    for start, end, blk in protocol_blocks("standard"):
+        if blk[0] == kind and blk[1 : 1 + len(args)] == args:
+            return start, end
+    raise AssertionError(f"no block {kind} {args}")
 
 
 def test_hysteresis_opens_a_loop_in_the_scan_ramps(ps, drive, clean):
-    """Standard protocol: scan 0 → +4 V (20–70 ms), hold, → −4 V (130–230 ms). At the same
-    input (0 V) the angle differs between the falling and the rising pass with h > 0."""
+    """Standard protocol: scan to +4 V, down to −4 V, back to 0 V. At the same input (0 V)
+    the falling pass (middle of the −4 V ramp) lies above the rising one (end of the ramp
+    back to 0) by the Prandtl–Ishlinskii loop height."""
     t, u = drive
     res = _trace(ps, drive, {"piezo_hysteresis": {"h": 0.15, "width": 2.0}})
-    i = np.searchsorted(t, 0.13 + 0.05)  # u = 0 on the way down from +4 V
-    assert abs(u[i]) < 0.05
-    assert abs(clean.theta[i] - clean.theta[0]) < 0.2e-6
-    # after a swing beyond every threshold r_i = width·i/8, each play sits at +r_i: the
-    # effective input is h·mean(r_i) = h·width·9/16, times the scan gain K = G·g/ρ
-    k_scan = (clean.theta[np.searchsorted(t, 0.1)] - clean.theta[0]) / 4.0
-    expect = 0.15 * 2.0 * 9 / 16 * k_scan
-    assert res.theta[i] - res.theta[0] == pytest.approx(expect, rel=0.05)
+    up0, up1 = _block("scan", 4.0)
+    down0, down1 = _block("scan", -4.0)
+    _back0, back1 = _block("scan", 0.0)
+    i_fall = np.searchsorted(t, 0.5 * (down0 + down1))
+    i_rise = np.searchsorted(t, back1)
+    assert abs(u[i_fall]) < 0.05 and abs(u[i_rise]) < 1e-12
+    assert abs(clean.theta[i_fall] - clean.theta[i_rise]) < 0.5e-6  # nominal: no loop
+    # after a swing beyond every threshold r_i = width·i/8 each play sits at ±r_i: the
+    # effective input differs by 2·h·mean(r_i) = 2·h·width·9/16, times the scan gain K
+    i0 = np.searchsorted(t, up0)
+    k_scan = (clean.theta[np.searchsorted(t, up1)] - clean.theta[i0]) / 4.0
+    expect = 2 * 0.15 * 2.0 * 9 / 16 * k_scan
+    assert res.theta[i_fall] - res.theta[i_rise] == pytest.approx(expect, rel=0.05)
 
 
 def test_creep_keeps_moving_after_a_scan_ramp(ps, drive, clean):
     t, _ = drive
     res = _trace(ps, drive, {"piezo_creep": {"gamma": 0.02}})
-    i0, i1 = np.searchsorted(t, [0.075, 0.125])  # the hold after the +4 V ramp
+    _up0, up1 = _block("scan", 4.0)
+    i0, i1 = np.searchsorted(t, [up1 + 0.005, up1 + 0.035])  # the hold after the +4 V ramp
     drift = res.theta[i1] - res.theta[i0]
     drift_clean = clean.theta[i1] - clean.theta[i0]
     assert abs(drift_clean) < 0.1e-6
-    assert drift > 0.5e-6  # creeping on in the ramp's direction
+    assert drift > 0.3e-6  # creeping on in the ramp's direction
 
 
 def _block_steps(ps, drive, res):
-    """Net angle change over the first forward and backward 2 V, 100 Hz blocks."""
-    t = drive[0]
-    edges = [0.38, 0.46, 0.49, 0.57]  # s: forward block, hold, backward block
-    th = np.interp(edges, t, res.theta)
+    """Net angle change over the first forward and backward 2 V, 100 Hz blocks (each
+    measured to 15 ms after its end, when the ring has settled)."""
+    f0, f1 = _block("steps", 2.0, 100.0)
+    b0, b1 = _block("steps", -2.0, 100.0)
+    th = np.interp([f0, f1 + 0.015, b0, b1 + 0.015], drive[0], res.theta)
     return th[1] - th[0], th[3] - th[2]
 
 
@@ -150,13 +167,15 @@ def test_friction_asymmetry_makes_forward_and_backward_steps_differ(ps, drive, c
 
 
 def test_friction_wear_changes_the_steps_with_travel(ps, drive, clean):
-    res = _trace(ps, drive, {"friction_wear": {"beta": 0.3}})
-    fwd, back = _block_steps(ps, drive, res)
-    f0, b0 = _block_steps(ps, drive, clean)
-    # friction grows with travel: the later (backward) block steps less than the first,
-    # and both less than the nominal ones (about 2.4 µm of scan travel came before)
-    assert abs(abs(b0) - abs(f0)) < 0.01 * abs(f0)
-    assert abs(back) < 0.98 * abs(fwd) and abs(fwd) < 0.97 * abs(f0)
+    """The later (backward) block over the earlier (forward) one: friction growing with
+    travel (β > 0) shrinks it, falling friction (β < 0) enlarges it; nominal ≈ 1."""
+    ratio = {}
+    for beta in (-0.3, 0.0, 0.3):
+        res = _trace(ps, drive, {"friction_wear": {"beta": beta}}) if beta else clean
+        fwd, back = _block_steps(ps, drive, res)
+        ratio[beta] = abs(back) / abs(fwd)
+    assert abs(ratio[0.0] - 1.0) < 0.01
+    assert ratio[0.3] < ratio[0.0] - 0.01 and ratio[-0.3] > ratio[0.0] + 0.01
 
 
 def test_parse_effects_spec():

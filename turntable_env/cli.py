@@ -6,6 +6,7 @@ Subcommands:
     bench      speed and accuracy of every simulation path; env throughput
     benchmark  every registered controller on the fixed task suite (controllers package)
     virtual-lab  write a measurement file from the simulator with effects switched on
+    calibrate  fit measurement files, find the effects the model lacks, write a report
 """
 
 from __future__ import annotations
@@ -160,6 +161,19 @@ def _cmd_virtual_lab(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from .calibration.calibrate import calibrate, write_report
+
+    res = calibrate(args.files, fit_fraction=args.fit_fraction)
+    paths = write_report(res, args.report)
+    print(
+        f"selected effects: {', '.join(res.selected_effects) or 'none'}; held-out error "
+        f"{res.error_before:.3g} → {res.error_after:.3g} {res.error_unit}; residual structured: "
+        f"{res.residual_structured}; {res.wall_s:.1f} s; report: {paths['json']}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="turntable", description="piezo stick-slip turntable tools")
     sub = p.add_subparsers(dest="command", required=True)
@@ -259,6 +273,19 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("--seed", type=int, default=0)
     pv.add_argument("--out", required=True, help="measurement file to write")
     pv.set_defaults(func=_cmd_virtual_lab)
+
+    pc = sub.add_parser(
+        "calibrate",
+        help="fit measurement files and find the effects the model lacks",
+        description="Fits friction and preload on the first part of each trace, ranks the "
+        "catalogue's effects by the held-out error they remove (BIC-penalised), adds the "
+        "best until the residual is white or nothing helps; writes report.json, report.md "
+        "and a residual plot.",
+    )
+    pc.add_argument("files", nargs="+", help="measurement files (CSV)")
+    pc.add_argument("--report", required=True, help="output directory")
+    pc.add_argument("--fit-fraction", type=float, default=0.6, help="fit portion of each trace")
+    pc.set_defaults(func=_cmd_calibrate)
     return p
 
 

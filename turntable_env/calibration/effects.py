@@ -39,6 +39,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
+import numba
 import numpy as np
 
 from ..params import ParameterSet, real_parameters
@@ -245,6 +246,7 @@ def apply_parameters(ps: ParameterSet, effects: Mapping[str, Mapping[str, float]
     return ps
 
 
+@numba.njit(cache=True)
 def _play(u: np.ndarray, r: float) -> np.ndarray:
     """Play (backlash) operator of threshold r on a sampled signal (exact at breakpoints)."""
     out = np.empty_like(u)
@@ -255,6 +257,7 @@ def _play(u: np.ndarray, r: float) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=True)
 def _lowpass_pwl(t: np.ndarray, u: np.ndarray, tau: float) -> np.ndarray:
     """First-order low-pass (unit gain) of a piecewise-linear signal, exact per segment."""
     y = np.empty_like(u)
@@ -283,7 +286,7 @@ def apply_input(
         v = effects["piezo_hysteresis"]
         if v["h"] > 0.0:
             r = v["width"] * np.arange(1, 9) / 8.0
-            plays = np.mean([_play(out, ri) for ri in r], axis=0)
+            plays = np.mean([_play(out, float(ri)) for ri in r], axis=0)
             out = (1.0 - v["h"]) * out + v["h"] * plays
     if "piezo_creep" in effects:
         g = effects["piezo_creep"]["gamma"]

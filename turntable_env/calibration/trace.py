@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..drive import Waveform
+from ..model import TurntableModel
 from ..params import ParameterSet
 from ..reduced import ReducedBatch, ReducedModel, _waveform_arrays
 from ..reduced_kernel import N_REC
@@ -30,9 +31,19 @@ from .effects import (
     friction_factor,
 )
 
-__all__ = ["TraceResult", "simulate_trace"]
+__all__ = ["TraceResult", "reduced_model", "simulate_trace"]
 
-OUTPUT_DT = 1e-5  # s, internal sampling before interpolation to the measurement times
+OUTPUT_DT_MAX = 5e-5  # s, coarsest internal sampling (then interpolated to the samples)
+_FULL_MODELS: dict[tuple, TurntableModel] = {}
+
+
+def reduced_model(ps: ParameterSet, axis: str) -> ReducedModel:
+    """The reduced model of ``ps``, condensed from a cached 3-D model of its table and tubes
+    (friction, preload and amplifier come from ``ps``)."""
+    key = (ps.table, ps.tube, ps.name)
+    if key not in _FULL_MODELS:
+        _FULL_MODELS[key] = TurntableModel(ps)
+    return ReducedModel(ps, axis, model=_FULL_MODELS[key])
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +55,18 @@ class TraceResult:
     theta: np.ndarray
     detector_v: np.ndarray
     detector_y_v: np.ndarray
+
+
+def _corners(t: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Indices of the breakpoints a piecewise-linear signal needs: the ends and every
+    sample where the slope changes (collinear samples add nothing but integrator steps)."""
+    if t.size < 3:
+        return np.arange(t.size)
+    slope = np.diff(u) / np.diff(t)
+    bend = np.abs(np.diff(slope)) * np.minimum(np.diff(t)[:-1], np.diff(t)[1:])
+    scale = 1e-12 * max(float(np.max(np.abs(u))), 1.0)
+    inner = np.flatnonzero(bend > scale) + 1
+    return np.concatenate([[0], inner, [t.size - 1]])
 
 
 def simulate_trace(
@@ -78,10 +101,11 @@ def simulate_trace(
     if np.any(np.diff(t) <= 0.0):
         raise ValueError("time: must be strictly increasing")
     ps = apply_parameters(params, eff)
-    mdl = model if model is not None else ReducedModel(ps, axis)
+    mdl = model if model is not None else reduced_model(ps, axis)
     t0 = t[0]
     u_eff = apply_input(t - t0, u, eff)
-    wave = Waveform(t - t0, u_eff)
+    keep = _corners(t - t0, u_eff)
+    wave = Waveform(t[keep] - t0, u_eff[keep])
     batch = ReducedBatch([mdl])
     h = batch.grid
     amp = ps.amplifier
@@ -89,7 +113,9 @@ def simulate_trace(
         0, mdl.initial_state(float(np.clip(u_eff[0], -amp.input_limit, amp.input_limit)) * amp.gain)
     )
     wg, wv, wn = _waveform_arrays([wave], h)
-    out_every = max(round(OUTPUT_DT / h), 1)
+    # record at the trace's typical sample spacing (each recording stops the integrator)
+    dt_med = float(np.median(np.diff(t)))
+    out_every = max(round(min(dt_med, OUTPUT_DT_MAX) / h), 1)
     n_total = round((t[-1] - t0) / h)
     friction = any(CATALOGUE[n].stage == "friction" for n in eff)
     seg_n = max(round(segment / h), out_every) if friction else n_total

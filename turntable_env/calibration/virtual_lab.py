@@ -5,10 +5,12 @@ distinguishable signatures. Each is a list of blocks on the watched axis's chann
 ``("steps", amplitude V (signed), frequency Hz, periods, a, k)`` (the Fig. 4.3 adapted
 flyback for k > 0) or ``("hold", seconds)`` or ``("scan", level V, ramp seconds)``:
 
-* ``standard`` (0.82 s): scan ramps up and down (hysteresis: a loop; creep: drift after
-  the ramp), holds (drift, vibration), stepping forward and backward at two amplitudes
-  and two frequencies (asymmetry: forward ≠ backward; amplifier dynamics: amplitude and
-  frequency dependence; wear: step size over travel), pauses between blocks;
+* ``standard`` (0.81 s): in its first 60 % (a calibrator's fit portion) stepping forward
+  and backward at 2 V 100 Hz, 4 V 1 kHz and 2.5 V 1 kHz (asymmetry: forward ≠ backward; amplifier
+  dynamics: amplitude and frequency dependence; wear: step size over travel), then scan
+  ramps to ±4 V and back with holds (hysteresis: a loop; creep: motion during holds;
+  drift, vibration); in the rest other settings — 3 V 100 Hz, a 3 V scan, 5 V 1 kHz —
+  so held-out data tests the model at drive settings it was not fitted on;
 * ``long`` (about 2.3 s): ``standard``, a variant with other amplitudes and frequencies,
   ``standard`` again — so fit and held-out portions can differ in their drive settings;
 * ``thesis``: the §4.1.3 inputs, 5 steps forward and back (two-directional), then 9 steps
@@ -33,29 +35,43 @@ from ..params import ParameterSet, real_parameters
 from .measurement import Measurement
 from .trace import simulate_trace
 
-__all__ = ["PROTOCOLS", "protocol_drive", "run_virtual_lab"]
+__all__ = ["PROTOCOLS", "protocol_blocks", "protocol_drive", "run_virtual_lab"]
 
 Block = tuple[Any, ...]
 _STANDARD: list[Block] = [
+    # fit portion (first 60 %): both directions at two settings, scan ramps and holds
+    ("hold", 0.01),
+    ("steps", 2.0, 100.0, 6, 0.9, 1.0),
     ("hold", 0.02),
-    ("scan", 4.0, 0.05),
-    ("hold", 0.06),
-    ("scan", -4.0, 0.1),
-    ("hold", 0.06),
-    ("scan", 0.0, 0.05),
-    ("hold", 0.04),
-    ("steps", 2.0, 100.0, 8, 0.9, 1.0),
-    ("hold", 0.03),
-    ("steps", -2.0, 100.0, 8, 0.9, 1.0),
-    ("hold", 0.03),
+    ("steps", -2.0, 100.0, 6, 0.9, 1.0),
+    ("hold", 0.02),
     ("steps", 4.0, 1000.0, 5, 0.9, 1.0),
-    ("hold", 0.03),
+    ("hold", 0.02),
     ("steps", -4.0, 1000.0, 5, 0.9, 1.0),
-    ("hold", 0.03),
-    ("steps", 3.0, 500.0, 6, 0.9, 1.0),
-    ("hold", 0.03),
-    ("steps", -3.0, 500.0, 6, 0.9, 1.0),
+    ("hold", 0.02),
+    ("steps", 2.5, 1000.0, 8, 0.9, 1.0),
+    ("hold", 0.02),
+    ("steps", -2.5, 1000.0, 8, 0.9, 1.0),
+    ("hold", 0.02),
+    ("scan", 4.0, 0.04),
     ("hold", 0.04),
+    ("scan", -4.0, 0.06),
+    ("hold", 0.04),
+    ("scan", 0.0, 0.04),
+    ("hold", 0.03),
+    # held-out portion: other amplitudes, frequencies and scan levels
+    ("steps", 3.0, 100.0, 6, 0.9, 1.0),
+    ("hold", 0.02),
+    ("steps", -3.0, 100.0, 6, 0.9, 1.0),
+    ("hold", 0.02),
+    ("scan", 3.0, 0.04),
+    ("hold", 0.04),
+    ("scan", 0.0, 0.04),
+    ("hold", 0.03),
+    ("steps", 5.0, 1000.0, 4, 0.9, 1.0),
+    ("hold", 0.02),
+    ("steps", -5.0, 1000.0, 4, 0.9, 1.0),
+    ("hold", 0.03),
 ]
 _VARIANT: list[Block] = [
     ("steps", 3.0, 100.0, 6, 0.9, 1.0),
@@ -83,6 +99,22 @@ PROTOCOLS: dict[str, list[Block]] = {
         ("hold", 0.02),
     ],
 }
+
+
+def _duration(blk: Block) -> float:
+    if blk[0] == "steps":
+        return blk[3] / blk[2]
+    return float(blk[-1])
+
+
+def protocol_blocks(protocol: str | Sequence[Block]) -> list[tuple[float, float, Block]]:
+    """(start [s], end [s], block) of every block of a protocol."""
+    blocks = PROTOCOLS[protocol] if isinstance(protocol, str) else list(protocol)
+    out, t = [], 0.0
+    for blk in blocks:
+        out.append((t, t + _duration(blk), blk))
+        t += _duration(blk)
+    return out
 
 
 def protocol_drive(

@@ -1,0 +1,541 @@
+"""Calibrate and diagnose: fit the nominal model, find the effect it lacks, report.
+
+:func:`calibrate` takes measurement files (:mod:`.measurement`) and
+
+1. fits the nominal model's uncertain parameters — friction (μ_s and μ_c together) and
+   preload (F_N), as factors on the real set — on the **fit portion** of every trace
+   (the first ``fit_fraction`` of its time) by scipy ``least_squares``;
+2. computes the residual on the **held-out** rest (detector x, and y when recorded,
+   converted to table displacement at R_table, Eq. 4.1–4.2: nm) and characterises it:
+   Ljung–Box whiteness, spectral peak, correlation with the drive level, the direction
+   and speed of motion, time and position;
+3. fits every catalogue effect not yet selected together with the nominal parameters and
+   the effects already selected, and ranks them by the held-out error they leave,
+   penalised for their parameters with the Bayesian information criterion on the
+   held-out residual, n·ln(SSE/n) + k·ln n; the best is added if it lowers the criterion
+   by more than ``min_bic_gain`` and the held-out RMS by ``min_improvement``; repeat until
+   the residual is white or no candidate helps;
+4. reports the selected effects, the parameters with their standard errors (from the
+   Jacobian at the optimum), the held-out error before and after, every candidate's
+   held-out error, and — if structure remains that no candidate explains — its
+   signature (:func:`write_report`: ``report.json``, ``report.md`` and plots).
+
+Output-stage effects (misalignment, detector nonlinearity, drift, vibration) do not
+change the physics, so the simulated angle is cached per physics parameter vector and
+those fits cost almost nothing; starting values for them come from the residual
+(regressions, the spectral peak).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+import scipy.stats
+
+from ..params import ParameterSet, real_parameters
+from .effects import CATALOGUE, apply_output
+from .measurement import Measurement, load_measurement
+from .trace import simulate_trace
+
+__all__ = ["CalibrationResult", "calibrate", "write_report"]
+
+NOMINAL = (("friction", 0.5, 2.0, 1.0), ("preload", 0.5, 2.0, 1.0))  # factor bounds, start
+ERROR_UNIT = "nm"  # residual as displacement at the table radius
+
+
+@dataclass
+class _Trace:
+    m: Measurement
+    fit: np.ndarray  # bool mask of the fit portion
+    has_y: bool
+
+
+@dataclass
+class CalibrationResult:
+    """What :func:`calibrate` found (see the module docstring); errors in ``error_unit``."""
+
+    selected_effects: list[str]
+    parameters: dict[str, dict[str, dict[str, float]]]
+    error_before: float
+    error_after: float
+    error_unit: str
+    residual_structured: bool
+    candidates: list[dict[str, Any]]
+    diagnosis: dict[str, Any]
+    history: list[dict[str, Any]] = field(default_factory=list)
+    residuals: dict[str, np.ndarray] = field(default_factory=dict)
+    wall_s: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "selected_effects": self.selected_effects,
+            "error_before": self.error_before,
+            "error_after": self.error_after,
+            "error_unit": self.error_unit,
+            "residual_structured": self.residual_structured,
+            "parameters": self.parameters,
+            "candidates": self.candidates,
+            "diagnosis": self.diagnosis,
+            "history": self.history,
+            "wall_s": self.wall_s,
+        }
+
+
+class _Problem:
+    """Residuals of a model specification over the traces, with a physics cache."""
+
+    def __init__(self, traces: list[_Trace], base: ParameterSet) -> None:
+        self.traces = traces
+        self.base = base
+        self._cache: dict[tuple, np.ndarray] = {}
+        self.n_sims = 0
+
+    def params(self, nominal: Mapping[str, float]) -> ParameterSet:
+        u = self.base.unlisted
+        assert u is not None
+        return real_parameters(
+            overrides={
+                "mu_static": u.mu_static * nominal["friction"],
+                "mu_coulomb": u.mu_coulomb * nominal["friction"],
+                "normal_force": u.normal_force * nominal["preload"],
+            }
+        )
+
+    def theta(self, i: int, portion: str, nominal: Mapping[str, float], phys: dict) -> np.ndarray:
+        key = (i, portion, tuple(sorted(nominal.items())), repr(sorted(phys.items())))
+        if key not in self._cache:
+            tr = self.traces[i]
+            sel = tr.fit if portion == "fit" else np.ones(tr.m.time.size, bool)
+            t = tr.m.time[sel]
+            res = simulate_trace(
+                self.params(nominal), tr.m.axis, t, tr.m.drives[tr.m.axis][sel], phys
+            )
+            self._cache[key] = res.theta
+            self.n_sims += 1
+        return self._cache[key]
+
+    def residual(
+        self, nominal: Mapping[str, float], effects: Mapping[str, Mapping[str, float]], portion: str
+    ) -> np.ndarray:
+        """Measured − predicted [nm at R_table] over the fit or held-out portion."""
+        phys = {k: dict(v) for k, v in effects.items() if CATALOGUE[k].stage != "output"}
+        out = {k: v for k, v in effects.items() if CATALOGUE[k].stage == "output"}
+        parts = []
+        for i, tr in enumerate(self.traces):
+            th = self.theta(i, "fit" if portion == "fit" else "all", nominal, phys)
+            m = tr.m
+            t = m.time[: th.size]
+            x, y = apply_output(t - m.time[0], th, out, m.detector)
+            vs = m.detector.saturation_voltage
+            x, y = np.clip(x, -vs, vs), np.clip(y, -vs, vs)
+            sel = slice(None) if portion == "fit" else ~tr.fit
+            scale = (
+                m.detector.sensitivity / (2.0 * m.detector.distance) * m.detector.table_radius * 1e9
+            )
+            parts.append((m.detector_v[: th.size] - x)[sel] * scale)
+            if tr.has_y and m.detector_y_v is not None:
+                parts.append((m.detector_y_v[: th.size] - y)[sel] * scale)
+        return np.concatenate(parts)
+
+
+def _spec_vector(spec: list[tuple[str, str, float, float, float]]) -> tuple[np.ndarray, ...]:
+    x0 = np.array([s[4] for s in spec])
+    lo = np.array([s[2] for s in spec])
+    hi = np.array([s[3] for s in spec])
+    return np.clip(x0, lo, hi), lo, hi
+
+
+def _unpack(spec, x) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
+    nominal: dict[str, float] = {}
+    effects: dict[str, dict[str, float]] = {}
+    for (owner, name, *_), v in zip(spec, x, strict=True):
+        if owner == "nominal":
+            nominal[name] = float(v)
+        else:
+            effects.setdefault(owner, {})[name] = float(v)
+    for name, vals in effects.items():  # parameters not fitted stay neutral
+        full = CATALOGUE[name].neutral()
+        full.update(vals)
+        effects[name] = full
+    return nominal, effects
+
+
+@dataclass
+class _Fit:
+    spec: list
+    x: np.ndarray
+    std: np.ndarray
+    nominal: dict[str, float]
+    effects: dict[str, dict[str, float]]
+    heldout: np.ndarray
+
+    def rms(self) -> float:
+        return float(np.sqrt(np.mean(self.heldout**2)))
+
+    def bic(self) -> float:
+        n = self.heldout.size
+        return float(n * math.log(np.mean(self.heldout**2)) + len(self.spec) * math.log(n))
+
+
+def _fit(
+    problem: _Problem,
+    spec: list,
+    max_nfev: int = 40,
+    free: Sequence[int] | None = None,
+    diff_step: float = 1e-2,
+) -> _Fit:
+    """Least-squares fit of the spec's parameters on the fit portion; ``free`` limits the
+    fit to those indices (the others stay at their start values)."""
+    x_all, lo, hi = _spec_vector(spec)
+    idx = np.arange(len(spec)) if free is None else np.asarray(free, dtype=int)
+
+    def fun(xf: np.ndarray) -> np.ndarray:
+        x = x_all.copy()
+        x[idx] = xf
+        nominal, effects = _unpack(spec, x)
+        return problem.residual(nominal, effects, "fit")
+
+    res = scipy.optimize.least_squares(
+        fun, x_all[idx], bounds=(lo[idx], hi[idx]), x_scale=hi[idx] - lo[idx],
+        diff_step=diff_step, max_nfev=max_nfev,
+    )  # fmt: skip
+    x_fit = x_all.copy()
+    x_fit[idx] = res.x
+    nominal, effects = _unpack(spec, x_fit)
+    r = res.fun
+    dof = max(r.size - idx.size, 1)
+    std = np.full(len(spec), math.nan)
+    try:
+        cov = np.linalg.pinv(res.jac.T @ res.jac) * float(r @ r) / dof
+        std[idx] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        pass
+    held = problem.residual(nominal, effects, "heldout")
+    return _Fit(spec, x_fit, std, nominal, effects, held)
+
+
+def _start_values(name: str, problem: _Problem, fit: _Fit) -> dict[str, float]:
+    """Starting values for an effect's parameters from the current fit's residual."""
+    e = CATALOGUE[name]
+    start = e.neutral()
+    if name in ("piezo_hysteresis",):
+        start = {"h": 0.02, "width": e.defaults()["width"]}
+    elif name == "piezo_creep":
+        start = {"gamma": 0.005}
+    elif name == "amplifier_dynamics":
+        start = {"slew_scale": 0.9, "current_scale": 1.0}
+    elif name in ("friction_asymmetry", "friction_wear"):
+        key = e.parameters[0].name
+        start = {key: 0.02}
+    tr = problem.traces[0]
+    m = tr.m
+    r = problem.residual(fit.nominal, fit.effects, "fit")[: int(tr.fit.sum())]
+    t = m.time[tr.fit] - m.time[0]
+    scale = m.detector.sensitivity / (2.0 * m.detector.distance) * m.detector.table_radius * 1e9
+    if name == "sensor_drift":
+        a = np.column_stack([np.ones_like(t), t])
+        c, *_ = np.linalg.lstsq(a, r / scale, rcond=None)
+        start = {"offset": float(c[0]), "rate": float(c[1])}
+    elif name == "vibration" and t.size > 16:
+        tu = np.linspace(t[0], t[-1], t.size)
+        ru = np.interp(tu, t, r) / (m.detector.table_radius * 1e9)  # rad
+        spec = np.abs(np.fft.rfft(ru - ru.mean()))
+        freqs = np.fft.rfftfreq(tu.size, tu[1] - tu[0])
+        ok = (freqs >= 1.0) & (freqs <= 1000.0)
+        f = float(freqs[ok][np.argmax(spec[ok])])
+        a = np.column_stack([np.sin(2 * math.pi * f * tu), np.cos(2 * math.pi * f * tu)])
+        c, *_ = np.linalg.lstsq(a, ru, rcond=None)
+        start = {
+            "amplitude": float(np.hypot(*c)),
+            "frequency": f,
+            "phase": float(np.arctan2(c[1], c[0])),
+        }
+    elif name == "axis_misalignment" and tr.has_y and m.detector_y_v is not None:
+        x, y = m.detector_v, m.detector_y_v
+        start = {"phi": float(abs(np.arctan2(x @ y, x @ x)))}
+    elif name == "detector_nonlinearity":
+        v = m.detector_v[tr.fit]
+        vs = m.detector.saturation_voltage
+        basis = v * (v / vs) ** 2
+        denom = float(basis @ basis)
+        start = {"kappa": float((r / scale) @ basis / denom) if denom > 0 else 0.0}
+    return {p.name: float(np.clip(start[p.name], p.low, p.high)) for p in e.parameters}
+
+
+def _screen(problem: _Problem, current: _Fit, name: str) -> _Fit:
+    """Fit one candidate on top of the current model.
+
+    Output-stage effects start from the residual (:func:`_start_values`) and are fitted
+    alone (they do not touch the physics). The others start from the best point of a
+    7-point grid over their first parameter, evaluated both at the current nominal
+    parameters and at the prior ones (the nominal fit may have absorbed part of the
+    effect: friction compensates a direction-dependent friction on average), and are
+    fitted jointly with the nominal parameters."""
+    start = _start_values(name, problem, current)
+    e = CATALOGUE[name]
+    if e.stage == "output":
+        spec = _spec(current.nominal, {**current.effects, name: start})
+        free = [i for i, s_ in enumerate(spec) if s_[0] == name]
+        return _fit(problem, spec, free=free, max_nfev=20)
+    p0 = e.parameters[0]
+    prior = {n: x0 for n, _lo, _hi, x0 in NOMINAL}
+    best_sse, nominal = math.inf, dict(current.nominal)
+    for nom in (current.nominal, prior):
+        for v in np.linspace(p0.low, p0.high, 7):
+            trial = {**start, p0.name: float(v)}
+            r = problem.residual(nom, {**current.effects, name: trial}, "fit")
+            sse = float(r @ r)
+            if sse < best_sse:
+                best_sse, start, nominal = sse, trial, dict(nom)
+    spec = _spec(nominal, {**current.effects, name: start})
+    free = [i for i, s_ in enumerate(spec) if s_[0] in ("nominal", name)]
+    return _fit(problem, spec, free=free, max_nfev=25)
+
+
+def _polish(problem: _Problem, fit: _Fit, rounds: int = 2) -> _Fit:
+    """Joint refit of every parameter, restarted from its own optimum (the simulated
+    objective is piecewise smooth, so a restart often moves on)."""
+    for k in range(rounds):
+        step = 1e-2 if k == 0 else 1e-3  # then finer differences near the optimum
+        new = _fit(problem, _spec(fit.nominal, fit.effects), max_nfev=50, diff_step=step)
+        if new.bic() >= fit.bic() - 1.0:
+            return new if new.bic() < fit.bic() else fit
+        fit = new
+    return fit
+
+
+def _significant(fit: _Fit, name: str) -> bool:
+    """At least one of the effect's parameters lies 3 standard errors from neutral."""
+    neutral = CATALOGUE[name].neutral()
+    for (owner, pname, *_), v, s in zip(fit.spec, fit.x, fit.std, strict=True):
+        if owner == name and abs(v - neutral[pname]) > 3.0 * (s if math.isfinite(s) else 0.0):
+            if math.isfinite(s):
+                return True
+    return False
+
+
+def _spec(
+    fit_nominal: Mapping[str, float],
+    effects: Mapping[str, Mapping[str, float]],
+) -> list[tuple[str, str, float, float, float]]:
+    spec = [("nominal", n, lo, hi, fit_nominal.get(n, x0)) for n, lo, hi, x0 in NOMINAL]
+    for name, vals in effects.items():
+        for p in CATALOGUE[name].parameters:
+            spec.append((name, p.name, p.low, p.high, vals[p.name]))
+    return spec
+
+
+def diagnose(problem: _Problem, fit: _Fit) -> dict[str, Any]:
+    """Held-out residual signature: whiteness, spectrum peak, correlations."""
+    r = fit.heldout
+    n_lags = 20
+    lb = scipy.stats.chi2  # Ljung–Box Q = n(n+2) Σ ρ_k²/(n−k)
+    rc = r - r.mean()
+    denom = float(rc @ rc) or 1.0
+    n = rc.size
+    rho = np.array([float(rc[:-k] @ rc[k:]) / denom for k in range(1, n_lags + 1)])
+    q = n * (n + 2) * float(np.sum(rho**2 / (n - np.arange(1, n_lags + 1))))
+    p_white = float(lb.sf(q, n_lags))
+    tr = problem.traces[0]
+    m = tr.m
+    held = ~tr.fit
+    t = m.time[held]
+    x_part = r[: held.sum()]
+    th_model = problem.theta(
+        0,
+        "all",
+        fit.nominal,
+        {k: v for k, v in fit.effects.items() if CATALOGUE[k].stage != "output"},
+    )[held]
+    vel = np.gradient(th_model, t)
+    regressors = {
+        "time": t,
+        "position": th_model,
+        "velocity": vel,
+        "direction": np.sign(vel) * (np.abs(vel) > 1e-6),
+        "drive_level": m.drives[m.axis][held],
+    }
+    corr = {}
+    for k, v in regressors.items():
+        if np.std(v) > 0 and np.std(x_part) > 0:
+            corr[k] = float(np.corrcoef(v, x_part)[0, 1])
+    tu = np.linspace(t[0], t[-1], t.size)
+    ru = np.interp(tu, t, x_part)
+    spec = np.abs(np.fft.rfft(ru - ru.mean())) ** 2
+    freqs = np.fft.rfftfreq(tu.size, tu[1] - tu[0])
+    k = int(np.argmax(spec[1:]) + 1)
+    return {
+        "ljung_box_p": p_white,
+        "white": p_white > 0.01,
+        "rms": fit.rms(),
+        "spectral_peak_Hz": float(freqs[k]),
+        "spectral_peak_share": float(spec[k] / spec[1:].sum()),
+        "correlation": corr,
+    }
+
+
+def calibrate(
+    files: Sequence[str | Path | Measurement],
+    *,
+    fit_fraction: float = 0.6,
+    candidates: Sequence[str] | None = None,
+    max_effects: int = 3,
+    min_improvement: float = 0.05,
+    min_bic_gain: float = 20.0,
+    progress: Callable[[str], None] | None = print,
+) -> CalibrationResult:
+    """Fit, diagnose and select effects (module docstring) for measurement files."""
+    t_start = time.perf_counter()
+    if not 0.2 <= fit_fraction <= 0.9:
+        raise ValueError(f"fit_fraction={fit_fraction!r}: must be in [0.2, 0.9]")
+    say = progress or (lambda _msg: None)
+    traces = []
+    for f in files:
+        m = f if isinstance(f, Measurement) else load_measurement(f)
+        if m.axis not in ("A", "B", "C"):
+            raise ValueError(f"{m.source}: axis {m.axis!r}: the calibrator models A, B and C")
+        t_split = m.time[0] + fit_fraction * (m.time[-1] - m.time[0])
+        traces.append(_Trace(m, m.time <= t_split, m.detector_y_v is not None))
+    problem = _Problem(traces, real_parameters())
+    names = list(candidates) if candidates is not None else list(CATALOGUE)
+    say(f"fitting the nominal model (friction, preload) on {len(traces)} trace(s)")
+    current = _polish(problem, _fit(problem, _spec({}, {}), max_nfev=60))
+    before = current.rms()
+    history = [{"effects": [], "heldout_rms": before, "bic": current.bic()}]
+    say(f"  held-out error {before:.2f} {ERROR_UNIT}")
+    candidates_out: list[dict[str, Any]] = []
+    selected: list[str] = []
+    diag = diagnose(problem, current)
+    while len(selected) < max_effects:
+        if diag["white"] and selected:
+            break
+        results = []
+        for name in names:
+            if name in selected:
+                continue
+            cand = _screen(problem, current, name)
+            results.append((name, cand))
+            say(f"  candidate {name:<22} held-out {cand.rms():.2f} {ERROR_UNIT}")
+        if not results:
+            break
+        for name, cand in results:
+            candidates_out.append(
+                {
+                    "round": len(selected) + 1,
+                    "effect": name,
+                    "heldout_error": cand.rms(),
+                    "bic": cand.bic(),
+                    "parameters": len(cand.spec),
+                }
+            )
+        ranked = sorted(results, key=lambda nc: nc[1].bic())[:2]
+        refits = [(n, _polish(problem, c)) for n, c in ranked]
+        name, best = min(refits, key=lambda nc: nc[1].bic())  # joint refit of the top two
+        gain = current.bic() - best.bic()
+        significant = _significant(best, name)
+        if (
+            gain < min_bic_gain
+            or best.rms() > (1.0 - min_improvement) * current.rms()
+            or not significant
+        ):
+            say(
+                f"  no candidate helps enough (best {name}: BIC gain {gain:.1f}, "
+                f"significant {significant})"
+            )
+            break
+        selected.append(name)
+        current = best
+        diag = diagnose(problem, current)
+        history.append(
+            {"effects": list(selected), "heldout_rms": current.rms(), "bic": current.bic()}
+        )
+        say(
+            f"selected {name}: held-out error {current.rms():.2f} {ERROR_UNIT}, "
+            f"white={diag['white']}"
+        )
+    params: dict[str, dict[str, dict[str, float]]] = {}
+    for (owner, pname, *_), v, s in zip(current.spec, current.x, current.std, strict=True):
+        params.setdefault(owner, {})[pname] = {"value": float(v), "std": float(s)}
+    structured = not diag["white"]
+    if structured:
+        diag["signature"] = _describe(diag)
+    return CalibrationResult(
+        selected_effects=selected,
+        parameters=params,
+        error_before=before,
+        error_after=current.rms(),
+        error_unit=ERROR_UNIT,
+        residual_structured=structured,
+        candidates=candidates_out,
+        diagnosis=diag,
+        history=history,
+        residuals={"after": current.heldout},
+        wall_s=time.perf_counter() - t_start,
+    )
+
+
+def _describe(diag: Mapping[str, Any]) -> str:
+    corr = diag.get("correlation", {})
+    strongest = max(corr.items(), key=lambda kv: abs(kv[1])) if corr else ("none", 0.0)
+    return (
+        f"residual not white (Ljung–Box p = {diag['ljung_box_p']:.2g}); spectral peak at "
+        f"{diag['spectral_peak_Hz']:.1f} Hz holding {diag['spectral_peak_share']:.0%} of the "
+        f"power; strongest correlation with {strongest[0]} ({strongest[1]:+.2f})"
+    )
+
+
+def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
+    """``report.json``, ``report.md`` and ``residual.png`` in ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    pj = d / "report.json"
+    pj.write_text(json.dumps(result.to_json(), indent=2))
+    fig, ax = plt.subplots(figsize=(7, 3))
+    ax.plot(result.residuals["after"], lw=0.5)
+    ax.set_xlabel("held-out sample")
+    ax.set_ylabel(f"residual [{result.error_unit}]")
+    fig.tight_layout()
+    fig.savefig(d / "residual.png", dpi=90)
+    plt.close(fig)
+    lines = [
+        "# Calibration report",
+        "",
+        f"- selected effects: {', '.join(result.selected_effects) or 'none'}",
+        f"- held-out error before: {result.error_before:.3g} {result.error_unit}, after: "
+        f"{result.error_after:.3g} {result.error_unit}",
+        f"- residual structured: {result.residual_structured}"
+        + (f" — {result.diagnosis.get('signature', '')}" if result.residual_structured else ""),
+        "",
+        "| round | candidate | held-out error | BIC |",
+        "|---:|---|---:|---:|",
+        *[
+            f"| {c['round']} | {c['effect']} | {c['heldout_error']:.3g} | {c['bic']:.1f} |"
+            for c in result.candidates
+        ],
+        "",
+        "| owner | parameter | value | std |",
+        "|---|---|---:|---:|",
+        *[
+            f"| {o} | {p} | {v['value']:.4g} | {v['std']:.2g} |"
+            for o, ps in result.parameters.items()
+            for p, v in ps.items()
+        ],
+        "",
+        "![held-out residual](residual.png)",
+    ]
+    pm = d / "report.md"
+    pm.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return {"json": pj, "md": pm, "png": d / "residual.png"}
