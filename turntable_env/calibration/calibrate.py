@@ -51,6 +51,12 @@ NOMINAL = (("friction", 0.5, 2.0, 1.0), ("preload", 0.5, 2.0, 1.0))  # factor bo
 ERROR_UNIT = "nm"  # residual as displacement at the table radius
 
 
+def _nm_per_volt(m: Measurement) -> float:
+    """Detector volts → displacement at R_table [nm], Eq. 4.1–4.2 linearised at θ = 0."""
+    d = m.detector
+    return d.sensitivity / (2.0 * d.distance) * d.table_radius * 1e9
+
+
 @dataclass
 class _Trace:
     m: Measurement
@@ -137,9 +143,7 @@ class _Problem:
             vs = m.detector.saturation_voltage
             x, y = np.clip(x, -vs, vs), np.clip(y, -vs, vs)
             sel = slice(None) if portion == "fit" else ~tr.fit
-            scale = (
-                m.detector.sensitivity / (2.0 * m.detector.distance) * m.detector.table_radius * 1e9
-            )
+            scale = _nm_per_volt(m)
             parts.append((m.detector_v[: th.size] - x)[sel] * scale)
             if tr.has_y and m.detector_y_v is not None:
                 parts.append((m.detector_y_v[: th.size] - y)[sel] * scale)
@@ -226,7 +230,7 @@ def _start_values(name: str, problem: _Problem, fit: _Fit) -> dict[str, float]:
     """Starting values for an effect's parameters from the current fit's residual."""
     e = CATALOGUE[name]
     start = e.neutral()
-    if name in ("piezo_hysteresis",):
+    if name == "piezo_hysteresis":
         start = {"h": 0.02, "width": e.defaults()["width"]}
     elif name == "piezo_creep":
         start = {"gamma": 0.005}
@@ -239,7 +243,7 @@ def _start_values(name: str, problem: _Problem, fit: _Fit) -> dict[str, float]:
     m = tr.m
     r = problem.residual(fit.nominal, fit.effects, "fit")[: int(tr.fit.sum())]
     t = m.time[tr.fit] - m.time[0]
-    scale = m.detector.sensitivity / (2.0 * m.detector.distance) * m.detector.table_radius * 1e9
+    scale = _nm_per_volt(m)
     if name == "sensor_drift":
         a = np.column_stack([np.ones_like(t), t])
         c, *_ = np.linalg.lstsq(a, r / scale, rcond=None)

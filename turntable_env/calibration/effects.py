@@ -42,7 +42,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from ..params import ParameterSet, real_parameters
+from ..params import ParameterSet
 
 __all__ = ["CATALOGUE", "Effect", "EffectParameter", "check_effects", "parse_effects"]
 
@@ -328,8 +328,3 @@ def apply_output(
         v = effects["sensor_drift"]
         x = x + v["offset"] + v["rate"] * t
     return x, y
-
-
-def nominal_parameters() -> ParameterSet:
-    """The real parameter set (the nominal model the catalogue augments)."""
-    return real_parameters()
