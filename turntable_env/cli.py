@@ -163,8 +163,21 @@ def _cmd_virtual_lab(args: argparse.Namespace) -> int:
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from .calibration.calibrate import calibrate, write_report
+    from .calibration.summary import calibrate_summary
+    from .calibration.thesis_data import THESIS_DATA_FILE
 
-    res = calibrate(args.files, fit_fraction=args.fit_fraction)
+    files = list(args.files) + ([str(THESIS_DATA_FILE)] if args.thesis else [])
+    if not files:
+        raise ValueError("files: give measurement files (CSV), a summary file (TOML) or --thesis")
+    summary = [f for f in files if f.endswith(".toml")]
+    if summary and len(summary) != len(files):
+        raise ValueError(f"files: {summary} are summary-level (TOML); calibrate them apart")
+    if len(summary) > 1:
+        raise ValueError(f"files: one summary file at a time, got {summary}")
+    if summary:
+        res = calibrate_summary(summary[0])
+    else:
+        res = calibrate(files, fit_fraction=args.fit_fraction)
     paths = write_report(res, args.report)
     print(
         f"selected effects: {', '.join(res.selected_effects) or 'none'}; held-out error "
@@ -280,9 +293,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Fits friction and preload on the first part of each trace, ranks the "
         "catalogue's effects by the held-out error they remove (BIC-penalised), adds the "
         "best until the residual is white or nothing helps; writes report.json, report.md "
-        "and a residual plot.",
+        "and a residual plot. A TOML file of summary-level figures (the format of "
+        "turntable_env/data/thesis_measurements.toml; --thesis for that file) runs the same "
+        "loop on figures: ideal-source nominal, leave-one-out held-out error.",
     )
-    pc.add_argument("files", nargs="+", help="measurement files (CSV)")
+    pc.add_argument("files", nargs="*", help="measurement files (CSV) or one summary file (TOML)")
+    pc.add_argument("--thesis", action="store_true", help="the thesis's chapter-4 figures")
     pc.add_argument("--report", required=True, help="output directory")
     pc.add_argument("--fit-fraction", type=float, default=0.6, help="fit portion of each trace")
     pc.set_defaults(func=_cmd_calibrate)

@@ -1,10 +1,12 @@
-"""Calibration with measured data (issue 8, in progress).
+"""Calibration with measured data (issue 8).
 
 * :mod:`.measurement` — the measurement file format, its validating loader and writer;
 * :mod:`.thesis_data` — the thesis's chapter-4 measurements as summary-level targets;
 * :mod:`.effects` — the catalogue of switchable model augmentations;
 * :mod:`.trace` — a measured trace simulated with effects on;
-* :mod:`.virtual_lab` — drive protocols and measurement files from the simulator.
+* :mod:`.virtual_lab` — drive protocols and measurement files from the simulator;
+* :mod:`.calibrate` — fit, residual diagnosis, effect selection and report on traces;
+* :mod:`.summary` — the same loop on summary-level figures (the thesis's chapter 4).
 """
 
 from .measurement import AXES, Measurement, load_measurement

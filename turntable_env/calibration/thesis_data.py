@@ -13,9 +13,10 @@ Targets (SI units):
 * ``detector_dV_two_directional`` — 0.53 V in 5 steps about B at 2 V, 100 Hz (Fig. 4.6),
   and ``return_two_directional`` — 0 V: the table returns to its start;
 * ``detector_dV_one_directional`` — 1.19 V in 9 steps (Fig. 4.7);
-* ``net_rotation_unadapted`` — 0 rad: with the unadapted slew the table follows the
-  input with no net movement (§4.1.2–4.1.3); the thesis gives no figure, so its
-  resolution is taken as one tenth of the adapted step.
+* ``net_rotation_unadapted`` — 0 rad per period: with the unadapted slew the table
+  follows the input with no net movement (§4.1.2–4.1.3); the thesis gives no figure, so
+  its resolution is taken as one tenth of the adapted step, and relative errors refer to
+  the adapted step (``scale``).
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ class SummaryTarget:
         name: identifier; quantity: what is measured; value and unit (SI);
         resolution: half the last quoted digit (same unit); drive: the input that
         produced it (amplitude_V, frequency_Hz, amplifier, steps, pattern, …);
-        source: thesis section and figure.
+        source: thesis section and figure; scale: the magnitude a relative error
+        refers to (default |value|; zero-valued targets name the figure they compare
+        with).
     """
 
     name: str
@@ -50,6 +53,12 @@ class SummaryTarget:
     resolution: float
     drive: dict[str, Any] = field(default_factory=dict)
     source: str = ""
+    scale: float | None = None
+
+    @property
+    def reference(self) -> float:
+        """|value|, or ``scale`` where given: the denominator of relative errors."""
+        return abs(self.value) if self.scale is None else abs(self.scale)
 
 
 def _load(path: Path) -> dict[str, Any]:
@@ -121,6 +130,7 @@ def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
                         s["resolution_V"],
                         drive,
                         s["source"],
+                        scale=s["detector_dV"],
                     )
                 )
         adapted_step = min(
@@ -131,12 +141,13 @@ def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
             out.append(
                 SummaryTarget(
                     "net_rotation_unadapted",
-                    s["text"],
+                    f"net rotation per period: {s['text']}",
                     0.0,
                     "rad",
                     0.1 * adapted_step,
                     drive,
                     s["source"],
+                    scale=adapted_step,
                 )
             )
     except KeyError as exc:

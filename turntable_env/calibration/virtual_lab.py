@@ -3,7 +3,9 @@
 A **protocol** is a drive sequence designed so that the catalogue's effects leave
 distinguishable signatures. Each is a list of blocks on the watched axis's channel:
 ``("steps", amplitude V (signed), frequency Hz, periods, a, k)`` (the Fig. 4.3 adapted
-flyback for k > 0) or ``("hold", seconds)`` or ``("scan", level V, ramp seconds)``:
+flyback for k > 0; for k = 0 the Fig. 3.14 sawtooth, or with a seventh element ``"step"``
+the laboratory's unadapted input, a step back to 0 V at a/f, §4.1.2) or
+``("hold", seconds)`` or ``("scan", level V, ramp seconds)``:
 
 * ``standard`` (0.81 s): in its first 60 % (a calibrator's fit portion) stepping forward
   and backward at 2 V 100 Hz, 4 V 1 kHz and 2.5 V 1 kHz (asymmetry: forward ≠ backward; amplifier
@@ -140,7 +142,8 @@ def protocol_drive(
             tt.append(t0 + blk[2])
             uu.append(level)
         elif kind == "steps":
-            a_v, f, n, a, k = blk[1:]
+            a_v, f, n, a, k = blk[1:6]
+            step_back = len(blk) > 6 and blk[6] == "step"
             hold = 0.0
             if k > 0.0:
                 if c_load is None:
@@ -150,6 +153,8 @@ def protocol_drive(
                 hold = amp.adapted_hold_time(abs(a_v), 0.0, k, c_load)
             s = StepSetting(a_v, f, a, k, min(hold, (1.0 - a) / f))
             tp, vp = s.template()
+            if step_back and k == 0.0:  # unadapted laboratory input: a plain step to 0 V
+                tp, vp = np.array([0.0, a / f, a / f, 1.0 / f]), np.array([0.0, a_v, 0.0, 0.0])
             for i in range(int(n)):
                 start = t0 + i / f
                 tt.extend((start + tp[1:]).tolist())
