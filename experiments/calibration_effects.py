@@ -5,7 +5,7 @@ seed 1) plus clean data and creep + drift together: prints the effects selected,
 held-out error before and after [nm at R_table], their ratio, whether a structured
 residual remains, and the wall time of each calibration.
 
-    python experiments/calibration_effects.py        (about 6 minutes)
+    python experiments/calibration_effects.py        (about 4 minutes)
 """
 
 from __future__ import annotations

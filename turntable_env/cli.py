@@ -187,6 +187,15 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .report import build_report
+
+    paths = build_report(args.out, quick=args.quick, progress=not args.no_progress)
+    summary = json.loads(paths["json"].read_text())
+    print(f"report: {paths['html']} ({summary['wall_s']:.0f} s); numbers: {paths['json']}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="turntable", description="piezo stick-slip turntable tools")
     sub = p.add_subparsers(dest="command", required=True)
@@ -302,6 +311,17 @@ def build_parser() -> argparse.ArgumentParser:
     pc.add_argument("--report", required=True, help="output directory")
     pc.add_argument("--fit-fraction", type=float, default=0.6, help="fit portion of each trace")
     pc.set_defaults(func=_cmd_calibrate)
+    pr = sub.add_parser(
+        "report",
+        help="the main job: thesis figures, speed, benchmark and calibration as one HTML page",
+        description="Recreates the thesis's figures with the simulator, runs turntable bench, "
+        "the controller benchmark and the calibration loop on the thesis's figures; writes "
+        "OUT/index.html (self-contained) and OUT/summary.json (every number shown).",
+    )
+    pr.add_argument("--out", default="report", help="output directory (default: report)")
+    pr.add_argument("--quick", action="store_true", help="shortened run (for tests)")
+    pr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    pr.set_defaults(func=_cmd_report)
     return p
 
 

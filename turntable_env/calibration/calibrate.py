@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 import scipy.stats
+import threadpoolctl
 
 from ..params import ParameterSet, real_parameters
 from .effects import CATALOGUE, apply_output
@@ -436,7 +437,32 @@ def calibrate(
     min_bic_gain: float = 20.0,
     progress: Callable[[str], None] | None = print,
 ) -> CalibrationResult:
-    """Fit, diagnose and select effects (module docstring) for measurement files."""
+    """Fit, diagnose and select effects (module docstring) for measurement files.
+
+    Runs with one BLAS thread: its linear algebra is small and dense, where OpenBLAS's
+    worker threads only spin and slow every simulation down."""
+    with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+        return _calibrate(
+            files,
+            fit_fraction=fit_fraction,
+            candidates=candidates,
+            max_effects=max_effects,
+            min_improvement=min_improvement,
+            min_bic_gain=min_bic_gain,
+            progress=progress,
+        )
+
+
+def _calibrate(
+    files: Sequence[str | Path | Measurement],
+    *,
+    fit_fraction: float,
+    candidates: Sequence[str] | None,
+    max_effects: int,
+    min_improvement: float,
+    min_bic_gain: float,
+    progress: Callable[[str], None] | None,
+) -> CalibrationResult:
     t_start = time.perf_counter()
     if not 0.2 <= fit_fraction <= 0.9:
         raise ValueError(f"fit_fraction={fit_fraction!r}: must be in [0.2, 0.9]")

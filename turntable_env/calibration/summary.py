@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 import scipy.optimize
+import threadpoolctl
 
 from ..amplifier import Amplifier, measure_slew_rate
 from ..params import ParameterSet, real_parameters
@@ -349,7 +350,18 @@ def calibrate_summary(
 ) -> CalibrationResult:
     """The calibration loop on summary-level targets (module docstring). ``targets``: a
     list, or a TOML file in the format of ``data/thesis_measurements.toml`` (default:
-    that file)."""
+    that file). Runs with one BLAS thread, as :func:`~.calibrate.calibrate` does."""
+    with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+        return _calibrate_summary(targets, candidates, max_effects, min_improvement, progress)
+
+
+def _calibrate_summary(
+    targets: Sequence[SummaryTarget] | str | Path | None,
+    candidates: Sequence[str] | None,
+    max_effects: int,
+    min_improvement: float,
+    progress: Callable[[str], None] | None,
+) -> CalibrationResult:
     t0 = time.perf_counter()
     if targets is None or isinstance(targets, str | Path):
         tl = thesis_targets() if targets is None else thesis_targets(targets)

@@ -12,6 +12,7 @@ piecewise linear through its samples — as the laboratory commanded it.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -39,7 +40,13 @@ _FULL_MODELS: dict[tuple, TurntableModel] = {}
 
 def reduced_model(ps: ParameterSet, axis: str) -> ReducedModel:
     """The reduced model of ``ps``, condensed from a cached 3-D model of its table and tubes
-    (friction, preload and amplifier come from ``ps``)."""
+    (friction, preload and amplifier come from ``ps``); the last 64 are cached (a fit
+    evaluates the same parameters under several drives and effects)."""
+    return _reduced_model(ps, axis)
+
+
+@functools.lru_cache(maxsize=64)
+def _reduced_model(ps: ParameterSet, axis: str) -> ReducedModel:
     key = (ps.table, ps.tube, ps.name)
     if key not in _FULL_MODELS:
         _FULL_MODELS[key] = TurntableModel(ps)
