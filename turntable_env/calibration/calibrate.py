@@ -58,6 +58,20 @@ def _nm_per_volt(m: Measurement) -> float:
     return d.sensitivity / (2.0 * d.distance) * d.table_radius * 1e9
 
 
+def nominal_parameters(base: ParameterSet, nominal: Mapping[str, float]) -> ParameterSet:
+    """The real set with the nominal factors: μ_s and μ_c × ``friction``, F_N × ``preload``
+    (factors on ``base``'s unlisted values, data/real_unlisted.toml)."""
+    u = base.unlisted
+    assert u is not None
+    return real_parameters(
+        overrides={
+            "mu_static": u.mu_static * nominal["friction"],
+            "mu_coulomb": u.mu_coulomb * nominal["friction"],
+            "normal_force": u.normal_force * nominal["preload"],
+        }
+    )
+
+
 @dataclass
 class _Trace:
     m: Measurement
@@ -106,15 +120,7 @@ class _Problem:
         self.n_sims = 0
 
     def params(self, nominal: Mapping[str, float]) -> ParameterSet:
-        u = self.base.unlisted
-        assert u is not None
-        return real_parameters(
-            overrides={
-                "mu_static": u.mu_static * nominal["friction"],
-                "mu_coulomb": u.mu_coulomb * nominal["friction"],
-                "normal_force": u.normal_force * nominal["preload"],
-            }
-        )
+        return nominal_parameters(self.base, nominal)
 
     def theta(self, i: int, portion: str, nominal: Mapping[str, float], phys: dict) -> np.ndarray:
         key = (i, portion, tuple(sorted(nominal.items())), repr(sorted(phys.items())))

@@ -44,7 +44,15 @@ import threadpoolctl
 
 from ..amplifier import Amplifier, measure_slew_rate
 from ..params import ParameterSet, real_parameters
-from .calibrate import NOMINAL, CalibrationResult, _Fit, _fit, _significant, _spec
+from .calibrate import (
+    NOMINAL,
+    CalibrationResult,
+    _Fit,
+    _fit,
+    _significant,
+    _spec,
+    nominal_parameters,
+)
 from .effects import CATALOGUE, apply_parameters
 from .thesis_data import SummaryTarget, thesis_targets
 from .trace import simulate_trace
@@ -166,15 +174,7 @@ class SummaryProblem:
     def params(self, nominal: Mapping[str, float], effects: Mapping[str, Any]) -> ParameterSet:
         """Real set with the friction and preload factors; ideal source unless
         ``amplifier_dynamics`` is on (module docstring)."""
-        u = self.lab.unlisted
-        assert u is not None
-        ps = real_parameters(
-            overrides={
-                "mu_static": u.mu_static * nominal["friction"],
-                "mu_coulomb": u.mu_coulomb * nominal["friction"],
-                "normal_force": u.normal_force * nominal["preload"],
-            }
-        )
+        ps = nominal_parameters(self.lab, nominal)
         ideal = "amplifier_dynamics" not in effects
         return replace(ps, amplifier=replace(ps.amplifier, ideal=ideal))
 

@@ -28,7 +28,13 @@ from typing import Any
 
 from ..detector import Detector
 
-__all__ = ["THESIS_DATA_FILE", "SummaryTarget", "thesis_detector", "thesis_targets"]
+__all__ = [
+    "THESIS_DATA_FILE",
+    "SummaryTarget",
+    "thesis_detector",
+    "thesis_step_sizes",
+    "thesis_targets",
+]
 
 THESIS_DATA_FILE = Path(__file__).resolve().parent.parent / "data" / "thesis_measurements.toml"
 
@@ -77,6 +83,16 @@ def thesis_detector(path: str | Path = THESIS_DATA_FILE) -> Detector:
         linear_range=d["linear_range_m"],
         table_radius=d["table_radius_m"],
     )
+
+
+def thesis_step_sizes(path: str | Path = THESIS_DATA_FILE) -> dict[str, float]:
+    """The per-step table displacements the thesis quotes (§4.1.3) [m], by input:
+    ``{"one_directional": 0.37e-6, "two_directional": 0.30e-6}``."""
+    p = Path(path)
+    try:
+        return {s["name"]: s["step_um"] * 1e-6 for s in _load(p)["stepping"]}
+    except KeyError as exc:
+        raise ValueError(f"{p}: entry {exc.args[0]!r} missing") from None
 
 
 def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
