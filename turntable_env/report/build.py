@@ -15,7 +15,6 @@ with trajectory plots, and the calibration loop on the thesis's figures.
 
 from __future__ import annotations
 
-import base64
 import io
 import json
 import math
@@ -149,7 +148,8 @@ def _render(quick: bool) -> Section:
         "The turntable rendered (Fig. 4.9) and animated",
         "PiezoTurntable-v0's rgb_array renderer: the three tubes and their contacts (green: "
         "stick, red: slip) and the detector spot, during a fuzzy-controller move of 8 µm "
-        "about B (the frame is taken during the move). The thesis showed two frames of its 20-sim 3-D animation.",
+        "about B (the frame is taken during the move). The thesis showed two frames of its "
+        "20-sim 3-D animation.",
     )
     env = gym.make("PiezoTurntable-v0", render_mode="rgb_array", terminate_on_success=False)
     ctl = make("fuzzy", env.unwrapped)
@@ -245,9 +245,7 @@ def _calibration(quick: bool) -> Section:
     from ..calibration.calibrate import _plot_residual
     from ..calibration.summary import calibrate_summary
 
-    res = calibrate_summary(
-        candidates=["amplifier_dynamics"] if quick else None, progress=None
-    )
+    res = calibrate_summary(candidates=["amplifier_dynamics"] if quick else None, progress=None)
     s = Section(
         "calibration",
         "Calibration loop on the thesis's measurements",
@@ -319,9 +317,7 @@ def _jsonable(x: Any) -> Any:
     return x
 
 
-def build_report(
-    out: str | Path, *, quick: bool = False, progress: bool = True
-) -> dict[str, Path]:
+def build_report(out: str | Path, *, quick: bool = False, progress: bool = True) -> dict[str, Path]:
     """Run every section and write ``index.html`` and ``summary.json`` into ``out``."""
     from tqdm import tqdm
 
@@ -350,8 +346,9 @@ def build_report(
     summary = {
         "quick": quick,
         "wall_s": wall,
-        "sections": {s.id: {"title": s.title, "wall_s": s.wall_s, **_jsonable(s.numbers)}
-                     for s in sections},  # fmt: skip
+        "sections": {
+            s.id: {"title": s.title, "wall_s": s.wall_s, **_jsonable(s.numbers)} for s in sections
+        },
     }
     pj = d / "summary.json"
     pj.write_text(json.dumps(summary, indent=2), encoding="utf-8")

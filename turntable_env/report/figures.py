@@ -219,13 +219,10 @@ def stepping_figure(params: str, signal: str, *, periods: int = 5) -> ReportFigu
     if params == "real":
         nums["measured_step_m"] = measured[signal]
         nums["model_over_measured"] = r.step_size / measured[signal]
-        thesis = (
-            f"Measured (§4.1.3, Fig. {fig_no}): "
-            + (
-                "1.19 V in 9 steps, 3.4 µm, 0.37 µm per step."
-                if signal == "one"
-                else "0.53 V in 5 steps, 1.5 µm, 0.30 µm per step; the table returns to its start."
-            )
+        thesis = f"Measured (§4.1.3, Fig. {fig_no}): " + (
+            "1.19 V in 9 steps, 3.4 µm, 0.37 µm per step."
+            if signal == "one"
+            else "0.53 V in 5 steps, 1.5 µm, 0.30 µm per step; the table returns to its start."
         )
     else:
         thesis = (

@@ -71,7 +71,8 @@ def _image(im: dict[str, Any]) -> str:
         else ""
     )
     return (
-        f"<figure id='{html.escape(im['name'])}'><img src='{src}' alt='{html.escape(im['caption'])}'>"
+        f"<figure id='{html.escape(im['name'])}'>"
+        f"<img src='{src}' alt='{html.escape(im['caption'])}'>"
         f"<figcaption>{html.escape(im['caption'])}</figcaption>{thesis}{num_html}</figure>"
     )
 
@@ -86,9 +87,11 @@ def render_html(sections: Sequence[Section], summary: dict[str, Any]) -> str:
         parts += [_image(im) for im in s.images]
         parts.append(f"<p class='numbers'>section computed in {s.wall_s:.1f} s</p>")
         body.append(f"<section id='{s.id}'>{''.join(parts)}</section>")
-    quick = " (quick run: shortened computations, not the reported figures)" if summary.get(
-        "quick"
-    ) else ""
+    quick = (
+        " (quick run: shortened computations, not the reported figures)"
+        if summary.get("quick")
+        else ""
+    )
     return (
         "<!doctype html><html lang='en'><head><meta charset='utf-8'>"
         "<title>piezo-turntable report</title>"
