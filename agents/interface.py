@@ -11,8 +11,8 @@ Observation (8 features, from the env's observation o and the plant context):
 1     sign(e)·ln(1 + |e|/tol)/ln(1 + θ_lin/tol): the error in decades of the tolerance
 2     e/(K·u_max), clipped at ±2: the error in scan ranges
 3     saturation of the reading: +1 / −1 at the detector's edges, else 0
-4     last scan offset (o[7], fraction of u_max)
-5     last amplitude (o[3]) — 6  last frequency (o[4]) — 7  generator phase (o[2])
+4     last scan offset (``last_scan_offset``, fraction of u_max)
+5     last amplitude — 6  last frequency — 7  generator phase (``generator_phase``)
 ====  ==============================================================================
 
 Action (3 values in [-1, 1]):
@@ -38,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from controllers.base import SATURATION_FRACTION, ControllerContext
+from turntable_env.envs.config import OBS
 
 __all__ = ["AgentInterface", "AgentWrapper", "InterfaceConfig"]
 
@@ -86,7 +87,7 @@ class AgentInterface:
     def features(self, obs: np.ndarray) -> np.ndarray:
         """(8,) float32 features of one env observation."""
         c = self.ctx
-        meas, target = float(obs[0]), float(obs[1])
+        meas, target = float(obs[OBS.measured_angle_rad]), float(obs[OBS.target_angle_rad])
         e = target - meas
         sat = 0.0
         if abs(meas) >= c.angle_range * SATURATION_FRACTION:
@@ -97,10 +98,10 @@ class AgentInterface:
                 math.copysign(math.log1p(abs(e) / c.tolerance) / self._log_norm, e),
                 np.clip(e / c.scan_range, -2.0, 2.0),
                 sat,
-                obs[7],
-                obs[3],
-                obs[4],
-                obs[2],
+                obs[OBS.last_scan_offset],
+                obs[OBS.last_amplitude],
+                obs[OBS.last_frequency],
+                obs[OBS.generator_phase],
             ],
             dtype=np.float32,
         )
@@ -117,7 +118,7 @@ class AgentInterface:
                 cfg.amplitude_min + (cfg.amplitude_max - cfg.amplitude_min) * frac, a[0]
             )
         m = 1 + round((cfg.max_steps - 1) * 0.5 * (a[1] + 1.0))
-        offset = float(obs[7]) * c.input_limit + a[2] * cfg.offset_step
+        offset = float(obs[OBS.last_scan_offset]) * c.input_limit + a[2] * cfg.offset_step
         offset = float(np.clip(offset, -c.input_limit, c.input_limit))
         return c.scaling.encode(
             amp, m / c.control_interval, cfg.ramp_ratio, cfg.slew_adaptation, offset

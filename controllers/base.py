@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from turntable_env.envs.config import ActionScaling, EnvConfig
+from turntable_env.envs.config import OBS, ActionScaling, EnvConfig
 from turntable_env.linear import scan_plant, stick_plant
 from turntable_env.params import ParameterSet
 
@@ -149,8 +149,8 @@ class StepScanController(Controller):
 
     # --- episode ----------------------------------------------------------------------
     def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        self.target = float(obs[1])
-        meas = float(obs[0])
+        self.target = float(obs[OBS.target_angle_rad])
+        meas = float(obs[OBS.measured_angle_rad])
         self.estimate = float(info.get("angle_rad", meas))  # rad, believed angle
         self.mode = "step"
         self.offset = 0.0  # V, scan offset commanded for the interval now ending
@@ -176,7 +176,7 @@ class StepScanController(Controller):
 
     # --- control law ------------------------------------------------------------------
     def act(self, obs: np.ndarray) -> np.ndarray:
-        meas = float(obs[0])
+        meas = float(obs[OBS.measured_angle_rad])
         sat = self.saturated(meas)
         self.observe(meas, sat)
         k_scan = self.ctx.scan_gain

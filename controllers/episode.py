@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from turntable_env.envs.config import OBS
+
 from .base import Controller
 
 __all__ = ["EpisodeResult", "run_episode"]
@@ -114,7 +116,7 @@ def run_episode(
     """Reset ``env`` (seed, options), run ``controller`` until the episode ends."""
     obs, info = env.reset(seed=seed, options=options)
     controller.reset(obs, info)
-    time, angle, measured = [0.0], [float(info["angle_rad"])], [float(obs[0])]
+    time, angle, measured = [0.0], [float(info["angle_rad"])], [float(obs[OBS.measured_angle_rad])]
     actions, energy, steps = [np.zeros(5)], [0.0], [0]
     done = False
     while not done:
@@ -123,7 +125,7 @@ def run_episode(
         done = terminated or truncated
         time.append(float(info["time_s"]))
         angle.append(float(info["angle_rad"]))
-        measured.append(float(obs[0]))
+        measured.append(float(obs[OBS.measured_angle_rad]))
         actions.append(np.asarray(action, dtype=float))
         energy.append(float(info["energy_J"]))
         steps.append(int(info["steps"]))

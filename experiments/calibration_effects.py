@@ -13,8 +13,8 @@ from __future__ import annotations
 import time
 
 from turntable_env.calibration.calibrate import calibrate
-from turntable_env.calibration.effects import CATALOGUE
 from turntable_env.calibration.virtual_lab import run_virtual_lab
+from turntable_env.effects import CATALOGUE
 
 CASES: list[dict[str, dict[str, float]]] = [
     {},

@@ -13,3 +13,20 @@ def real():
 @pytest.fixture(scope="session")
 def thesis():
     return thesis_parameters()
+
+
+def scan_angles(env, offsets):
+    """(true angle [rad], measured angle [rad]) after each control interval of an unwrapped
+    PiezoTurntable env reset at 0 with the generator idle at scan levels ``offsets`` [V]."""
+    import numpy as np
+
+    from turntable_env.envs import ActionScaling
+
+    scale = ActionScaling()
+    env.reset(seed=0, options={"start_angle": 0.0, "target_angle": 0.0})
+    out = []
+    for off in offsets:
+        obs, *_, info = env.step(scale.encode(0.0, 100.0, 0.9, 0.0, off))
+        out.append((info["angle_rad"], float(obs[0])))
+    return np.array(out)
+

@@ -9,8 +9,10 @@ import json
 import pytest
 
 from turntable_env.calibration.calibrate import calibrate, write_report
-from turntable_env.calibration.effects import CATALOGUE
 from turntable_env.calibration.virtual_lab import run_virtual_lab
+from turntable_env.effects import CATALOGUE
+
+pytestmark = pytest.mark.slow  # each case is a full calibration (20-70 s)
 
 CASES = {
     "amplifier_dynamics": CATALOGUE["amplifier_dynamics"].defaults(),

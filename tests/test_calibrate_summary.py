@@ -60,6 +60,7 @@ def test_zero_targets_refer_to_their_companion_figure():
     assert t["detector_dV_one_directional"].reference == pytest.approx(1.19)
 
 
+@pytest.mark.slow
 def test_recovers_an_undeclared_amplifier_on_synthetic_figures():
     """Figures made by the model with a slower amplifier (slew × 0.7), nothing declared:
     the loop names amplifier_dynamics, finds the scale and the held-out error vanishes."""
@@ -75,6 +76,7 @@ def test_recovers_an_undeclared_amplifier_on_synthetic_figures():
     assert res.error_after < 0.1 * res.error_before
 
 
+@pytest.mark.slow
 def test_thesis_loop_finds_the_slew_rate(tmp_path):
     """The thesis's own finding (§4.1.2): against the ideal-source model the residual is
     the amplifier's slew; the held-out error drops, and the report says what remains."""

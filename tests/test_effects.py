@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from turntable_env.calibration import load_measurement
-from turntable_env.calibration.effects import CATALOGUE, check_effects, parse_effects
 from turntable_env.calibration.trace import simulate_trace
 from turntable_env.calibration.virtual_lab import (
     PROTOCOLS,
@@ -14,7 +13,9 @@ from turntable_env.calibration.virtual_lab import (
     protocol_drive,
     run_virtual_lab,
 )
+from turntable_env.effects import CATALOGUE, check_effects, parse_effects
 from turntable_env.params import real_parameters
+from turntable_env.plant import Plant
 
 REQUIRED = {
     "amplifier_dynamics", "piezo_hysteresis", "piezo_creep", "sensor_drift",
@@ -34,7 +35,7 @@ def drive(ps):
 
 
 def _trace(ps, drive, effects):
-    return simulate_trace(ps, "B", *drive, effects)
+    return simulate_trace(Plant(ps, effects=effects), "B", *drive)
 
 
 @pytest.fixture(scope="module")
@@ -202,7 +203,7 @@ def test_virtual_lab_file_reproduces_its_own_simulation(tmp_path, ps):
     m = run_virtual_lab("thesis", eff, noise_std=0.0, out=tmp_path / "lab.csv")
     back = load_measurement(tmp_path / "lab.csv")
     assert back.meta == {"protocol": "thesis"} and back.axis == "B"
-    res = simulate_trace(ps, "B", back.time, back.drives["B"], eff)
+    res = simulate_trace(Plant(ps, effects=eff), "B", back.time, back.drives["B"])
     np.testing.assert_allclose(res.detector_v, m.detector_v, atol=1e-9)
     assert np.abs(back.drives["B"]).max() <= 10.0
 

@@ -20,6 +20,7 @@ from turntable_env.envs import (
     PiezoTurntableEnv,
     PiezoTurntableVectorEnv,
 )
+from turntable_env.plant import reduced_model
 
 ENV_ID = "PiezoTurntable-v0"
 # Warnings the checkers may raise for this env, each with its reason. None today.
@@ -246,10 +247,10 @@ def test_scan_mode_bends_tubes_without_slip():
     for _ in range(3):
         *_, info = env.step(SCALE.encode(0.0, 100.0, 0.9, 0.0, u0))
     task = env.task
-    ap = task.backend.model(0).axis_params
-    expected = task.nominal.amplifier.gain * ap.tube_gain[0] * u0 / ap.lever[0]
+    ap = reduced_model(task.plant.params, "B").axis_params
+    expected = task.plant.params.amplifier.gain * ap.tube_gain[0] * u0 / ap.lever[0]
     assert info["angle_rad"] == pytest.approx(expected, rel=0.01)
-    np.testing.assert_array_equal(task.backend.snapshot(0)["stick_fraction"], [1.0, 1.0])
+    np.testing.assert_array_equal(task.stepper.snapshot(0)["stick_fraction"], [1.0, 1.0])
 
 
 @pytest.mark.parametrize("sign", [1.0, -1.0])
@@ -270,7 +271,7 @@ def test_energy_cost_is_capacitive_per_period():
     env = _quiet_env()
     env.reset(seed=0, options=HOME)
     task = env.task
-    v_out = task.nominal.amplifier.gain * 2.0
+    v_out = task.plant.params.amplifier.gain * 2.0
     for k, factor in ((0.0, 1.0), (1.0, 2.0)):
         env.step(SCALE.encode(2.0, 200.0, 0.9, k))  # latch the setting
         *_, info = env.step(SCALE.encode(2.0, 200.0, 0.9, k))  # two whole periods
@@ -356,16 +357,16 @@ def test_sensor_noise_level():
 
 def test_randomisation_within_documented_ranges():
     env = gym.make(ENV_ID, randomize=True)
-    fn0 = env.unwrapped.task.nominal.contact.preload
+    fn0 = env.unwrapped.task.plant.params.contact.preload
     for s in range(5):
         _, info = env.reset(seed=s)
         f = info["parameter_factors"]
         assert set(f) == set(DEFAULT_RANDOMIZATION)
         for key, (lo, hi) in DEFAULT_RANDOMIZATION.items():
             assert lo <= f[key] <= hi
-        ps = env.unwrapped.task.params[0]
+        ps = env.unwrapped.plant.params
         assert ps.contact.preload == pytest.approx(fn0 * f["preload"])
-        assert env.unwrapped.task.backend.model(0).axis_params.normal_force[0] == pytest.approx(
+        assert reduced_model(ps, "B").axis_params.normal_force[0] == pytest.approx(
             fn0 * f["preload"]
         )
 

@@ -12,18 +12,34 @@ __version__ = "0.1.0"
 ENV_ID = "PiezoTurntable-v0"
 MAX_EPISODE_STEPS = 200  # 2 s at the default 10 ms control interval
 
+# Registered variants (as highway-env and panda-gym register theirs): id → (kwargs, what).
+ENV_VARIANTS: dict[str, tuple[dict, str]] = {
+    ENV_ID: ({}, "the real turntable (Table D.1), reduced per-axis model, nominal plant"),
+    "PiezoTurntableFull-v0": (
+        {"fidelity": "full"},
+        "the same task on the full 3-D model (contacts in 3-D, about 100x slower)",
+    ),
+    "PiezoTurntableRandomized-v0": (
+        {"randomize": True},
+        "a plant drawn per episode: friction and preload x0.8-1.2, amplifier x0.9-1.1, "
+        "detector noise x0.5-2 (DEFAULT_RANDOMIZATION)",
+    ),
+}
+
 
 def _register() -> None:
-    """Register ``PiezoTurntable-v0`` with Gymnasium (once: re-imports are no-ops)."""
+    """Register the variants with Gymnasium (once: re-imports are no-ops)."""
     from gymnasium.envs.registration import register, registry
 
-    if ENV_ID not in registry:
-        register(
-            id=ENV_ID,
-            entry_point="turntable_env.envs:PiezoTurntableEnv",
-            vector_entry_point="turntable_env.envs:PiezoTurntableVectorEnv",
-            max_episode_steps=MAX_EPISODE_STEPS,
-        )
+    for env_id, (kwargs, _doc) in ENV_VARIANTS.items():
+        if env_id not in registry:
+            register(
+                id=env_id,
+                entry_point="turntable_env.envs:PiezoTurntableEnv",
+                vector_entry_point="turntable_env.envs:PiezoTurntableVectorEnv",
+                max_episode_steps=MAX_EPISODE_STEPS,
+                kwargs=kwargs,
+            )
 
 
 _register()

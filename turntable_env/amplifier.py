@@ -25,7 +25,7 @@ V_end − k·(V_start − V_end), and back to V_end when the output gets there;
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -40,7 +40,7 @@ from .validation import (
     check_time_array,
 )
 
-__all__ = ["Amplifier", "AmplifierResponse", "measure_slew_rate"]
+__all__ = ["Amplifier", "AmplifierResponse", "adapted_hold_core", "measure_slew_rate"]
 
 LN9 = math.log(9.0)
 
@@ -57,6 +57,27 @@ def slew_step(v, target, dt, tau, rate):
             return v + sgn * rate * dt
         return target - sgn * rate * tau * math.exp(-(dt - t_lin) / tau)
     return target - e * math.exp(-dt / tau)
+
+
+@njit(cache=True)
+def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal):
+    """Time [s] the Fig. 4.3 adapted input stays past the end value (see
+    :meth:`Amplifier.adapted_hold_time`, which validates the arguments): the output of the
+    slew-limited first-order stage (gain G, τ [s], rate limit [V/s]) covers G·|v_start −
+    v_end| [V] from an error G·|v_start − u_over|, u_over = v_end − k(v_start − v_end)."""
+    if ideal or v_start == v_end:
+        return 0.0
+    if k == 0.0:
+        return math.inf
+    u_over = v_end - k * (v_start - v_end)
+    dist = gain * abs(v_start - v_end)  # output travel to the end value [V]
+    e0 = gain * abs(v_start - u_over)  # initial error [V]
+    if e0 > rate * tau:
+        d_lin = e0 - rate * tau
+        if dist <= d_lin:
+            return dist / rate
+        return d_lin / rate + tau * math.log(rate * tau / (e0 - dist))
+    return tau * math.log(e0 / (e0 - dist))
 
 
 @njit(cache=True)
@@ -212,26 +233,37 @@ class Amplifier:
         a = check_finite("v_start", v_start)
         b = check_finite("v_end", v_end)
         kk = check_nonnegative("k", k)
-        if self.ideal or a == b:
-            return 0.0
-        if kk == 0.0:
-            return math.inf
         u_over = b - kk * (a - b)
-        if abs(u_over) > self.input_limit:
+        if not self.ideal and a != b and kk > 0.0 and abs(u_over) > self.input_limit:
             raise ValueError(
                 f"k={k!r}: the adapted input {u_over:.3g} V exceeds the input limit "
                 f"±{self.input_limit} V"
             )
-        dist = self.gain * abs(a - b)  # output travel to the end value [V]
-        e0 = self.gain * abs(a - u_over)  # initial error [V]
-        r = self.rate_limit(load_capacitance)
-        tau = self.tau
-        if e0 > r * tau:
-            d_lin = e0 - r * tau
-            if dist <= d_lin:
-                return dist / r
-            return d_lin / r + tau * math.log(r * tau / (e0 - dist))
-        return tau * math.log(e0 / (e0 - dist))
+        return adapted_hold_core(
+            a, b, kk, self.gain, self.tau, self.rate_limit(load_capacitance), self.ideal
+        )
+
+    def scaled(self, slew: float = 1.0, current: float = 1.0) -> Amplifier:
+        """This amplifier with its slew per input volt × ``slew`` (settling time τ ÷) and its
+        current limit × ``current`` (unit scatter, calibration, amplifier_dynamics)."""
+        return replace(
+            self,
+            slew_per_input_volt=self.slew_per_input_volt * check_positive("slew", slew),
+            current_limit=self.current_limit * check_positive("current", current),
+        )
+
+    def kernel_row(self, load_capacitance: float) -> np.ndarray:
+        """The amplifier as the compiled kernels read it: (gain G, τ [s], ideal (1/0),
+        input limit [V], rate limit R [V/s] on ``load_capacitance`` [F])."""
+        return np.array(
+            [
+                self.gain,
+                self.tau,
+                1.0 if self.ideal else 0.0,
+                self.input_limit,
+                self.rate_limit(load_capacitance),
+            ]
+        )
 
     def describe(self, prefix: str = "amplifier") -> list[Quantity]:
         g, d = "given", "derived"

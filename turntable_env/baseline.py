@@ -40,7 +40,7 @@ def simulate_scipy(
     """Integrate the reduced model with ``solve_ivp``; returns (time [s], angle [rad])."""
     dur = check_positive("duration", duration)
     check_positive("rtol", rtol)
-    ar = model._arrays
+    ar = model.packed
     ap = model.axis_params
     nu, kk = ar["nu"], ar["kk"]
     c_gms, mu_s, mu_c, v_s, delta, sigma2, beta_t = ar["gms"]

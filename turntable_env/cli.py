@@ -146,8 +146,8 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
 
 
 def _cmd_virtual_lab(args: argparse.Namespace) -> int:
-    from .calibration.effects import parse_effects
     from .calibration.virtual_lab import run_virtual_lab
+    from .effects import parse_effects
 
     effects = parse_effects(args.effects or "")
     m = run_virtual_lab(

@@ -34,6 +34,19 @@ from typing import Literal
 import numpy as np
 
 from .amplifier import Amplifier
+from .generator import (
+    MODE_ADAPTED,
+    MODE_RAMP,
+    MODE_STEP,
+    TEMPLATE_POINTS,
+    adapted_hold,
+    capacitive_energy_nb,
+    flybacks_nb,
+    grid_points_nb,
+    interval_capacity,
+    segment_nb,
+    template_nb,
+)
 from .validation import (
     check_array_finite,
     check_finite,
@@ -250,6 +263,106 @@ def _check_count(name: str, n: int) -> int:
 
 
 @dataclass(frozen=True)
+class StepSetting:
+    """One stepping waveform of the generator (amplifier input), one period of
+    :mod:`turntable_env.generator`'s template.
+
+    Each period rises over a/f; the flyback is the sawtooth's fall over (1 − a)/f
+    (Fig. 3.14; ``slew_adaptation`` = 0 and ``flyback="ramp"``), a step back to 0
+    (``flyback="step"``: the laboratory's input with the flyback left to the amplifier,
+    §4.1.2) or the slew-adapted input of Fig. 4.3 (k > 0: step to −k·amplitude, hold
+    ``hold_time``, then 0). Amplitude 0 is the idle generator.
+
+    Args:
+        amplitude: peak input [V], signed (sign = direction).
+        frequency: [Hz].
+        a: ramp ratio, 0 < a < 1.
+        slew_adaptation: k ≥ 0 of Fig. 4.3.
+        hold_time: adapted hold [s] (k > 0), clipped to the flyback interval (1 − a)/f
+            (:meth:`adapted` computes it from the amplifier).
+        flyback: ``"ramp"`` or ``"step"`` for k = 0; k > 0 implies a step.
+    """
+
+    amplitude: float = 0.0
+    frequency: float = 100.0
+    a: float = 0.95
+    slew_adaptation: float = 0.0
+    hold_time: float = 0.0
+    flyback: Literal["ramp", "step"] = "ramp"
+
+    def __post_init__(self) -> None:
+        check_finite("amplitude", self.amplitude)
+        check_positive("frequency", self.frequency)
+        check_in_open("a", self.a, 0.0, 1.0)
+        check_nonnegative("slew_adaptation", self.slew_adaptation)
+        check_nonnegative("hold_time", self.hold_time)
+        if self.flyback not in ("ramp", "step"):
+            raise ValueError(f"flyback={self.flyback!r}: must be 'ramp' or 'step'")
+
+    @classmethod
+    def adapted(
+        cls,
+        amplitude: float,
+        frequency: float,
+        a: float,
+        k: float,
+        amplifier: Amplifier,
+        load_capacitance: float = 0.0,
+    ) -> StepSetting:
+        """The Fig. 4.3 setting with its hold time from the amplifier driving
+        ``load_capacitance`` [F] (:func:`turntable_env.generator.adapted_hold`); k = 0 gives
+        the plain step flyback. Raises ValueError if −k·amplitude leaves the input range."""
+        kk = check_nonnegative("k", k)
+        amp = check_finite("amplitude", amplitude)
+        if kk * abs(amp) > amplifier.input_limit:
+            raise ValueError(
+                f"k={k!r}: the adapted input {-kk * amp:.3g} V exceeds the input limit "
+                f"±{amplifier.input_limit} V"
+            )
+        f = check_positive("frequency", frequency)
+        aa = check_in_open("a", a, 0.0, 1.0)
+        if kk == 0.0:
+            return cls(amp, f, aa, 0.0, 0.0, "step")
+        kk, hold = adapted_hold(amplifier.kernel_row(load_capacitance), amp, f, aa, kk)
+        return cls(amp, f, aa, kk, hold, "step")
+
+    @property
+    def idle(self) -> bool:
+        return self.amplitude == 0.0
+
+    @property
+    def mode(self) -> int:
+        """Template mode of :mod:`turntable_env.generator` (ramp, step or adapted)."""
+        if self.slew_adaptation > 0.0:
+            return MODE_ADAPTED
+        return MODE_STEP if self.flyback == "step" else MODE_RAMP
+
+    def row(self) -> np.ndarray:
+        """The setting as the compiled generator reads it (``SETTING_FIELDS``)."""
+        return np.array(
+            [self.amplitude, self.frequency, self.a, self.slew_adaptation, self.hold_time,
+             float(self.mode)]
+        )  # fmt: skip
+
+    def template(self) -> tuple[np.ndarray, np.ndarray]:
+        """One period as breakpoints: times from 0 to 1/f [s], input [V]."""
+        t = np.empty(TEMPLATE_POINTS)
+        v = np.empty(TEMPLATE_POINTS)
+        n = template_nb(self.row(), t, v)
+        return t[:n], v[:n]
+
+    def periods(self, n: int, start: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` consecutive periods from ``start`` [s] as breakpoints (each period's
+        opening 0 V point shared with the previous period's end)."""
+        tp, vp = self.template()
+        count = _check_count("n", n)
+        starts = start + (1.0 / self.frequency) * np.arange(count)  # as the generator
+        t = (starts[:, None] + tp[None, 1:]).ravel()
+        v = np.tile(vp[1:], count)
+        return np.concatenate([[start], t]), np.concatenate([[0.0], v])
+
+
+@dataclass(frozen=True)
 class DriveSignal:
     """A stepping drive as the simulator and the environment use it.
 
@@ -305,52 +418,39 @@ class DriveSignal:
         """Number of drive periods in the whole signal."""
         return self.n_periods * (2 * self.n_cycles if self.pattern == "two" else 1)
 
+    def setting(
+        self, amplifier: Amplifier | None = None, load_capacitance: float = 0.0, sign: float = 1.0
+    ) -> StepSetting:
+        """The generator setting of a forward (``sign`` = 1) or backward (−1) period."""
+        amp = amplifier if amplifier is not None else Amplifier()
+        if self.slew_adaptation > 0.0:
+            return StepSetting.adapted(
+                sign * self.amplitude, self.frequency, self.a, self.slew_adaptation, amp,
+                load_capacitance,
+            )  # fmt: skip
+        return StepSetting(sign * self.amplitude, self.frequency, self.a, 0.0, 0.0, self.flyback)
+
     def hold_time(self, amplifier: Amplifier | None = None, load_capacitance: float = 0.0) -> float:
         """How long the adapted flyback input stays past zero (Fig. 4.3) [s]; 0 if unadapted."""
-        if self.slew_adaptation == 0.0:
-            return 0.0
-        amp = amplifier if amplifier is not None else Amplifier()
-        hold = amp.adapted_hold_time(
-            abs(self.amplitude), 0.0, self.slew_adaptation, load_capacitance
-        )
-        return min(hold, (1.0 - self.a) / self.frequency)
+        return self.setting(amplifier, load_capacitance).hold_time
 
     def waveform(
         self, amplifier: Amplifier | None = None, load_capacitance: float = 0.0
     ) -> Waveform:
         """The drive as breakpoints: equal to :meth:`input_voltage` everywhere (jumps
-        right-continuous)."""
-        T = 1.0 / self.frequency
-        n_total = self.total_periods
-        hold = self.hold_time(amplifier, load_capacitance)
-        k = self.slew_adaptation
-        ts: list[float] = [self.start]
-        vs: list[float] = [0.0]
-        for p in range(n_total):
-            t0 = self.start + p * T
-            sign = 1.0 if (self.pattern == "one" or (p // self.n_periods) % 2 == 0) else -1.0
-            amp = sign * self.amplitude
-            ts.append(t0 + self.a * T)
-            vs.append(amp)
-            if not self.stepped:
-                ts.append(t0 + T)
-                vs.append(0.0)
-                continue
-            if k == 0.0:  # plain step back to 0 at a/f
-                ts += [t0 + self.a * T, t0 + T]
-                vs += [0.0, 0.0]
-                continue
-            ts += [t0 + self.a * T, t0 + self.a * T + hold]
-            vs += [-k * amp, -k * amp]
-            if hold < (1.0 - self.a) * T:
-                ts += [t0 + self.a * T + hold]
-                vs += [0.0]
-            else:  # the hold fills the flyback: back to 0 at the period's end
-                ts += [t0 + T]
-                vs += [0.0]
-            ts.append(t0 + T)
-            vs.append(0.0)
-        return Waveform(np.array(ts), np.array(vs))
+        right-continuous), built from the generator's period template."""
+        fwd = self.setting(amplifier, load_capacitance)
+        if self.pattern == "one":
+            t, v = fwd.periods(self.n_periods, self.start)
+            return Waveform(t, v)
+        back = self.setting(amplifier, load_capacitance, -1.0)
+        tt, vv = [np.array([self.start])], [np.array([0.0])]
+        block = self.n_periods / self.frequency
+        for j in range(2 * self.n_cycles):
+            t, v = (fwd if j % 2 == 0 else back).periods(self.n_periods, self.start + j * block)
+            tt.append(t[1:])
+            vv.append(v[1:])
+        return Waveform(np.concatenate(tt), np.concatenate(vv))
 
     def input_voltage(
         self, t: np.ndarray, amplifier: Amplifier | None = None, load_capacitance: float = 0.0
@@ -391,73 +491,7 @@ class DriveSignal:
         return np.where(_forward(tt, self.start, self.frequency, self.n_periods), fwd, back)
 
 
-@dataclass(frozen=True)
-class StepSetting:
-    """One stepping waveform of the free-running generator (amplifier input).
-
-    Each period is the sawtooth of Fig. 3.14 (``slew_adaptation`` = 0: rise over a/f,
-    fall over (1 − a)/f) or the slew-adapted input of Fig. 4.3 (k > 0: rise over a/f,
-    step to −k·amplitude, hold ``hold_time``, then 0). Amplitude 0 is the idle generator.
-
-    Args:
-        amplitude: peak input [V], signed (sign = direction).
-        frequency: [Hz].
-        a: ramp ratio, 0 < a < 1.
-        slew_adaptation: k ≥ 0 of Fig. 4.3.
-        hold_time: adapted hold [s] (k > 0), clipped to the flyback interval (1 − a)/f.
-    """
-
-    amplitude: float = 0.0
-    frequency: float = 100.0
-    a: float = 0.95
-    slew_adaptation: float = 0.0
-    hold_time: float = 0.0
-
-    def __post_init__(self) -> None:
-        check_finite("amplitude", self.amplitude)
-        check_positive("frequency", self.frequency)
-        check_in_open("a", self.a, 0.0, 1.0)
-        check_nonnegative("slew_adaptation", self.slew_adaptation)
-        check_nonnegative("hold_time", self.hold_time)
-
-    @property
-    def idle(self) -> bool:
-        return self.amplitude == 0.0
-
-    def template(self) -> tuple[np.ndarray, np.ndarray]:
-        """One period as breakpoints: times from 0 to 1/f [s], input [V]."""
-        T = 1.0 / self.frequency
-        ta = self.a * T
-        amp, k = self.amplitude, self.slew_adaptation
-        if k == 0.0:
-            return np.array([0.0, ta, T]), np.array([0.0, amp, 0.0])
-        hold = min(self.hold_time, T - ta)
-        if hold < T - ta:
-            t = [0.0, ta, ta, ta + hold, ta + hold, T]
-            v = [0.0, amp, -k * amp, -k * amp, 0.0, 0.0]
-        else:
-            t = [0.0, ta, ta, T, T]
-            v = [0.0, amp, -k * amp, -k * amp, 0.0]
-        return np.array(t), np.array(v)
-
-
-def _window_points(
-    tp: np.ndarray, vp: np.ndarray, lo: float, hi: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Breakpoints of a piecewise-linear signal restricted to [lo, hi]: the value at ``lo``
-    is the right limit, the value at ``hi`` the left limit (so windows join seamlessly)."""
-    i0 = int(np.searchsorted(tp, lo, side="right"))
-    i1 = int(np.searchsorted(tp, hi, side="left"))
-    v_lo = float(np.interp(lo, tp, vp)) if i0 == 0 or tp[i0 - 1] < lo else float(vp[i0 - 1])
-    if i1 < tp.size and tp[i1] == hi:
-        v_hi = float(vp[i1])
-    else:
-        v_hi = float(np.interp(hi, tp, vp))
-    inner = slice(i0, max(i1, i0))
-    return (
-        np.concatenate([[lo], tp[inner], [hi]]),
-        np.concatenate([[v_lo], vp[inner], [v_hi]]),
-    )
+_SCRATCH = 64  # breakpoints per interval the wrappers below allocate beyond the need
 
 
 def generator_segment(
@@ -469,46 +503,18 @@ def generator_segment(
     period (from ``phase`` ∈ [0, 1)), then ``pending`` takes over at the period start
     (where every waveform is 0, so a new setting never makes the input jump); an idle
     generator starts ``pending`` at once. An idle ``pending`` stops the generator at the
-    end of the running period (phase 0).
+    end of the running period (phase 0). (:func:`turntable_env.generator.segment_nb`, the
+    generator the environment runs.)
 
     Returns:
         (times [s], input [V], phase at t1, the setting running at t1).
     """
-    if not t1 > t0:
-        raise ValueError(f"t1={t1!r}: must be > t0={t0!r}")
-    if not 0.0 <= phase < 1.0:
-        raise ValueError(f"phase={phase!r}: must be in [0, 1)")
-    ts: list[np.ndarray] = []
-    vs: list[np.ndarray] = []
-    t_latch = t0
-    if not running.idle and phase > 0.0:
-        T = 1.0 / running.frequency
-        tp, vp = running.template()
-        p_start = t0 - phase * T
-        t_end = min(p_start + T, t1)
-        a_, b_ = _window_points(tp + p_start, vp, t0, t_end)
-        ts.append(a_)
-        vs.append(b_)
-        if p_start + T > t1:  # the running period outlasts the interval
-            return np.concatenate(ts), np.concatenate(vs), (t1 - p_start) / T, running
-        t_latch = p_start + T
-    if t_latch < t1:
-        if pending.idle:
-            ts.append(np.array([t_latch, t1]))
-            vs.append(np.zeros(2))
-            return np.concatenate(ts), np.concatenate(vs), 0.0, pending
-        T = 1.0 / pending.frequency
-        tp, vp = pending.template()
-        n = max(math.ceil((t1 - t_latch) / T - 1e-12), 1)
-        starts = t_latch + T * np.arange(n)
-        tt = (starts[:, None] + tp[None, :]).ravel()
-        vv = np.tile(vp, n)
-        a_, b_ = _window_points(tt, vv, t_latch, t1)
-        ts.append(a_)
-        vs.append(b_)
-        ph = (t1 - t_latch) / T - (n - 1)
-        return np.concatenate(ts), np.concatenate(vs), (0.0 if ph >= 1.0 - 1e-12 else ph), pending
-    return np.concatenate(ts), np.concatenate(vs), 0.0, pending
+    _check_interval(t0, t1, phase)
+    fmax = max(running.frequency, pending.frequency)
+    cap = interval_capacity(fmax, t1 - t0) + _SCRATCH
+    out = [np.empty(cap) for _ in range(4)]
+    m, ph, latched = segment_nb(t0, t1, phase, running.row(), pending.row(), *out)
+    return out[0][:m].copy(), out[1][:m].copy(), ph, pending if latched else running
 
 
 def generator_flybacks(
@@ -517,25 +523,15 @@ def generator_flybacks(
     """Number of flybacks (stick–slip steps) the generator starts in [t0, t1): the
     same interval and latching as :func:`generator_segment`. A period's flyback starts
     at the fraction ``a`` of the period (Fig. 3.14 / Fig. 4.3)."""
+    _check_interval(t0, t1, phase)
+    return int(flybacks_nb(t0, t1, phase, running.row(), pending.row()))
+
+
+def _check_interval(t0: float, t1: float, phase: float) -> None:
     if not t1 > t0:
         raise ValueError(f"t1={t1!r}: must be > t0={t0!r}")
     if not 0.0 <= phase < 1.0:
         raise ValueError(f"phase={phase!r}: must be in [0, 1)")
-    count = 0
-    t_latch = t0
-    if not running.idle and phase > 0.0:
-        T = 1.0 / running.frequency
-        p_start = t0 - phase * T
-        if phase <= running.a and p_start + running.a * T < t1:
-            count += 1
-        if p_start + T > t1:
-            return count
-        t_latch = p_start + T
-    if t_latch < t1 and not pending.idle:
-        # periods j = 0, 1, ... from t_latch flyback at t_latch + (j + a)T < t1
-        span = (t1 - t_latch) * pending.frequency - pending.a
-        count += max(math.ceil(span - 1e-9), 0)
-    return count
 
 
 def capacitive_energy(values: np.ndarray, capacitance: float) -> float:
@@ -546,23 +542,16 @@ def capacitive_energy(values: np.ndarray, capacitance: float) -> float:
     through zero. A full 0 → V → 0 period costs C·V² (charge and discharge; §4.1.2's
     amplifier sources and sinks the quadrant current)."""
     v = np.asarray(values, dtype=float)
-    v0, v1 = v[:-1], v[1:]
-    same = v0 * v1 >= 0.0
-    seg = np.where(same, np.abs(v1 * v1 - v0 * v0), v0 * v0 + v1 * v1)
-    return float(0.5 * capacitance * seg.sum())
+    return float(capacitive_energy_nb(v, v.size, 1.0, float(capacitance)))
 
 
 def grid_breakpoints(times: np.ndarray, values: np.ndarray, grid: float) -> tuple[np.ndarray, ...]:
     """Breakpoints rounded to an integration grid [s] (grid units as floats), with exact
     repeats dropped and at most two breakpoints per grid time (the first and the last
     value there): the form the compiled integrators read."""
-    g = np.rint(np.asarray(times, dtype=float) / grid)
+    t = np.asarray(times, dtype=float)
     v = np.asarray(values, dtype=float)
-    keep = np.ones(g.size, dtype=bool)
-    keep[1:] = (g[1:] != g[:-1]) | (v[1:] != v[:-1])
-    g, v = g[keep], v[keep]
-    if g.size > 2:
-        inner = np.zeros(g.size, dtype=bool)
-        inner[1:-1] = (g[1:-1] == g[:-2]) & (g[1:-1] == g[2:])
-        g, v = g[~inner], v[~inner]
-    return g, v
+    g = np.empty(t.size)
+    w = np.empty(t.size)
+    n = grid_points_nb(t, v, t.size, float(grid), g, w)
+    return g[:n], w[:n]

@@ -39,7 +39,7 @@ from numba import njit
 from .amplifier import slew_step
 from .friction.gms2d import gms2d_rates, gms2d_update
 from .friction.kernels import stribeck_magnitude
-from .screw import _log_so3_nb, _rotate_left_inplace
+from .screw import log_so3_nb, rotate_left_inplace
 
 __all__ = ["STATUS_NAMES", "run_full_model"]
 
@@ -53,7 +53,7 @@ STATUS_NAMES = {0: "ok", 1: "non-finite", 2: "diverging", 3: "rim"}
 
 
 @njit(cache=True)
-def _pwl_value(wt, wv, n, idx, t):
+def pwl_value(wt, wv, n, idx, t):
     """Piecewise-linear value at t (right-continuous); idx = last breakpoint index <= t."""
     if n == 1 or t <= wt[0]:
         return wv[0] if t < wt[0] or n == 1 else wv[idx]
@@ -67,7 +67,7 @@ def _pwl_value(wt, wv, n, idx, t):
 
 
 @njit(cache=True)
-def _advance_index(wt, n, idx, t):
+def advance_index(wt, n, idx, t):
     """Move idx forward to the last breakpoint with time <= t."""
     while idx + 1 < n and wt[idx + 1] <= t:
         idx += 1
@@ -82,7 +82,7 @@ def _cross(a, b, out):
 
 
 @njit(cache=True)
-def _contacts(
+def contact_kinematics(
     xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt, scr
 ):
     """Contact geometry and velocities at the current positions.
@@ -168,7 +168,7 @@ def _normal_force(table_p, overlap, rate):
 
 
 @njit(cache=True)
-def _forces(
+def contact_forces(
     xi,
     xid,
     vq,
@@ -264,7 +264,7 @@ def _forces(
 
 
 @njit(cache=True)
-def _quadrant_voltages(vch, qchan, vq):
+def quadrant_voltages(vch, qchan, vq):
     for k in range(3):
         for q in range(4):
             c = qchan[k, q]
@@ -311,7 +311,7 @@ def _kinematics(
     pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt, cinfo,
     cn, cx, cy, crc, crt, scr,
 ):  # fmt: skip
-    """Table-centre displacement and velocity, then the contacts (:func:`_contacts`);
+    """Table-centre displacement and velocity, then the contacts (:func:`contact_kinematics`);
     ``scr`` scratch rows 0–3 and 11–12."""
     rc = scr[11]
     tmp = scr[12]
@@ -321,7 +321,7 @@ def _kinematics(
     _cross(omega, rc, tmp)
     for j in range(3):
         vt[j] = vc[j] - tmp[j]  # v_centre = v_CoM + ω × (p_centre − p_CoM)
-    _contacts(
+    contact_kinematics(
         xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt,
         scr,
     )  # fmt: skip
@@ -503,9 +503,9 @@ def _is_quiet(
     ulim = amp_p[3]
     for c in range(4):
         i = widx[c]
-        u = _pwl_value(wt[c], wv[c], wn[c], i, t)
+        u = pwl_value(wt[c], wv[c], wn[c], i, t)
         if i + 1 < wn[c]:  # input change over the coarse step
-            u1 = _pwl_value(wt[c], wv[c], wn[c], _advance_index(wt[c], wn[c], i, t + dt_coarse),
+            u1 = pwl_value(wt[c], wv[c], wn[c], advance_index(wt[c], wn[c], i, t + dt_coarse),
                             t + dt_coarse)  # fmt: skip
             u1 = min(ulim, max(-ulim, u1))
             if gain * abs(u1 - u) > quiet_volt:
@@ -517,66 +517,42 @@ def _is_quiet(
 
 
 @njit(cache=True)
-def run_full_model(
-    # state (modified in place)
-    pc_disp,
-    vc,
-    rot,
-    lam,
-    xi,
-    xid,
-    gf,
-    gst,
-    vch,
-    acc,
-    # model
-    table_p,
-    jinv,
-    c_body,
-    d_nom,
-    r0,
-    basis_ref,
-    mtube,
-    minv,
-    ktop,
-    dtop,
-    bcoup,
-    cs,
-    qchan,
-    gnu,
-    gk,
-    gms_p,
-    amp_p,
-    amp_rate,
-    # drive
-    wt,
-    wv,
-    wn,
-    # time
-    t0,
-    t_end,
-    step_p,
-    t_out,
-    # records (n_out rows)
-    rec_state,
-    rec_contact,
-    rec_energy,
-    rec_xi,
-):
-    """Integrate from t0 to t_end (see module docstring); records at the times ``t_out``.
+def run_full_model(state, model, drive, t0, t_end, step_p, recording):
+    """Integrate from t0 to t_end [s] (see module docstring); records at recording.t_out.
 
-    rec_state[i]   = (t, table-centre displacement (3), rotation vector (3), ω (3),
-                      channel voltages (4))
-    rec_contact[i] = per contact k: (normal force, friction x, y, slip speed, n stick, overlap)
-    rec_energy[i]  = (kinetic, tube elastic, piezo, contact, GMS, gravity+preload,
-                      W_elec, D_friction, D_tube, D_contact, gross electrical |W|)
-    rec_xi[i]      = tube-top displacements (3, 6)
+    Args (:mod:`turntable_env.kernel_types`):
+        state: :class:`~turntable_env.kernel_types.FullState`, modified in place.
+        model: :class:`~turntable_env.kernel_types.FullArrays`.
+        drive: :class:`~turntable_env.kernel_types.DriveArrays`, one row per channel
+            (A, B, C, Z), breakpoint times in s.
+        step_p: (dt_fine, dt_coarse, quiet_len, quiet_load, quiet_volt, hold) selects the
+            step (see "Adaptive step" in the module docstring).
+        recording: :class:`~turntable_env.kernel_types.FullRecording`:
 
-    step_p = (dt_fine, dt_coarse, quiet_len, quiet_load, quiet_volt, hold) selects the step
-    (see "Adaptive step" in the module docstring).
+            state[i]   = (t, table-centre displacement (3), rotation vector (3), ω (3),
+                          channel voltages (4))
+            contact[i] = per contact k: (normal force, friction x, y, slip speed, n stick,
+                          overlap)
+            energy[i]  = (kinetic, tube elastic, piezo, contact, GMS, gravity+preload,
+                          W_elec, D_friction, D_tube, D_contact, gross electrical |W|)
+            xi[i]      = tube-top displacements (3, 6)
 
     Returns (status, t, variable index, records written, steps taken, coarse steps).
     """
+    pc_disp, vc, rot, lam, xi, xid = (
+        state.pc_disp, state.vc, state.rot, state.lam, state.xi, state.xid
+    )  # fmt: skip
+    gf, gst, vch, acc = state.gf, state.gst, state.vch, state.acc
+    table_p, jinv, c_body = model.table_p, model.jinv, model.c_body
+    d_nom, r0 = model.d_nom, model.r0
+    basis_ref, mtube, minv, ktop, dtop = (
+        model.basis_ref, model.mtube, model.minv, model.ktop, model.dtop
+    )  # fmt: skip
+    bcoup, cs, qchan, gnu, gk = model.bcoup, model.cs, model.qchan, model.gnu, model.gk
+    gms_p, amp_p, amp_rate = model.gms_p, model.amp_p, model.amp_rate
+    wt, wv, wn = drive.times, drive.values, drive.count
+    t_out, rec_state, rec_contact = recording.t_out, recording.state, recording.contact
+    rec_energy, rec_xi = recording.energy, recording.xi
     ne = gf.shape[1]
     n_out = t_out.shape[0]
     omega = np.empty(3)
@@ -626,8 +602,8 @@ def run_full_model(
 
     t = t0
     for c in range(4):
-        widx[c] = _advance_index(wt[c], wn[c], 0, t)
-    _quadrant_voltages(vch, qchan, vq)
+        widx[c] = advance_index(wt[c], wn[c], 0, t)
+    quadrant_voltages(vch, qchan, vq)
     _charges(xi, vq, bcoup, cs, qch)
 
     # kinematics and forces at t0
@@ -636,7 +612,7 @@ def run_full_model(
         pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
         cinfo, cn, cx, cy, crc, crt, scr,
     )  # fmt: skip
-    _forces(
+    contact_forces(
         xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
         gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff, scr,
     )  # fmt: skip
@@ -663,7 +639,7 @@ def run_full_model(
                 pt_disp,
                 energies,
             )
-            rv = _log_so3_nb(rot)
+            rv = log_so3_nb(rot)
             rec_state[i_out, 0] = t
             for j in range(3):
                 rec_state[i_out, 1 + j] = pt_disp[j]
@@ -717,7 +693,7 @@ def run_full_model(
         if dt <= 0.0:
             # a jump sits exactly at t: step past it by moving the indices
             for c in range(4):
-                widx[c] = _advance_index(wt[c], wn[c], widx[c], t)
+                widx[c] = advance_index(wt[c], wn[c], widx[c], t)
             t_next = min(t + dt_max, t_end)
             if i_out < n_out and t_out[i_out] < t_next:
                 t_next = t_out[i_out]
@@ -736,7 +712,7 @@ def run_full_model(
         for j in range(3):
             pc_disp[j] += dt * vc[j]
             tmp[j] = dt * omega[j]
-        _rotate_left_inplace(rot, tmp, rot_scr)
+        rotate_left_inplace(rot, tmp, rot_scr)
         _omega(rot, jinv, lam, omega, scr)
         for k in range(3):
             for a in range(6):
@@ -821,17 +797,17 @@ def run_full_model(
         # ---- 4. amplifier ---------------------------------------------------------------
         t_mid = t + h
         for c in range(4):
-            widx[c] = _advance_index(wt[c], wn[c], widx[c], t_mid)
-            u = _pwl_value(wt[c], wv[c], wn[c], widx[c], t_mid)
+            widx[c] = advance_index(wt[c], wn[c], widx[c], t_mid)
+            u = pwl_value(wt[c], wv[c], wn[c], widx[c], t_mid)
             if ideal:
-                ie = _advance_index(wt[c], wn[c], widx[c], t_next)
-                u = _pwl_value(wt[c], wv[c], wn[c], ie, t_next)
+                ie = advance_index(wt[c], wn[c], widx[c], t_next)
+                u = pwl_value(wt[c], wv[c], wn[c], ie, t_next)
             u = min(ulim, max(-ulim, u))
             if ideal:
                 vch[c] = gain * u
             else:
                 vch[c] = slew_step(vch[c], gain * u, dt, tau_amp, amp_rate[c])
-        _quadrant_voltages(vch, qchan, vq_new)
+        quadrant_voltages(vch, qchan, vq_new)
         _charges(xi, vq_new, bcoup, cs, qch_new)
         for k in range(3):
             for q in range(4):
@@ -841,7 +817,7 @@ def run_full_model(
                 vq[k, q] = vq_new[k, q]
                 qch[k, q] = qch_new[k, q]
         # ---- 5. forces at t_{n+1}, second half kick -------------------------------------
-        _forces(
+        contact_forces(
             xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
             gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff, scr,
         )  # fmt: skip
@@ -850,7 +826,7 @@ def run_full_model(
         t = t_next
         n_steps += 1
         for c in range(4):
-            widx[c] = _advance_index(wt[c], wn[c], widx[c], t)
+            widx[c] = advance_index(wt[c], wn[c], widx[c], t)
         chk = 0.0  # NaN/inf propagate into this sum: a cheap test every step
         for j in range(3):
             chk += vc[j] + lam[j] + pc_disp[j]

@@ -201,7 +201,7 @@ def sine_sweep(
     stuck = True
     if fidelity == "reduced":
         model = ReducedModel(ps, axis)
-        ne = model._arrays["kk"].size
+        ne = model.packed["kk"].size
         dur = max(s[1] for s in spans)
         runs = simulate_batch(
             [model] * freqs.size, waves, dur, output_dt=model.grid * 16

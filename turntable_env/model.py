@@ -47,7 +47,8 @@ import numpy as np
 import scipy.optimize
 
 from .drive import DriveSignal, Waveform
-from .integrator import _contacts, _forces, _quadrant_voltages, run_full_model
+from .integrator import contact_forces, contact_kinematics, quadrant_voltages, run_full_model
+from .kernel_types import DriveArrays, FullArrays, FullRecording, FullState
 from .params import ParameterSet
 from .validation import check_finite, check_positive
 
@@ -134,7 +135,7 @@ class TurntableLayout:
 
     def channel_quadrants(self, axis: str) -> list[tuple[str, int]]:
         """(tube, quadrant) pairs driven by channel ``axis``."""
-        c = _axis_index(axis)
+        c = axis_index(axis)
         return [
             (TUBES[k], q) for k in range(3) for q in range(4) if self.quadrant_channel[k, q] == c
         ]
@@ -164,7 +165,7 @@ def layout(alpha: float) -> TurntableLayout:
     return TurntableLayout(d=d, tube_frames=frames, axis_units=axis_units, quadrant_channel=qchan)
 
 
-def _axis_index(axis: str) -> int:
+def axis_index(axis: str) -> int:
     if axis not in AXES:
         raise ValueError(f"axis={axis!r}: must be one of {', '.join(AXES)}")
     return AXES.index(axis)
@@ -195,7 +196,7 @@ class TurntableModel:
 
     params: ParameterSet
     gravity: float = GRAVITY
-    _arrays: dict = field(init=False, repr=False)
+    packed: dict = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         ps = self.params
@@ -204,7 +205,7 @@ class TurntableModel:
                 f"params={ps.name!r}: the 3-D model needs friction and contact parameters"
             )
         check_positive("gravity", self.gravity)
-        object.__setattr__(self, "_arrays", self._pack())
+        object.__setattr__(self, "packed", self._pack())
         self._size_preload()
 
     def _size_preload(self) -> None:
@@ -214,7 +215,7 @@ class TurntableModel:
         (1e-4 for the real set, 3 % for Table D.2's 5 cm overlap); a few fixed-point steps
         P ← (P + mg)·F_N/F̄_N − mg remove it.
         """
-        ar = self._arrays
+        ar = self.packed
         fn_target = self.params.contact.preload  # type: ignore[union-attr]
         weight = self.params.table.mass * self.gravity
         for _ in range(6):
@@ -230,11 +231,11 @@ class TurntableModel:
     def _contact_geometry(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Contacts at rest at positions ``x`` (see :meth:`static_equilibrium`):
         (cinfo, n, x_c, y_c, tube-top → contact, centre → contact), as the kernel fills them."""
-        ar = self._arrays
+        ar = self.packed
         cinfo = np.zeros((3, 5))
         cn, cx, cy, crc, crt = (np.zeros((3, 3)) for _ in range(5))
         z3 = np.zeros(3)
-        _contacts(
+        contact_kinematics(
             x[3:].reshape(3, 6).copy(), x[:3].copy(), ar["d_nom"], ar["r0"], ar["basis_ref"],
             ar["table_p"], np.zeros((3, 6)), z3, z3, cinfo, cn, cx, cy, crc, crt, np.zeros((16, 3)),
         )  # fmt: skip
@@ -242,19 +243,19 @@ class TurntableModel:
 
     def _normal_forces(self, x: np.ndarray) -> np.ndarray:
         """Normal forces [N] of the three contacts at rest positions ``x``."""
-        tp = self._arrays["table_p"]
+        tp = self.packed["table_p"]
         cinfo = self._contact_geometry(x)[0]
         return np.array([tp[6] * max(d, 0.0) ** tp[7] for d in cinfo[:, 0]])
 
     # ------------------------------------------------------------------------------
     @property
     def layout(self) -> TurntableLayout:
-        return self._arrays["layout"]
+        return self.packed["layout"]
 
     @property
     def preload_force(self) -> float:
         """Force of the preload spring on the table's centre [N] (from F_N per contact)."""
-        return self._arrays["preload"]
+        return self.packed["preload"]
 
     @property
     def quadrant_capacitance(self) -> float:
@@ -267,7 +268,7 @@ class TurntableModel:
 
     @property
     def omega_max(self) -> float:
-        return self._arrays["omega_max"]
+        return self.packed["omega_max"]
 
     def _pack(self) -> dict:
         ps = self.params
@@ -390,10 +391,10 @@ class TurntableModel:
         Returns x = (table-centre displacement (3), tube-top twists (3×6)) as a flat array of
         21 numbers [m, rad]; the table orientation is the identity, the GMS elements unloaded.
         """
-        ar = self._arrays
+        ar = self.packed
         vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
         vq = np.zeros((3, 4))
-        _quadrant_voltages(vch, ar["qchan"], vq)
+        quadrant_voltages(vch, ar["qchan"], vq)
         scale = 1e-2 * ar["table_p"][12]  # length scale of the unknowns [m]
         f_scale = self.params.contact.preload  # type: ignore[union-attr]
         ne = ar["gnu"].size
@@ -404,7 +405,7 @@ class TurntableModel:
             cinfo, cn, cx, cy, crc, crt = self._contact_geometry(x)
             w = np.zeros((3, 6))
             f = np.zeros(3)
-            _forces(
+            contact_forces(
                 x[3:].reshape(3, 6).copy(), np.zeros((3, 6)), vq, ar["ktop"], ar["dtop"],
                 ar["bcoup"], cinfo, cn, cx, cy, crc, crt, np.zeros((3, ne, 2)),
                 np.ones((3, ne), dtype=np.int64), ar["gk"], ar["table_p"], ar["gms_p"], rot,
@@ -448,7 +449,7 @@ class TurntableModel:
         """Channel → input breakpoints (slew-adapted hold time from the channel's load)."""
         out: dict[str, Waveform] = {}
         for axis, sig in drive.items():
-            _axis_index(axis)
+            axis_index(axis)
             if isinstance(sig, DriveSignal):
                 out[axis] = sig.waveform(self.params.amplifier, self.load_capacitance(axis))
             elif isinstance(sig, Waveform):
@@ -457,24 +458,30 @@ class TurntableModel:
                 raise ValueError(f"drive[{axis!r}]={sig!r}: must be a DriveSignal or a Waveform")
         return out
 
-    def rest_state(self, channel_voltages: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def rest_state(self, channel_voltages: np.ndarray | None = None) -> FullState:
         """Integrator state at the static equilibrium (R = I, every GMS element stuck and
         unloaded, zero velocities) for the channel output voltages [V] (A, B, C, Z)."""
         vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
         x = self.static_equilibrium(vch)
-        ne = self._arrays["gnu"].size
-        return {
-            "pc_disp": x[:3].copy(),  # R = I: CoM displacement = centre displacement [m]
-            "vc": np.zeros(3),
-            "rot": np.eye(3),
-            "lam": np.zeros(3),
-            "xi": x[3:].reshape(3, 6).copy(),
-            "xid": np.zeros((3, 6)),
-            "gf": np.zeros((3, ne, 2)),
-            "gst": np.ones((3, ne), dtype=np.int64),
-            "vch": vch.copy(),
-            "acc": np.zeros(5),
-        }
+        ne = self.packed["gnu"].size
+        return FullState(
+            pc_disp=x[:3].copy(),  # R = I: CoM displacement = centre displacement [m]
+            vc=np.zeros(3),
+            rot=np.eye(3),
+            lam=np.zeros(3),
+            xi=x[3:].reshape(3, 6).copy(),
+            xid=np.zeros((3, 6)),
+            gf=np.zeros((3, ne, 2)),
+            gst=np.ones((3, ne), dtype=np.int64),
+            vch=vch.copy(),
+            acc=np.zeros(5),
+        )
+
+    @property
+    def kernel_arrays(self) -> FullArrays:
+        """The packed model as :func:`~turntable_env.integrator.run_full_model` reads it."""
+        ar = self.packed
+        return FullArrays(**{name: ar[name] for name in FullArrays._fields})
 
     def run(
         self,
@@ -486,7 +493,8 @@ class TurntableModel:
         coarse_factor: float | None = None,
         output_dt: float = 1e-5,
         start: float = 0.0,
-        initial_state: Mapping[str, np.ndarray] | None = None,
+        initial_state: FullState | None = None,
+        friction_scale: float = 1.0,
     ) -> dict:
         """Integrate from rest (static equilibrium) for ``duration`` [s]; raw arrays.
 
@@ -501,8 +509,11 @@ class TurntableModel:
                 the amplifier is not slewing), the fine step otherwise.
             output_dt: sample interval of the records [s].
             start: initial time [s].
-            initial_state: resume from this state (the ``"final"`` entry of an earlier run,
-                copied, not modified) instead of the static equilibrium.
+            initial_state: resume from this :class:`~turntable_env.kernel_types.FullState`
+                (the ``"final"`` entry of an earlier run; copied, not modified) instead of
+                the static equilibrium.
+            friction_scale: μ_s and μ_c × this factor for the run (friction-stage effects,
+                :mod:`turntable_env.effects`).
 
         Raises:
             SimulationError: a state became non-finite or diverged (names time and state).
@@ -531,33 +542,36 @@ class TurntableModel:
                 wn[c] = w.times.size
             else:
                 wt[c, 0] = t0
-        ar = self._arrays
         amp = self.params.amplifier
         u0 = np.array([waves[a](t0)[()] if a in waves else 0.0 for a in AXES])
         vch = amp.gain * np.clip(u0, -amp.input_limit, amp.input_limit)
         if initial_state is None:
             state = self.rest_state(vch)
         else:
-            ref = self.rest_state(vch)
-            state = {}
-            for k, v in ref.items():
-                if k not in initial_state or np.shape(initial_state[k]) != v.shape:
-                    raise ValueError(f"initial_state[{k!r}]: missing or not of shape {v.shape}")
-                state[k] = np.array(initial_state[k], dtype=v.dtype)
+            if not isinstance(initial_state, FullState):
+                raise ValueError(f"initial_state: must be a FullState, got {type(initial_state)}")
+            ne = self.packed["gnu"].size
+            shapes = ((3,), (3,), (3, 3), (3,), (3, 6), (3, 6), (3, ne, 2), (3, ne), (4,), (5,))
+            for name, shape, v in zip(FullState._fields, shapes, initial_state, strict=True):
+                if np.shape(v) != shape:
+                    raise ValueError(f"initial_state.{name}: not of shape {shape}")
+            state = initial_state.copy()
+        arrays = self.kernel_arrays
+        if friction_scale != 1.0:
+            gms_p = arrays.gms_p.copy()
+            gms_p[1:3] *= check_positive("friction_scale", friction_scale)
+            arrays = arrays._replace(gms_p=gms_p)
         n_out = math.floor(dur / odt + 1e-9) + 1
-        t_out = t0 + odt * np.arange(n_out)
-        rec_state = np.zeros((n_out, 14))
-        rec_contact = np.zeros((n_out, 3, 6))
-        rec_energy = np.zeros((n_out, 11))
-        rec_xi = np.zeros((n_out, 3, 6))
+        rec = FullRecording(
+            t_out=t0 + odt * np.arange(n_out),
+            state=np.zeros((n_out, 14)),
+            contact=np.zeros((n_out, 3, 6)),
+            energy=np.zeros((n_out, 11)),
+            xi=np.zeros((n_out, 3, 6)),
+        )
         status, t_stop, var, n_rec, n_steps, n_coarse = run_full_model(
-            state["pc_disp"], state["vc"], state["rot"], state["lam"], state["xi"],
-            state["xid"], state["gf"], state["gst"], state["vch"], state["acc"],
-            ar["table_p"], ar["jinv"], ar["c_body"], ar["d_nom"], ar["r0"], ar["basis_ref"],
-            ar["mtube"], ar["minv"], ar["ktop"], ar["dtop"], ar["bcoup"], ar["cs"], ar["qchan"],
-            ar["gnu"], ar["gk"], ar["gms_p"], ar["amp_p"], ar["amp_rate"],
-            wt, wv, wn, t0, t0 + dur, step_p, t_out, rec_state, rec_contact, rec_energy, rec_xi,
-        )  # fmt: skip
+            state, arrays, DriveArrays(wt, wv, wn), t0, t0 + dur, step_p, rec
+        )
         if status != 0:
             raise SimulationError(
                 {1: "non-finite", 2: "diverging", 3: "rim"}[int(status)],
@@ -565,10 +579,10 @@ class TurntableModel:
                 _variable_name(int(var)),
             )
         return {
-            "state": rec_state[:n_rec],
-            "contact": rec_contact[:n_rec],
-            "energy": rec_energy[:n_rec],
-            "xi": rec_xi[:n_rec],
+            "state": rec.state[:n_rec],
+            "contact": rec.contact[:n_rec],
+            "energy": rec.energy[:n_rec],
+            "xi": rec.xi[:n_rec],
             "n_steps": int(n_steps),
             "n_coarse": int(n_coarse),
             "dt": h,

@@ -30,7 +30,7 @@ import json
 import math
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Literal
 
@@ -304,6 +304,46 @@ class ParameterSet:
         if dup:
             raise RuntimeError(f"duplicate parameter names: {sorted(dup)}")
         return out
+
+    def with_factors(self, factors: Mapping[str, float]) -> ParameterSet:
+        """This set with multiplicative factors on its uncertain values (the one place
+        they become parameters: domain randomisation, calibration, plants):
+
+        * ``friction``: μ_s and μ_c; ``preload``: F_N — through the unlisted inputs, so the
+          GMS elements, presliding distance and contact damping are re-derived
+          (Hertz–Mindlin, :func:`real_parameters`); needs a set with unlisted inputs;
+        * ``amplifier``: slew rate per input volt and current limit (:meth:`Amplifier.scaled`).
+
+        Factors of 1 (or none) return the set unchanged."""
+        unknown = set(factors) - {"friction", "preload", "amplifier"}
+        if unknown:
+            raise ValueError(f"factors: unknown {sorted(unknown)} (friction, preload, amplifier)")
+        over: dict[str, float] = {}
+        u = self.unlisted
+        if factors.get("friction", 1.0) != 1.0 or factors.get("preload", 1.0) != 1.0:
+            if u is None:
+                raise ValueError(
+                    f"factors: friction and preload need unlisted inputs; set {self.name!r} "
+                    "has none (its friction is given directly)"
+                )
+            if "friction" in factors:
+                over["mu_static"] = u.mu_static * factors["friction"]
+                over["mu_coulomb"] = u.mu_coulomb * factors["friction"]
+            if "preload" in factors:
+                over["normal_force"] = u.normal_force * factors["preload"]
+        ps = self
+        if over:
+            base = {f.name: getattr(u, f.name) for f in fields(u) if f.name != "sources"}
+            ps = replace(
+                real_parameters(overrides={**base, **over}),
+                name=self.name,
+                amplifier=self.amplifier,
+                detector=self.detector,
+            )
+        if factors.get("amplifier", 1.0) != 1.0:
+            s = factors["amplifier"]
+            ps = replace(ps, amplifier=ps.amplifier.scaled(s, s))
+        return ps
 
     def to_dict(self) -> dict:
         return {"set": self.name, "parameters": {q.name: q.to_dict() for q in self.describe()}}

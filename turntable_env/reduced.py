@@ -36,7 +36,8 @@ import scipy.linalg
 
 from .detector import Detector
 from .drive import DriveSignal, Waveform
-from .model import SimulationError, TurntableModel, _axis_index
+from .kernel_types import DriveArrays, ReducedArrays, ReducedRecording, ReducedState
+from .model import SimulationError, TurntableModel, axis_index
 from .params import ParameterSet, get_parameter_set
 from .reduced_kernel import N_REC, run_reduced_batch
 from .response import SteppingMetrics
@@ -49,6 +50,7 @@ __all__ = [
     "ReducedModel",
     "simulate_batch",
     "simulate_reduced",
+    "waveform_arrays",
 ]
 
 REDUCED_AXES = ("A", "B", "C")
@@ -99,9 +101,9 @@ class AxisParameters:
         """Condense the full model onto rotation about ``axis`` (see module docstring)."""
         if axis not in REDUCED_AXES:
             raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
-        ar = model._arrays
+        ar = model.packed
         ps = model.params
-        c = _axis_index(axis)
+        c = axis_index(axis)
         n = model.layout.axis_units[c]
         m = ps.table.mass
         cb = ar["c_body"]
@@ -293,7 +295,7 @@ class ReducedModel:
         y = (θ, θ̇, u1, u̇1, u2, u̇2) [rad, rad/s, m, m/s, m, m/s] and the channel voltage V
         [V] (amplifier output), element forces at their current offset held constant.
         Returns (A (6, 6), b (6,))."""
-        kk = float(np.sum(self._arrays["kk"]))
+        kk = float(np.sum(self.packed["kk"]))
         a = self._system((kk, kk))
         return a[:6, :6].copy(), a[:6, 6].copy()
 
@@ -347,7 +349,7 @@ class ReducedModel:
             n_ * fr.stribeck.mu_s * min(ap.normal_force) / k_ for n_, k_ in zip(nu, kk, strict=True)
         )
         s = fr.stribeck
-        self._arrays = {
+        self.packed = {
             "mech": np.array(
                 [
                     ap.inertia,
@@ -373,15 +375,7 @@ class ReducedModel:
             ),
             "nu": nu,
             "kk": kk,
-            "amp": np.array(
-                [
-                    amp.gain,
-                    amp.tau,
-                    1.0 if amp.ideal else 0.0,
-                    amp.input_limit,
-                    amp.rate_limit(c_load),
-                ]
-            ),
+            "amp": amp.kernel_row(c_load),
             "ctl": np.array([QUIET_LENGTH * breakaway, r_slip]),
             "qs": qs,
             "modal_w": np.linalg.inv(vec),
@@ -402,7 +396,7 @@ class ReducedModel:
     @property
     def grid(self) -> float:
         """Time grid of the integrator [s]."""
-        return self._arrays["h"]
+        return self.packed["h"]
 
     def initial_state(self, channel_voltage: float = 0.0) -> dict[str, np.ndarray]:
         """Rest state at θ = 0: the tubes bent freely by the channel voltage [V] (u_k = g_k V)
@@ -419,8 +413,8 @@ class ReducedModel:
         th = check_finite("angle", angle)
         v = check_finite("channel_voltage", channel_voltage)
         ap = self.axis_params
-        kk = self._arrays["kk"]
-        nu = self._arrays["nu"]
+        kk = self.packed["kk"]
+        nu = self.packed["nu"]
         rho = np.asarray(ap.lever)
         force = ap.gravity_stiffness * th * rho / float(rho @ rho)  # N on the table
         f = np.outer(force, kk / kk.sum())
@@ -434,25 +428,7 @@ class ReducedModel:
         return {"y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64)}
 
 
-def _waveform_arrays(
-    waves: Sequence[Waveform], h: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Breakpoints of every turntable's input on the grid h [s] (rounded), values [V]."""
-    nbp = max(max(w.times.size for w in waves), 1)
-    wg = np.zeros((len(waves), nbp))  # breakpoints in grid units (integers, as floats)
-    wv = np.zeros((len(waves), nbp))
-    wn = np.ones(len(waves), dtype=np.int64)
-    for b, w in enumerate(waves):
-        wg[b, : w.times.size] = np.rint(w.times / h)
-        wv[b, : w.times.size] = w.values
-        wn[b] = w.times.size
-    return wg, wv, wn
-
-
-_STACKED = (
-    "mech", "gms", "nu", "kk", "amp", "ctl", "lvl", "nlvl", "phi_small", "gam_small",
-    "phi_big", "gam_big", "qs", "modal_w", "modal_c", "modal_om", "modal_om_max",
-)  # fmt: skip
+_STACKED = tuple(f for f in ReducedArrays._fields if f != "ring_frac")
 
 
 class ReducedBatch:
@@ -463,9 +439,9 @@ class ReducedBatch:
         models: one :class:`ReducedModel` per turntable (same grid and GMS element count).
 
     Attributes:
-        y: (N, 6) θ [rad], θ̇ [rad/s], u1 [m], u̇1 [m/s], u2 [m], u̇2 [m/s].
-        volt: (N,) amplifier output [V]. f: (N, 2, n_e) element forces [N].
-        st: (N, 2, n_e) 1 stick / 0 slip. n: (N,) grid time (units of :attr:`grid`).
+        state: the :class:`~turntable_env.kernel_types.ReducedState` (named views:
+            :attr:`angle`, :attr:`angular_velocity`, :attr:`tube_displacement`, :attr:`volt`,
+            :attr:`stick`).
         counters: (N, 3) accepted steps, rejected steps, status of the last call.
     """
 
@@ -473,86 +449,138 @@ class ReducedBatch:
         if not models:
             raise ValueError("models: need at least one model")
         self.grid = models[0].grid
-        ne = models[0]._arrays["kk"].size
+        ne = models[0].packed["kk"].size
         for i, m in enumerate(models):
-            if m.grid != self.grid or m._arrays["kk"].size != ne:
+            if m.grid != self.grid or m.packed["kk"].size != ne:
                 raise ValueError(f"models[{i}]: grid or GMS element count differs from models[0]")
         self.models = list(models)
         nb = len(models)
-        self._arr: dict[str, np.ndarray] = {}
+        stacked: dict[str, np.ndarray] = {}
         for name in _STACKED:
-            arrs = [m._arrays[name] for m in models]
+            arrs = [m.packed[name] for m in models]
             shape = np.max([a.shape for a in arrs], axis=0)
-            self._arr[name] = np.zeros((nb, *shape), dtype=arrs[0].dtype)
+            stacked[name] = np.zeros((nb, *shape), dtype=arrs[0].dtype)
             for b, a in enumerate(arrs):
-                self._arr[name][(b, *tuple(slice(0, s) for s in a.shape))] = a
-        self.ring_frac = models[0]._arrays["ring_frac"]
-        self.y = np.zeros((nb, 6))
-        self.volt = np.zeros(nb)
-        self.f = np.zeros((nb, 2, ne))
-        self.st = np.ones((nb, 2, ne), dtype=np.int64)
-        self.n = np.zeros(nb, dtype=np.int64)
+                stacked[name][(b, *tuple(slice(0, s) for s in a.shape))] = a
+        self.arrays = ReducedArrays(**stacked, ring_frac=models[0].packed["ring_frac"])
+        self._mu = self.arrays.gms[:, 1:3].copy()  # μ_s, μ_c of each model (friction scale 1)
+        self.state = ReducedState(
+            y=np.zeros((nb, 6)),
+            volt=np.zeros(nb),
+            f=np.zeros((nb, 2, ne)),
+            st=np.ones((nb, 2, ne), dtype=np.int64),
+            n=np.zeros(nb, dtype=np.int64),
+        )
         self.counters = np.zeros((nb, 3), dtype=np.int64)
 
     def __len__(self) -> int:
         return len(self.models)
 
+    # named views of the state -----------------------------------------------------------
+    @property
+    def angle(self) -> np.ndarray:
+        """(N,) table angle θ [rad] (a view)."""
+        return self.state.y[:, 0]
+
+    @property
+    def angular_velocity(self) -> np.ndarray:
+        """(N,) θ̇ [rad/s] (a view)."""
+        return self.state.y[:, 1]
+
+    @property
+    def tube_displacement(self) -> np.ndarray:
+        """(N, 2) contact-point displacement of the two driving tubes [m] (a view)."""
+        return self.state.y[:, 2:6:2]
+
+    @property
+    def volt(self) -> np.ndarray:
+        """(N,) amplifier output on the channel [V] (a view)."""
+        return self.state.volt
+
+    @property
+    def stick(self) -> np.ndarray:
+        """(N, 2, n_e) 1 where a GMS element sticks (a view)."""
+        return self.state.st
+
+    @property
+    def time(self) -> np.ndarray:
+        """(N,) simulated time [s]."""
+        return self.state.n * self.grid
+
+    # -------------------------------------------------------------------------------------
     def set_model(self, b: int, model: ReducedModel) -> None:
         """Replace turntable b's model (e.g. domain randomisation); arrays must fit."""
         if model.grid != self.grid or model.step_scale != self.models[0].step_scale:
             raise ValueError("model: grid differs from the batch's")
         for name in _STACKED:
-            a = np.asarray(model._arrays[name])
-            shape = self._arr[name].shape[1:]
+            a = np.asarray(model.packed[name])
+            dest = getattr(self.arrays, name)
+            shape = dest.shape[1:]
             if a.ndim != len(shape) or any(s > d for s, d in zip(a.shape, shape, strict=True)):
                 raise ValueError(f"model: array {name!r} {a.shape} does not fit {shape}")
-            row = np.zeros(shape, dtype=self._arr[name].dtype)
+            row = np.zeros(shape, dtype=dest.dtype)
             row[tuple(slice(0, s) for s in a.shape)] = a
-            self._arr[name][b] = row
+            dest[b] = row
+        self._mu[b] = self.arrays.gms[b, 1:3]
         self.models[b] = model
+
+    def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None:
+        """Scale μ_s and μ_c of turntables ``rows`` by ``scale`` [-] from their models' values
+        (friction-stage effects, :mod:`turntable_env.effects`); 1 restores them."""
+        self.arrays.gms[rows, 1:3] = self._mu[rows] * np.asarray(scale, dtype=float)[..., None]
 
     def set_state(self, b: int, state: dict[str, np.ndarray], time: float = 0.0) -> None:
         """Set turntable b's state (from :meth:`ReducedModel.rest_state`) at ``time`` [s]."""
-        self.y[b] = state["y"]
-        self.volt[b] = float(state["volt"])
-        self.f[b] = state["f"]
-        self.st[b] = state["st"]
-        self.n[b] = round(time / self.grid)
+        st = self.state
+        st.y[b] = state["y"]
+        st.volt[b] = float(state["volt"])
+        st.f[b] = state["f"]
+        st.st[b] = state["st"]
+        st.n[b] = round(time / self.grid)
 
     def advance(
         self,
-        wg: np.ndarray,
-        wv: np.ndarray,
-        wn: np.ndarray,
+        drive: DriveArrays,
         n_end: np.ndarray,
         out_every: np.ndarray,
         rec: np.ndarray,
         n_rec: np.ndarray,
     ) -> None:
         """Integrate every turntable to grid time n_end[b] under its input breakpoints
-        (wg grid units, wv [V], wn counts), recording into rec (see
+        (grid units, [V]), recording every out_every[b] grid units into rec (see
         :func:`~turntable_env.reduced_kernel.run_reduced_batch`).
 
         Raises:
             SimulationError: a state became non-finite (names the state, turntable and time).
         """
-        a = self._arr
         self.counters[:, 2] = 0
         run_reduced_batch(
-            self.y, self.volt, self.f, self.st, self.n,
-            a["mech"], a["gms"], a["nu"], a["kk"], a["amp"], a["ctl"], a["lvl"], a["nlvl"],
-            a["phi_small"], a["gam_small"], a["phi_big"], a["gam_big"], a["qs"], a["modal_w"],
-            a["modal_c"], a["modal_om"], a["modal_om_max"], self.ring_frac,
-            wg, wv, wn, n_end, out_every, self.grid, rec, n_rec, self.counters,
+            self.state, self.arrays, drive, self.grid,
+            ReducedRecording(n_end, out_every, rec, n_rec, self.counters),
         )  # fmt: skip
         bad_b = np.nonzero(self.counters[:, 2] != 0)[0]
         if bad_b.size:
             b = int(bad_b[0])
-            bad = [i for i in range(6) if not np.isfinite(self.y[b, i])]
+            bad = [i for i in range(6) if not np.isfinite(self.state.y[b, i])]
             name = _STATE_NAMES[bad[0]] if bad else "amplifier voltage"
             raise SimulationError(
-                "non-finite", float(self.n[b] * self.grid), f"reduced model {name} (turntable {b})"
+                "non-finite",
+                float(self.state.n[b] * self.grid),
+                f"reduced model {name} (turntable {b})",
             )
+
+
+def waveform_arrays(waves: Sequence[Waveform], grid: float) -> DriveArrays:
+    """Breakpoints of every turntable's input on the grid [s] (rounded), values [V]."""
+    nbp = max(max(w.times.size for w in waves), 1)
+    wg = np.zeros((len(waves), nbp))  # breakpoints in grid units (integers, as floats)
+    wv = np.zeros((len(waves), nbp))
+    wn = np.ones(len(waves), dtype=np.int64)
+    for b, w in enumerate(waves):
+        wg[b, : w.times.size] = np.rint(w.times / grid)
+        wv[b, : w.times.size] = w.values
+        wn[b] = w.times.size
+    return DriveArrays(wg, wv, wn)
 
 
 def simulate_batch(
@@ -590,7 +618,7 @@ def simulate_batch(
         amp = m.params.amplifier
         u0 = np.clip(w(0.0)[()], -amp.input_limit, amp.input_limit) * amp.gain
         batch.set_state(b, m.initial_state(u0))
-    wg, wv, wn = _waveform_arrays(waves, h)
+    drive_arrays = waveform_arrays(waves, h)
     out_every = max(round(output_dt / h), 1)
     n_end = round(dur / h)
     n_out = n_end // out_every + 1
@@ -598,7 +626,7 @@ def simulate_batch(
     n_rec = np.zeros(nb, dtype=np.int64)
     wall0 = _time.perf_counter()
     batch.advance(
-        wg, wv, wn, np.full(nb, n_end, dtype=np.int64), np.full(nb, out_every, dtype=np.int64),
+        drive_arrays, np.full(nb, n_end, dtype=np.int64), np.full(nb, out_every, dtype=np.int64),
         rec, n_rec,
     )  # fmt: skip
     wall = _time.perf_counter() - wall0

@@ -43,8 +43,8 @@ from numba import njit
 
 from .amplifier import slew_step
 from .friction.kernels import stribeck_magnitude
-from .integrator import _advance_index as _advance
-from .integrator import _pwl_value as _input_at
+from .integrator import advance_index as _advance
+from .integrator import pwl_value as _input_at
 
 __all__ = ["N_REC", "REC_FIELDS", "run_reduced_batch"]
 
@@ -65,10 +65,7 @@ REC_FIELDS = (
 )
 N_REC = len(REC_FIELDS)
 
-# mech[b]: [J, k_g, rho1, rho2, M1, M2, K1, K2, Dt1, Dt2, g1, g2, FN1, FN2]
-# gms[b]:  [C, mu_s, mu_c, v_s, delta, sigma2, beta_t]
-# amp[b]:  [gain, tau, ideal, input_limit, rate]
-# ctl[b]:  [quiet_len [m], r_slip (largest rung while an element slips)]
+# packed rows: see turntable_env.kernel_types.ReducedArrays
 
 
 @njit(cache=True)
@@ -94,24 +91,33 @@ def _rel(y, mech, k):
 
 
 @njit(cache=True)
-def run_reduced_batch(
-    y, volt, f, st, n_now,
-    mech, gms, nu, kk, amp, ctl, lvl, nlvl,
-    phi_small, gam_small, phi_big, gam_big,
-    qs, modal_w, modal_c, modal_om, modal_om_max, ring_frac,
-    wg, wv, wn,
-    n_end, out_every, h_min,
-    rec, n_rec,
-    counters,
-):  # fmt: skip
-    """Advance every turntable b of the batch from grid time n_now[b] to n_end[b].
+def run_reduced_batch(state, model, drive, h_min, recording):
+    """Advance every turntable b of the batch from grid time state.n[b] to recording.n_end[b].
 
-    State (modified in place): y[b] = (θ, θ̇, u1, u̇1, u2, u̇2) [rad, rad/s, m, m/s];
-    volt[b] amplifier output [V]; f[b, k, i] GMS element forces [N]; st[b, k, i] 1 stick /
-    0 slip; n_now[b] grid time. Records every ``out_every`` grid units into rec[b, i]
-    (fields :data:`REC_FIELDS`), n_rec[b] counts them. counters[b] = (accepted steps,
-    rejected steps, status). Status 0 ok, 1 non-finite state.
+    Args (:mod:`turntable_env.kernel_types`):
+        state: :class:`~turntable_env.kernel_types.ReducedState`, modified in place:
+            y[b] = (θ, θ̇, u1, u̇1, u2, u̇2) [rad, rad/s, m, m/s]; volt[b] amplifier output
+            [V]; f[b, k, i] GMS element forces [N]; st[b, k, i] 1 stick / 0 slip; n[b] grid
+            time.
+        model: :class:`~turntable_env.kernel_types.ReducedArrays` of the N turntables.
+        drive: :class:`~turntable_env.kernel_types.DriveArrays`, breakpoints in grid units.
+        h_min: the grid [s].
+        recording: :class:`~turntable_env.kernel_types.ReducedRecording`: records every
+            ``out_every`` grid units into rec[b, i] (fields :data:`REC_FIELDS`), n_rec[b]
+            counts them; counters[b] = (accepted steps, rejected steps, status). Status 0
+            ok, 1 non-finite state.
     """
+    y, volt, f, st, n_now = state.y, state.volt, state.f, state.st, state.n
+    mech, gms, nu, kk, amp, ctl = model.mech, model.gms, model.nu, model.kk, model.amp, model.ctl
+    lvl, nlvl = model.lvl, model.nlvl
+    phi_small, gam_small, phi_big, gam_big = (
+        model.phi_small, model.gam_small, model.phi_big, model.gam_big
+    )  # fmt: skip
+    qs, modal_w, modal_c, modal_om = model.qs, model.modal_w, model.modal_c, model.modal_om
+    modal_om_max, ring_frac = model.modal_om_max, model.ring_frac
+    wg, wv, wn = drive.times, drive.values, drive.count
+    n_end, out_every, rec = recording.n_end, recording.out_every, recording.rec
+    n_rec, counters = recording.n_rec, recording.counters
     nb = y.shape[0]
     ne = f.shape[2]
     r_big = phi_big.shape[1]

@@ -93,7 +93,7 @@ def exp_so3(w: np.ndarray) -> np.ndarray:
 def log_so3(r: np.ndarray) -> np.ndarray:
     """Rotation vector [rad] of a rotation matrix (inverse of :func:`exp_so3`, |w| < π)."""
     rr = check_array_finite("r", r).reshape(3, 3).astype(float)
-    return _log_so3_nb(rr)
+    return log_so3_nb(rr)
 
 
 @njit(cache=True)
@@ -127,7 +127,7 @@ def _exp_so3_nb(w):
 
 
 @njit(cache=True)
-def _log_so3_nb(r):
+def log_so3_nb(r):
     c = 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0)
     c = min(1.0, max(-1.0, c))
     vx = 0.5 * (r[2, 1] - r[1, 2])
@@ -147,7 +147,7 @@ def _log_so3_nb(r):
 
 
 @njit(cache=True)
-def _rotate_left_inplace(r, w, e):
+def rotate_left_inplace(r, w, e):
     """R ← exp(w̃)·R, re-orthonormalised (keeps R in SO(3) over millions of steps);
     ``e`` is a (3, 3) scratch array, so the step allocates nothing."""
     _exp_so3_into(w, e)

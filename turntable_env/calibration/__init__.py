@@ -2,7 +2,7 @@
 
 * :mod:`.measurement` — the measurement file format, its validating loader and writer;
 * :mod:`.thesis_data` — the thesis's chapter-4 measurements as summary-level targets;
-* :mod:`.effects` — the catalogue of switchable model augmentations;
+* the catalogue of switchable model augmentations lives in :mod:`turntable_env.effects`;
 * :mod:`.trace` — a measured trace simulated with effects on;
 * :mod:`.virtual_lab` — drive protocols and measurement files from the simulator;
 * :mod:`.calibrate` — fit, residual diagnosis, effect selection and report on traces;

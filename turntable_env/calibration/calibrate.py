@@ -41,8 +41,9 @@ import scipy.optimize
 import scipy.stats
 import threadpoolctl
 
-from ..params import ParameterSet, real_parameters
-from .effects import CATALOGUE, apply_output
+from ..effects import CATALOGUE, apply_output
+from ..params import ParameterSet
+from ..plant import Plant
 from .measurement import Measurement, load_measurement
 from .trace import simulate_trace
 
@@ -56,20 +57,6 @@ def _nm_per_volt(m: Measurement) -> float:
     """Detector volts → displacement at R_table [nm], Eq. 4.1–4.2 linearised at θ = 0."""
     d = m.detector
     return d.sensitivity / (2.0 * d.distance) * d.table_radius * 1e9
-
-
-def nominal_parameters(base: ParameterSet, nominal: Mapping[str, float]) -> ParameterSet:
-    """The real set with the nominal factors: μ_s and μ_c × ``friction``, F_N × ``preload``
-    (factors on ``base``'s unlisted values, data/real_unlisted.toml)."""
-    u = base.unlisted
-    assert u is not None
-    return real_parameters(
-        overrides={
-            "mu_static": u.mu_static * nominal["friction"],
-            "mu_coulomb": u.mu_coulomb * nominal["friction"],
-            "normal_force": u.normal_force * nominal["preload"],
-        }
-    )
 
 
 @dataclass
@@ -94,9 +81,11 @@ class CalibrationResult:
     history: list[dict[str, Any]] = field(default_factory=list)
     residuals: dict[str, np.ndarray] = field(default_factory=dict)
     wall_s: float = 0.0
+    plant: Plant | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
+            "plant": self.plant.to_dict() if self.plant is not None else None,
             "selected_effects": self.selected_effects,
             "error_before": self.error_before,
             "error_after": self.error_after,
@@ -113,14 +102,15 @@ class CalibrationResult:
 class _Problem:
     """Residuals of a model specification over the traces, with a physics cache."""
 
-    def __init__(self, traces: list[_Trace], base: ParameterSet) -> None:
+    def __init__(self, traces: list[_Trace], base: str | ParameterSet = "real") -> None:
         self.traces = traces
         self.base = base
         self._cache: dict[tuple, np.ndarray] = {}
         self.n_sims = 0
 
-    def params(self, nominal: Mapping[str, float]) -> ParameterSet:
-        return nominal_parameters(self.base, nominal)
+    def plant(self, nominal: Mapping[str, float], effects: Mapping[str, Any]) -> Plant:
+        """The plant of a specification: nominal factors on the base set, the effects."""
+        return Plant(self.base, factors=nominal, effects=effects)
 
     def theta(self, i: int, portion: str, nominal: Mapping[str, float], phys: dict) -> np.ndarray:
         key = (i, portion, tuple(sorted(nominal.items())), repr(sorted(phys.items())))
@@ -129,7 +119,7 @@ class _Problem:
             sel = tr.fit if portion == "fit" else np.ones(tr.m.time.size, bool)
             t = tr.m.time[sel]
             res = simulate_trace(
-                self.params(nominal), tr.m.axis, t, tr.m.drives[tr.m.axis][sel], phys
+                self.plant(nominal, phys), tr.m.axis, t, tr.m.drives[tr.m.axis][sel]
             )
             self._cache[key] = res.theta
             self.n_sims += 1
@@ -180,7 +170,7 @@ def _unpack(spec, x) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
 
 
 @dataclass
-class _Fit:
+class Fit:
     spec: list
     x: np.ndarray
     std: np.ndarray
@@ -197,13 +187,13 @@ class _Fit:
         return float(n * math.log(np.mean(self.heldout**2)) + len(self.spec) * math.log(n))
 
 
-def _fit(
+def fit_spec(
     problem: _Problem,
     spec: list,
     max_nfev: int = 40,
     free: Sequence[int] | None = None,
     diff_step: float = 1e-2,
-) -> _Fit:
+) -> Fit:
     """Least-squares fit of the spec's parameters on the fit portion; ``free`` limits the
     fit to those indices (the others stay at their start values)."""
     x_all, lo, hi = _spec_vector(spec)
@@ -231,7 +221,7 @@ def _fit(
     except np.linalg.LinAlgError:
         pass
     held = problem.residual(nominal, effects, "heldout")
-    return _Fit(spec, x_fit, std, nominal, effects, held, float(r @ r))
+    return Fit(spec, x_fit, std, nominal, effects, held, float(r @ r))
 
 
 def _start_values(
@@ -287,7 +277,7 @@ def _start_values(
     return {p.name: float(np.clip(start[p.name], p.low, p.high)) for p in e.parameters}
 
 
-def _screen(problem: _Problem, current: _Fit, name: str) -> _Fit:
+def _screen(problem: _Problem, current: Fit, name: str) -> Fit:
     """Fit one candidate on top of the current model.
 
     Output-stage effects start from the residual (:func:`_start_values`) and are fitted
@@ -304,13 +294,13 @@ def _screen(problem: _Problem, current: _Fit, name: str) -> _Fit:
     e = CATALOGUE[name]
     prior = {n: x0 for n, _lo, _hi, x0 in NOMINAL}
     if e.stage == "output":
-        spec = _spec(current.nominal, {**current.effects, name: start})
+        spec = spec_of(current.nominal, {**current.effects, name: start})
         free = [i for i, s_ in enumerate(spec) if s_[0] == name]
-        alone = _fit(problem, spec, free=free, max_nfev=20)
+        alone = fit_spec(problem, spec, free=free, max_nfev=20)
         start = _start_values(name, problem, prior, current.effects)
-        spec = _spec(prior, {**current.effects, name: start})
+        spec = spec_of(prior, {**current.effects, name: start})
         free = [i for i, s_ in enumerate(spec) if s_[0] in ("nominal", name)]
-        joint = _fit(problem, spec, free=free, max_nfev=20)
+        joint = fit_spec(problem, spec, free=free, max_nfev=20)
         return joint if joint.sse_fit < alone.sse_fit else alone
     p0 = e.parameters[0]
     best_sse, nominal = math.inf, dict(current.nominal)
@@ -335,24 +325,24 @@ def _screen(problem: _Problem, current: _Fit, name: str) -> _Fit:
     )
     if line.fun < best_sse:
         start = {**start, p0.name: float(line.x)}
-    spec = _spec(nominal, {**current.effects, name: start})
+    spec = spec_of(nominal, {**current.effects, name: start})
     free = [i for i, s_ in enumerate(spec) if s_[0] in ("nominal", name)]
-    return _fit(problem, spec, free=free, max_nfev=25)
+    return fit_spec(problem, spec, free=free, max_nfev=25)
 
 
-def _polish(problem: _Problem, fit: _Fit, rounds: int = 2) -> _Fit:
+def _polish(problem: _Problem, fit: Fit, rounds: int = 2) -> Fit:
     """Joint refit of every parameter, restarted from its own optimum (the simulated
     objective is piecewise smooth, so a restart often moves on)."""
     for k in range(rounds):
         step = 1e-2 if k == 0 else 1e-3  # then finer differences near the optimum
-        new = _fit(problem, _spec(fit.nominal, fit.effects), max_nfev=50, diff_step=step)
+        new = fit_spec(problem, spec_of(fit.nominal, fit.effects), max_nfev=50, diff_step=step)
         if new.bic() >= fit.bic() - 1.0:
             return new if new.bic() < fit.bic() else fit
         fit = new
     return fit
 
 
-def _significant(fit: _Fit, name: str) -> bool:
+def is_significant(fit: Fit, name: str) -> bool:
     """At least one of the effect's parameters lies 3 standard errors from neutral."""
     neutral = CATALOGUE[name].neutral()
     for (owner, pname, *_), v, s in zip(fit.spec, fit.x, fit.std, strict=True):
@@ -362,7 +352,7 @@ def _significant(fit: _Fit, name: str) -> bool:
     return False
 
 
-def _spec(
+def spec_of(
     fit_nominal: Mapping[str, float],
     effects: Mapping[str, Mapping[str, float]],
 ) -> list[tuple[str, str, float, float, float]]:
@@ -373,7 +363,7 @@ def _spec(
     return spec
 
 
-def diagnose(problem: _Problem, fit: _Fit) -> dict[str, Any]:
+def diagnose(problem: _Problem, fit: Fit) -> dict[str, Any]:
     """Held-out residual signature: Ljung–Box whiteness of the whole residual; the
     correlations of the x channel's residual with time, position, velocity, direction and
     drive level over every trace; the spectral peak of the longest trace's."""
@@ -480,10 +470,10 @@ def _calibrate(
             raise ValueError(f"{m.source}: axis {m.axis!r}: the calibrator models A, B and C")
         t_split = m.time[0] + fit_fraction * (m.time[-1] - m.time[0])
         traces.append(_Trace(m, m.time <= t_split, m.detector_y_v is not None))
-    problem = _Problem(traces, real_parameters())
+    problem = _Problem(traces, "real")
     names = list(candidates) if candidates is not None else list(CATALOGUE)
     say(f"fitting the nominal model (friction, preload) on {len(traces)} trace(s)")
-    current = _polish(problem, _fit(problem, _spec({}, {}), max_nfev=60))
+    current = _polish(problem, fit_spec(problem, spec_of({}, {}), max_nfev=60))
     before = current.rms()
     history = [{"effects": [], "heldout_rms": before, "bic": current.bic()}]
     say(f"  held-out error {before:.2f} {ERROR_UNIT}")
@@ -516,7 +506,7 @@ def _calibrate(
         refits = [(n, _polish(problem, c)) for n, c in ranked]
         name, best = min(refits, key=lambda nc: nc[1].bic())  # joint refit of the top two
         gain = current.bic() - best.bic()
-        significant = _significant(best, name)
+        significant = is_significant(best, name)
         if (
             gain < min_bic_gain
             or best.rms() > (1.0 - min_improvement) * current.rms()
@@ -528,8 +518,8 @@ def _calibrate(
             )
             # the joint refit may have found a better optimum of the selected effects:
             # refit them alone from there and keep it if it is better
-            spec = _spec(best.nominal, {k: best.effects[k] for k in selected})
-            alt = _fit(problem, spec, max_nfev=50)
+            spec = spec_of(best.nominal, {k: best.effects[k] for k in selected})
+            alt = fit_spec(problem, spec, max_nfev=50)
             if alt.bic() < current.bic():
                 current = alt
                 diag = diagnose(problem, current)
@@ -545,9 +535,7 @@ def _calibrate(
             f"selected {name}: held-out error {current.rms():.2f} {ERROR_UNIT}, "
             f"white={diag['white']}"
         )
-    params: dict[str, dict[str, dict[str, float]]] = {}
-    for (owner, pname, *_), v, s in zip(current.spec, current.x, current.std, strict=True):
-        params.setdefault(owner, {})[pname] = {"value": float(v), "std": float(s)}
+    params = parameter_table(current)
     structured = not diag["white"]
     if structured:
         diag["signature"] = _describe(diag)
@@ -563,7 +551,26 @@ def _calibrate(
         history=history,
         residuals={"after": current.heldout},
         wall_s=time.perf_counter() - t_start,
+        plant=fitted_plant(problem.plant(current.nominal, current.effects), current),
     )
+
+
+def parameter_table(fit: Fit) -> dict[str, dict[str, dict[str, float]]]:
+    """owner → parameter → {value, std} of a fit (owner "nominal" for the factors)."""
+    params: dict[str, dict[str, dict[str, float]]] = {}
+    for (owner, pname, *_), v, s in zip(fit.spec, fit.x, fit.std, strict=True):
+        params.setdefault(owner, {})[pname] = {"value": float(v), "std": float(s)}
+    return params
+
+
+def fitted_plant(plant: Plant, fit: Fit) -> Plant:
+    """``plant`` with the fit's standard errors as its uncertainty (finite ones), so
+    :meth:`Plant.sample` draws from the calibration's posterior."""
+    unc = {}
+    for (owner, pname, *_), s in zip(fit.spec, fit.std, strict=True):
+        if math.isfinite(s):
+            unc[pname if owner == "nominal" else f"{owner}.{pname}"] = float(s)
+    return plant.replace(uncertainty=unc)
 
 
 def _describe(diag: Mapping[str, Any]) -> str:
@@ -576,7 +583,7 @@ def _describe(diag: Mapping[str, Any]) -> str:
     )
 
 
-def _plot_residual(result: CalibrationResult, path: Path) -> None:
+def plot_residual(result: CalibrationResult, path: Path) -> None:
     """Held-out residual over samples (traces), or per-target relative errors before and
     after (summary-level data)."""
     import matplotlib
@@ -670,7 +677,7 @@ def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
     d.mkdir(parents=True, exist_ok=True)
     pj = d / "report.json"
     pj.write_text(json.dumps(result.to_json(), indent=2))
-    _plot_residual(result, d / "residual.png")
+    plot_residual(result, d / "residual.png")
     lines = [
         "# Calibration report",
         "",

@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -43,17 +43,19 @@ import scipy.optimize
 import threadpoolctl
 
 from ..amplifier import Amplifier, measure_slew_rate
-from ..params import ParameterSet, real_parameters
+from ..effects import CATALOGUE
+from ..params import ParameterSet
+from ..plant import Plant, load_capacitance
 from .calibrate import (
     NOMINAL,
     CalibrationResult,
-    _Fit,
-    _fit,
-    _significant,
-    _spec,
-    nominal_parameters,
+    Fit,
+    fit_spec,
+    fitted_plant,
+    is_significant,
+    parameter_table,
+    spec_of,
 )
-from .effects import CATALOGUE, apply_parameters
 from .thesis_data import SummaryTarget, thesis_targets
 from .trace import simulate_trace
 from .virtual_lab import protocol_blocks, protocol_drive
@@ -162,26 +164,30 @@ class SummaryProblem:
         if not targets:
             raise ValueError("targets: empty")
         self.targets = list(targets)
-        self.lab = base if base is not None else real_parameters()
+        self.base: str | ParameterSet = base if base is not None else "real"
+        self.lab = Plant(self.base).params  # the parameters the laboratory drove with
         self.blocks, self.measures, self.axis = summary_protocol(self.targets, self.lab.ramp_ratio)
         self.spans = protocol_blocks(self.blocks)
         self.time, self.drive = protocol_drive(self.blocks, self.lab, self.axis)
-        self.c_load = 2.0 * self.lab.tube.quadrant.capacitance  # two quadrants per channel
+        self.c_load = load_capacitance(self.lab, self.axis)
         self.hold: int | None = None
         self._cache: dict[tuple, np.ndarray] = {}
         self.n_sims = 0
 
-    def params(self, nominal: Mapping[str, float], effects: Mapping[str, Any]) -> ParameterSet:
-        """Real set with the friction and preload factors; ideal source unless
-        ``amplifier_dynamics`` is on (module docstring)."""
-        ps = nominal_parameters(self.lab, nominal)
-        ideal = "amplifier_dynamics" not in effects
-        return replace(ps, amplifier=replace(ps.amplifier, ideal=ideal))
+    def plant(self, nominal: Mapping[str, float], effects: Mapping[str, Any]) -> Plant:
+        """The plant of a specification: the base set with the friction and preload factors,
+        the effects, and an ideal source unless ``amplifier_dynamics`` is on (module
+        docstring)."""
+        return Plant(
+            self.base,
+            factors=nominal,
+            effects=effects,
+            ideal_amplifier="amplifier_dynamics" not in effects,
+        )
 
     def simulate(self, nominal: Mapping[str, float], effects: Mapping[str, Any]):
         """Simulated protocol: (theta [rad], detector [V]) at the drive samples."""
-        ps = self.params(nominal, effects)
-        res = simulate_trace(ps, self.axis, self.time, self.drive, effects)
+        res = simulate_trace(self.plant(nominal, effects), self.axis, self.time, self.drive)
         self.n_sims += 1
         return res.theta, res.detector_v
 
@@ -193,10 +199,7 @@ class SummaryProblem:
         )
         if key in self._cache:
             return self._cache[key]
-        ps = self.params(nominal, effects)
-        amp = apply_parameters(
-            ps, {k: v for k, v in effects.items() if k == "amplifier_dynamics"}
-        ).amplifier
+        amp = self.plant(nominal, effects).params.amplifier
         sim = None
         out = np.empty(len(self.targets))
         for i, t in enumerate(self.targets):
@@ -252,14 +255,14 @@ def predict_targets(
     return {t.name: float(p) for t, p in zip(problem.targets, pred, strict=True)}
 
 
-def _loo(problem: SummaryProblem, fit: _Fit, max_nfev: int = 10) -> np.ndarray:
+def _loo(problem: SummaryProblem, fit: Fit, max_nfev: int = 10) -> np.ndarray:
     """Leave-one-out errors: refit without each target (from ``fit``), predict it."""
-    spec = _spec(fit.nominal, fit.effects)
+    spec = spec_of(fit.nominal, fit.effects)
     out = np.empty(len(problem.targets))
     try:
         for j in range(out.size):
             problem.hold = j
-            out[j] = _fit(problem, spec, max_nfev=max_nfev).heldout[0]
+            out[j] = fit_spec(problem, spec, max_nfev=max_nfev).heldout[0]
     finally:
         problem.hold = None
     return out
@@ -299,13 +302,13 @@ def _best_start(
     return out
 
 
-def _candidate(problem: SummaryProblem, current: _Fit, name: str) -> _Fit:
+def _candidate(problem: SummaryProblem, current: Fit, name: str) -> Fit:
     """Fit one effect with the nominal factors on top of the current model, from the best
     start of :func:`_best_start`."""
     nominal, effects = _best_start(problem, current.nominal, current.effects, name)
-    spec = _spec(nominal, effects)
+    spec = spec_of(nominal, effects)
     free = [i for i, s in enumerate(spec) if s[0] in ("nominal", name)]
-    return _fit(problem, spec, free=free, max_nfev=30)
+    return fit_spec(problem, spec, free=free, max_nfev=30)
 
 
 def _within_resolution(problem: SummaryProblem, pred: np.ndarray) -> np.ndarray:
@@ -314,7 +317,7 @@ def _within_resolution(problem: SummaryProblem, pred: np.ndarray) -> np.ndarray:
     )
 
 
-def _table(problem: SummaryProblem, before: _Fit, after: _Fit, loo_b, loo_a) -> list[dict]:
+def _table(problem: SummaryProblem, before: Fit, after: Fit, loo_b, loo_a) -> list[dict]:
     pb = problem.predict(before.nominal, before.effects)
     pa = problem.predict(after.nominal, after.effects)
     eb = problem.errors(before.nominal, before.effects)
@@ -375,7 +378,7 @@ def _calibrate_summary(
             raise ValueError(f"candidates: unknown effect {n!r}")
     say(f"fitting the nominal model (ideal source; friction, preload) to {len(tl)} targets")
     start, _ = _best_start(problem, {n: x0 for n, _lo, _hi, x0 in NOMINAL}, {}, "")
-    nominal = _fit(problem, _spec(start, {}), max_nfev=40)
+    nominal = fit_spec(problem, spec_of(start, {}), max_nfev=40)
     loo_nominal = _loo(problem, nominal)
     current, loo_current = nominal, loo_nominal
     say(f"  held-out (leave-one-out) error {_rms(loo_current):.1f} %")
@@ -408,7 +411,7 @@ def _calibrate_summary(
         name, best, loo = min(round_results, key=lambda r: _rms(r[2]))
         # a parameter 3 standard errors from neutral, unless the effect changes the model
         # at neutral (the amplifier on an ideal source)
-        significant = name == "amplifier_dynamics" or _significant(best, name)
+        significant = name == "amplifier_dynamics" or is_significant(best, name)
         if _rms(loo) > (1.0 - min_improvement) * _rms(loo_current) or not significant:
             say(
                 f"  no candidate helps enough (best {name}: {_rms(loo):.1f} %, "
@@ -420,9 +423,7 @@ def _calibrate_summary(
         history.append({"effects": list(selected), "heldout_rms": _rms(loo)})
         say(f"selected {name}: held-out error {_rms(loo):.1f} %")
     table = _table(problem, nominal, current, loo_nominal, loo_current)
-    params: dict[str, dict[str, dict[str, float]]] = {}
-    for (owner, pname, *_), v, s in zip(current.spec, current.x, current.std, strict=True):
-        params.setdefault(owner, {})[pname] = {"value": float(v), "std": float(s)}
+    params = parameter_table(current)
     off = [r for r in table if not r["within_resolution"]]
     diag: dict[str, Any] = {
         "targets": table,
@@ -447,6 +448,7 @@ def _calibrate_summary(
         history=history,
         residuals={"before": loo_nominal * 100.0, "after": loo_current * 100.0},
         wall_s=time.perf_counter() - t0,
+        plant=fitted_plant(problem.plant(current.nominal, current.effects), current),
     )
 
 
@@ -464,7 +466,7 @@ def slew_scale_needed(problem: SummaryProblem) -> dict[str, dict[str, float | bo
 
         def gap(s: float, t: SummaryTarget = t) -> float:  # model − measured slew [V/s]
             eff = {"amplifier_dynamics": {"slew_scale": s, "current_scale": 1.0}}
-            amp = apply_parameters(problem.params(nominal, eff), eff).amplifier
+            amp = problem.plant(nominal, eff).params.amplifier
             return _slew(amp, t, problem.c_load) - t.value
 
         lo, hi = gap(p.low), gap(p.high)
@@ -490,7 +492,7 @@ def _per_step(problem: SummaryProblem, theta: np.ndarray, block: int) -> list[fl
 
 
 def step_ratio_analysis(
-    problem: SummaryProblem, fit: _Fit, names: Sequence[str] = tuple(CATALOGUE)
+    problem: SummaryProblem, fit: Fit, names: Sequence[str] = tuple(CATALOGUE)
 ) -> dict[str, Any]:
     """One- vs two-directional step (0.37 vs 0.30 µm, §4.1.3): the measured ratio, the
     calibrated model's, each period's step in both sequences, and the range of the ratio

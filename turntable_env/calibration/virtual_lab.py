@@ -33,7 +33,9 @@ from typing import Any
 import numpy as np
 
 from ..drive import StepSetting
-from ..params import ParameterSet, real_parameters
+from ..params import ParameterSet
+from ..plant import Plant, load_capacitance
+from ..validation import check_nonnegative
 from .measurement import Measurement
 from .trace import simulate_trace
 
@@ -144,21 +146,15 @@ def protocol_drive(
         elif kind == "steps":
             a_v, f, n, a, k = blk[1:6]
             step_back = len(blk) > 6 and blk[6] == "step"
-            hold = 0.0
-            if k > 0.0:
+            if k > 0.0 or step_back:
                 if c_load is None:
-                    from ..model import TurntableModel
-
-                    c_load = TurntableModel(params).load_capacitance(axis)
-                hold = amp.adapted_hold_time(abs(a_v), 0.0, k, c_load)
-            s = StepSetting(a_v, f, a, k, min(hold, (1.0 - a) / f))
-            tp, vp = s.template()
-            if step_back and k == 0.0:  # unadapted laboratory input: a plain step to 0 V
-                tp, vp = np.array([0.0, a / f, a / f, 1.0 / f]), np.array([0.0, a_v, 0.0, 0.0])
-            for i in range(int(n)):
-                start = t0 + i / f
-                tt.extend((start + tp[1:]).tolist())
-                uu.extend((level + vp[1:]).tolist())
+                    c_load = load_capacitance(params, axis)
+                setting = StepSetting.adapted(a_v, f, a, k, amp, c_load)
+            else:
+                setting = StepSetting(a_v, f, a)
+            tp, vp = setting.periods(int(n), t0)
+            tt.extend(tp[1:].tolist())
+            uu.extend((level + vp[1:]).tolist())
         else:
             raise ValueError(f"protocol block {blk!r}: kind must be hold, scan or steps")
     t = np.array(tt)
@@ -183,18 +179,34 @@ def run_virtual_lab(
     effects: Mapping[str, Mapping[str, float]] | None = None,
     *,
     params: ParameterSet | None = None,
+    plant: Plant | None = None,
     axis: str = "B",
     noise_std: float = 1e-3,
     seed: int = 0,
     sample_dt: float = 5e-5,
     out: str | Path | None = None,
 ) -> Measurement:
-    """Simulate a protocol with effects and detector noise; write it if ``out`` is given."""
-    ps = params if params is not None else real_parameters()
-    t, u = protocol_drive(protocol, ps, axis, sample_dt)
-    res = simulate_trace(
-        ps, axis, t, u, effects, noise_std=noise_std, rng=np.random.default_rng(seed)
+    """Simulate a protocol on a plant with effects and detector noise; write it if ``out``
+    is given.
+
+    Args:
+        protocol: a protocol name or its blocks (module docstring).
+        effects: catalogue effects added to the plant's, undeclared: the protocol's drive
+            (its adapted hold times) is the one the lab would command for ``plant``.
+        params: the base parameter set when no ``plant`` is given (default: the real set).
+        plant: the plant to run (default: the reduced model of ``params``).
+        noise_std: detector noise standard deviation [V] (the plant's ``sensor_noise``).
+        seed: of the noise generator.
+    """
+    base = plant if plant is not None else Plant(params if params is not None else "real")
+    p = base.replace(
+        effects={**base.effects, **(effects or {})},
+        sensor_noise=check_nonnegative("noise_std", noise_std),
     )
+    ps = p.params
+    # the lab commands its drive for the plant it knows (the undeclared effects aside)
+    t, u = protocol_drive(protocol, base.params, axis, sample_dt)
+    res = simulate_trace(p, axis, t, u, rng=np.random.default_rng(seed))
     m = Measurement(
         axis=axis,
         amplifier_gain=ps.amplifier.gain,

@@ -1,47 +1,55 @@
 """Configuration of the PiezoTurntable task and the action scaling (SI units throughout).
 
-:class:`EnvConfig` holds every constructor argument of the environments, validated;
-:class:`ActionScaling` maps the normalised action Box [-1, 1]^5 to the physical
-generator setting (§4.1.2 amplifier input, Fig. 3.14 / Fig. 4.3 waveforms).
+:class:`EnvConfig` holds every constructor argument of the environments, validated, and
+resolves the :class:`~turntable_env.plant.Plant` they run; :class:`ActionScaling` maps the
+normalised action Box [-1, 1]^5 to the physical generator setting (§4.1.2 amplifier
+input, Fig. 3.14 / Fig. 4.3 waveforms); :data:`OBS` names the observation's components.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from dataclasses import dataclass, field
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
-from ..params import ParameterSet, get_parameter_set, real_parameters
+from ..params import ParameterSet
+from ..plant import DEFAULT_RANDOMIZATION, Plant
 from ..validation import check_nonnegative, check_positive
 
 __all__ = [
     "ACTION_NAMES",
     "DEFAULT_RANDOMIZATION",
+    "OBS",
     "OBSERVATION_NAMES",
     "ActionScaling",
     "EnvConfig",
+    "ObservationIndex",
     "check_action",
-    "sample_parameters",
 ]
 
 ACTION_NAMES = ("amplitude", "frequency", "ramp_ratio", "slew_adaptation", "scan_offset")
-OBSERVATION_NAMES = (
-    "measured_angle_rad",
-    "target_angle_rad",
-    "generator_phase",
-    *(f"last_{n}" for n in ACTION_NAMES),
-)
 
-# Domain randomisation: multiplicative factors drawn uniformly per episode.
-DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
-    "friction": (0.8, 1.2),  # µ_s and µ_c together (dry-contact scatter, ±20 %)
-    "preload": (0.8, 1.2),  # normal force F_N of the preload spring (unmeasured, ±20 %)
-    "amplifier": (0.9, 1.1),  # slew rate per input volt and current limit (±10 %)
-    "sensor_noise": (0.5, 2.0),  # detector noise standard deviation
-}
+
+class ObservationIndex(NamedTuple):
+    """Index of each observation component: ``obs[..., OBS.target_angle_rad]``."""
+
+    measured_angle_rad: int
+    target_angle_rad: int
+    generator_phase: int
+    last_amplitude: int
+    last_frequency: int
+    last_ramp_ratio: int
+    last_slew_adaptation: int
+    last_scan_offset: int
+
+
+OBS = ObservationIndex(*range(len(ObservationIndex._fields)))
+OBSERVATION_NAMES = ObservationIndex._fields
+assert OBSERVATION_NAMES[3:] == tuple(f"last_{n}" for n in ACTION_NAMES)
 
 F_MIN, F_MAX = 10.0, 2000.0  # Hz, generator frequency range (log scale)
 A_MIN, A_MAX = 0.5, 0.99  # ramp ratio range
@@ -82,6 +90,17 @@ class ActionScaling:
             a4 * self.input_limit,
         )
 
+    def decode_batch(self, actions: np.ndarray) -> np.ndarray:
+        """(N, 5) settings of N clipped actions, as :meth:`decode` row by row."""
+        a = np.asarray(actions, dtype=float)
+        out = np.empty_like(a)
+        out[:, 0] = a[:, 0] * self.input_limit
+        out[:, 1] = F_MIN * (F_MAX / F_MIN) ** (0.5 * (a[:, 1] + 1.0))
+        out[:, 2] = A_MIN + (A_MAX - A_MIN) * 0.5 * (a[:, 2] + 1.0)
+        out[:, 3] = np.maximum(a[:, 3], 0.0)
+        out[:, 4] = a[:, 4] * self.input_limit
+        return out
+
     def encode(
         self, amplitude: float, frequency: float, a: float, k: float = 0.0, offset: float = 0.0
     ) -> np.ndarray:
@@ -117,15 +136,23 @@ class EnvConfig:
     """Every constructor argument of the PiezoTurntable environments (SI units).
 
     Args:
-        params: ``"real"`` (Table D.1, default), ``"thesis"`` (Table D.2) or a ParameterSet.
-        fidelity: ``"reduced"`` (per-axis model, default) or ``"full"`` (3-D model;
-            ``turntable bench`` compares the two real-time factors).
+        plant: the :class:`~turntable_env.plant.Plant` to run, or the path of a calibration
+            ``report.json`` (or its directory) whose plant to run
+            (:meth:`~turntable_env.plant.Plant.from_report`): its parameter set, effects,
+            fidelity and detector noise. Default: the plant of ``params``.
+        params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2) or a
+            ParameterSet, without effects; give ``plant`` or ``params``, not both.
+        fidelity: ``"reduced"`` (per-axis model) or ``"full"`` (3-D model; ``turntable
+            bench`` compares the two real-time factors); default: the plant's (reduced).
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.
         control_interval: time per env step [s] (0.01: one period of the 100 Hz nominal drive).
-        randomize: domain randomisation: False, True (:data:`DEFAULT_RANDOMIZATION`) or a
-            mapping of some of its keys to (low, high) factor ranges.
+        randomize: domain randomisation per episode (:meth:`Plant.sample`): False; True —
+            from the plant's calibration uncertainties when it came from a report, otherwise
+            :data:`DEFAULT_RANDOMIZATION`; or a mapping of some of its keys to (low, high)
+            factor ranges.
         noise: detector noise on (True) or off.
-        sensor_noise: detector voltage noise standard deviation [V] when ``noise`` (1 mV).
+        sensor_noise: detector voltage noise standard deviation [V] when ``noise``;
+            default: the plant's (1 mV).
         tolerance: |target − angle| that ends the episode successfully [rad].
         terminate_on_success: end the episode when the tolerance is reached (True, default);
             False keeps it running to the time limit, so a controller must also hold the
@@ -146,13 +173,14 @@ class EnvConfig:
             small-angle workspace the model covers) [rad].
     """
 
-    params: str | ParameterSet = "real"
-    fidelity: Literal["reduced", "full"] = "reduced"
+    plant: Plant | str | os.PathLike[str] | None = None
+    params: str | ParameterSet | None = None
+    fidelity: Literal["reduced", "full"] | None = None
     axis: str = "B"
     control_interval: float = 0.01
     randomize: bool | Mapping[str, tuple[float, float]] = False
     noise: bool = True
-    sensor_noise: float = 1e-3
+    sensor_noise: float | None = None
     tolerance: float = 1e-6
     terminate_on_success: bool = True
     energy_weight: float = 0.01
@@ -165,18 +193,16 @@ class EnvConfig:
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict, init=False)
 
     def __post_init__(self) -> None:
-        if isinstance(self.params, str) and self.params not in ("real", "thesis"):
-            raise ValueError(f"params={self.params!r}: must be 'real', 'thesis' or a ParameterSet")
-        if not isinstance(self.params, str | ParameterSet):
-            raise ValueError(f"params={self.params!r}: must be 'real', 'thesis' or a ParameterSet")
-        if self.fidelity not in ("reduced", "full"):
+        if self.fidelity not in (None, "reduced", "full"):
             raise ValueError(f"fidelity={self.fidelity!r}: must be 'reduced' or 'full'")
+        if self.sensor_noise is not None:
+            check_nonnegative("sensor_noise", self.sensor_noise)
+        object.__setattr__(self, "plant", self._resolve_plant())
         if self.axis not in ("A", "B", "C"):
             raise ValueError(f"axis={self.axis!r}: must be 'A', 'B' or 'C'")
         check_positive("control_interval", self.control_interval)
         if not isinstance(self.noise, bool):
             raise ValueError(f"noise={self.noise!r}: must be a bool")
-        check_nonnegative("sensor_noise", self.sensor_noise)
         check_positive("tolerance", self.tolerance)
         if not isinstance(self.terminate_on_success, bool):
             raise ValueError(f"terminate_on_success={self.terminate_on_success!r}: must be a bool")
@@ -198,15 +224,49 @@ class EnvConfig:
         if self.reward not in ("linear", "log"):
             raise ValueError(f"reward={self.reward!r}: must be 'linear' or 'log'")
         object.__setattr__(self, "ranges", _randomization_ranges(self.randomize))
-        if self.ranges and self.parameter_set.name != "real":
+        needs_unlisted = {"friction", "preload"} & set(
+            self.ranges or (DEFAULT_RANDOMIZATION if not self.plant.uncertainty else ())
+        )
+        if self.randomized and needs_unlisted and self.plant.base_parameters.unlisted is None:
             raise ValueError(
-                "randomize: defined for the real parameter set (its friction and preload are "
-                "derived through Hertz–Mindlin from data/real_unlisted.toml)"
+                f"randomize: {sorted(needs_unlisted)} need a parameter set with unlisted "
+                f"inputs (the real set's friction and preload are derived through "
+                f"Hertz–Mindlin); {self.plant.base_parameters.name!r} has none"
             )
+
+    def _resolve_plant(self) -> Plant:
+        """The plant: ``plant`` (a Plant or a report path) or the plant of ``params``, with
+        ``fidelity`` and ``sensor_noise`` where given."""
+        plant = self.plant
+        if plant is not None and self.params is not None:
+            raise ValueError(f"params={self.params!r}, plant={plant!r}: give one of them")
+        if plant is None:
+            params = "real" if self.params is None else self.params
+            if isinstance(params, str) and params not in ("real", "thesis"):
+                raise ValueError(f"params={params!r}: must be 'real', 'thesis' or a ParameterSet")
+            if not isinstance(params, str | ParameterSet):
+                raise ValueError(f"params={params!r}: must be 'real', 'thesis' or a ParameterSet")
+            plant = Plant(params)
+        elif isinstance(plant, str | os.PathLike):
+            plant = Plant.from_report(plant)
+        elif not isinstance(plant, Plant):
+            raise ValueError(f"plant={plant!r}: must be a Plant or a calibration report path")
+        changes: dict[str, Any] = {}
+        if self.fidelity is not None:
+            changes["fidelity"] = self.fidelity
+        if self.sensor_noise is not None:
+            changes["sensor_noise"] = float(self.sensor_noise)
+        return plant.replace(**changes) if changes else plant
+
+    @property
+    def randomized(self) -> bool:
+        """True if each episode draws its plant (:meth:`Plant.sample`)."""
+        return self.randomize is True or bool(self.ranges)
 
     @property
     def parameter_set(self) -> ParameterSet:
-        return get_parameter_set(self.params) if isinstance(self.params, str) else self.params
+        """The plant's parameter set (nominal: before any randomisation)."""
+        return self.plant.params  # type: ignore[union-attr]
 
     @property
     def scaling(self) -> ActionScaling:
@@ -216,10 +276,10 @@ class EnvConfig:
 def _randomization_ranges(
     spec: bool | Mapping[str, tuple[float, float]],
 ) -> dict[str, tuple[float, float]]:
-    if spec is False or spec is None:
+    """The factor ranges of a ``randomize`` mapping; {} for False and True (True: the
+    plant's own — its calibration uncertainties or :data:`DEFAULT_RANDOMIZATION`)."""
+    if spec is False or spec is None or spec is True:
         return {}
-    if spec is True:
-        return dict(DEFAULT_RANDOMIZATION)
     if not isinstance(spec, Mapping):
         raise ValueError(f"randomize={spec!r}: must be a bool or a mapping of factor ranges")
     out = {}
@@ -236,37 +296,3 @@ def _randomization_ranges(
             raise ValueError(f"randomize[{key!r}]={rng!r}: low must be <= high")
         out[key] = (lo, hi)
     return out
-
-
-def sample_parameters(
-    base: ParameterSet, ranges: Mapping[str, tuple[float, float]], rng: np.random.Generator
-) -> tuple[ParameterSet, dict[str, float]]:
-    """A randomised real parameter set and the factors drawn (keys of ``ranges``).
-
-    Friction and preload go through :func:`~turntable_env.params.real_parameters`
-    overrides, so the GMS elements, presliding distance and contact damping are
-    re-derived (Hertz–Mindlin); the amplifier factor scales its slew rate per input
-    volt and its current limit; ``sensor_noise`` is applied by the environment.
-    """
-    factors = {k: float(rng.uniform(*r)) for k, r in ranges.items()}
-    u = base.unlisted
-    assert u is not None
-    over: dict[str, float] = {}
-    if "friction" in factors:
-        over["mu_static"] = u.mu_static * factors["friction"]
-        over["mu_coulomb"] = u.mu_coulomb * factors["friction"]
-    if "preload" in factors:
-        over["normal_force"] = u.normal_force * factors["preload"]
-    ps = real_parameters(overrides=over) if over else base
-    if "amplifier" in factors:
-        amp = ps.amplifier
-        s = factors["amplifier"]
-        ps = replace(
-            ps,
-            amplifier=replace(
-                amp,
-                slew_per_input_volt=amp.slew_per_input_volt * s,
-                current_limit=amp.current_limit * s,
-            ),
-        )
-    return ps, factors

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any, ClassVar, Literal
 
 import gymnasium as gym
@@ -9,6 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ..params import ParameterSet
+from ..plant import Plant
 from .config import ACTION_NAMES, OBSERVATION_NAMES, EnvConfig
 from .core import TurntableTask
 
@@ -37,9 +39,14 @@ class PiezoTurntableEnv(gym.Env):
     (slow bend: the table sticks and follows; fast flyback: it slips and stays). The
     task is to turn the table about one axis (default B) from a start angle to a target
     angle, reading only what the laser/quadrant-photodiode detector reports, and to do
-    it with little electrical energy. The physics is the reduced per-axis model derived
-    from the 3-D model (:mod:`turntable_env.reduced`; ``fidelity="full"`` runs the 3-D
-    model itself) with the real turntable's parameters (Table D.1).
+    it with little electrical energy. The env runs a :class:`~turntable_env.plant.Plant`:
+    by default the reduced per-axis model derived from the 3-D model
+    (:mod:`turntable_env.reduced`; ``fidelity="full"`` runs the 3-D model itself) with the
+    real turntable's parameters (Table D.1) and no effects; ``plant=`` runs any other —
+    for example the one a calibration report describes (``plant="cal/report.json"``),
+    with the effects it found (creep, hysteresis, drift, vibration, ...) acting at their
+    physical stages (:mod:`turntable_env.effects`). ``env.unwrapped.plant`` is the
+    plant of the current episode.
 
     Each step is one **fixed control interval** Δt (``control_interval``, 10 ms: one
     period of the real turntable's 100 Hz nominal drive, §4.1.3). A fixed interval keeps
@@ -126,30 +133,47 @@ class PiezoTurntableEnv(gym.Env):
                    control_interval=0.01, randomize=False, noise=True, sensor_noise=1e-3,
                    tolerance=1e-6, terminate_on_success=True, energy_weight=0.01,
                    render_mode="rgb_array")
+    env = gym.make("PiezoTurntable-v0", plant="cal/report.json", randomize=True)
     envs = gym.make_vec("PiezoTurntable-v0", num_envs=64,
                         vectorization_mode="vector_entry_point")  # one compiled call
     ```
 
-    See :class:`~turntable_env.envs.config.EnvConfig` for every argument.
+    ``plant`` (a :class:`~turntable_env.plant.Plant` or a calibration report) and
+    ``params`` are alternatives. With a plant from a report, ``randomize=True`` draws
+    each episode's plant from the calibration's posterior (its standard errors). See
+    :class:`~turntable_env.envs.config.EnvConfig` for every argument.
+
+    Registered variants (``turntable_env.ENV_VARIANTS``):
+
+    | id                            | plant                                                |
+    |-------------------------------|------------------------------------------------------|
+    | ``PiezoTurntable-v0``         | real set, reduced model, no effects                  |
+    | ``PiezoTurntableFull-v0``     | the same on the full 3-D model                       |
+    | ``PiezoTurntableRandomized-v0``| a plant per episode from ``DEFAULT_RANDOMIZATION``  |
+
+    The thesis's scaled set (``params="thesis"``) runs too, but its 4 mrad steps dwarf the
+    detector's ±0.57 mrad range, so it has no registered task.
 
     ## Version History
 
     * v0: initial version (reduced per-axis model, real parameters). Later additions that
       keep v0's behaviour: ``info["steps"]``, ``terminate_on_success``, ``move_range``,
-      ``reward="log"`` and ``success_bonus``.
+      ``reward="log"``, ``success_bonus``, ``plant`` (the plant layer: calibrated plants
+      with effects) and the registered variants.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
 
     def __init__(
         self,
-        params: str | ParameterSet = "real",
-        fidelity: Literal["reduced", "full"] = "reduced",
+        plant: Plant | str | os.PathLike[str] | None = None,
+        params: str | ParameterSet | None = None,
+        fidelity: Literal["reduced", "full"] | None = None,
         axis: str = "B",
         control_interval: float = 0.01,
         randomize: bool | dict[str, tuple[float, float]] = False,
         noise: bool = True,
-        sensor_noise: float = 1e-3,
+        sensor_noise: float | None = None,
         tolerance: float = 1e-6,
         terminate_on_success: bool = True,
         energy_weight: float = 0.01,
@@ -162,7 +186,8 @@ class PiezoTurntableEnv(gym.Env):
         render_mode: str | None = None,
     ) -> None:
         self.config = EnvConfig(
-            params=params, fidelity=fidelity, axis=axis, control_interval=control_interval,
+            plant=plant, params=params, fidelity=fidelity, axis=axis,
+            control_interval=control_interval,
             randomize=randomize, noise=noise, sensor_noise=sensor_noise, tolerance=tolerance,
             terminate_on_success=terminate_on_success, energy_weight=energy_weight,
             start_range=start_range, target_range=target_range,
@@ -182,6 +207,11 @@ class PiezoTurntableEnv(gym.Env):
     def observation_names(self) -> tuple[str, ...]:
         return OBSERVATION_NAMES
 
+    @property
+    def plant(self) -> Plant:
+        """The plant of the current episode (the configured one, or its randomised draw)."""
+        return self.task.plants[0]
+
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
@@ -192,7 +222,7 @@ class PiezoTurntableEnv(gym.Env):
             "angle_rad": float(t.angle[0]),
             "target_rad": float(t.target[0]),
             "detector_V": float(t.detector_v[0]),
-            "parameter_factors": dict(t.factors[0]),
+            "parameter_factors": dict(t.draws[0]),
         }
         return t.observation()[0], info
 

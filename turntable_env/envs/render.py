@@ -77,7 +77,7 @@ class TurntableRenderer:
 
     def draw(self, b: int = 0) -> np.ndarray:
         t = self.task
-        snap = t.backend.snapshot(b)
+        snap = t.stepper.snapshot(b)
         top_y = -np.sqrt(_R**2 - _TUBE_X**2)
         for k, (poly, dot) in enumerate(zip(self.tubes, self.contacts, strict=True)):
             x0 = (-1.0 if k == 0 else 1.0) * _TUBE_X

@@ -242,7 +242,7 @@ def _benchmark(quick: bool) -> Section:
 
 
 def _calibration(quick: bool) -> Section:
-    from ..calibration.calibrate import _plot_residual
+    from ..calibration.calibrate import plot_residual
     from ..calibration.summary import calibrate_summary
 
     res = calibrate_summary(candidates=["amplifier_dynamics"] if quick else None, progress=None)
@@ -287,7 +287,7 @@ def _calibration(quick: bool) -> Section:
     )
     with tempfile.TemporaryDirectory() as d:
         png = Path(d) / "residual.png"
-        _plot_residual(res, png)
+        plot_residual(res, png)
         data = png.read_bytes()
     s.images.append(
         {
