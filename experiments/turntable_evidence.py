@@ -91,7 +91,7 @@ def real_set(out: Path | None) -> None:
             row.append(f"{np.mean(r.steps) * 1e6:+.3f}")
         print(f"   axis {axis}: mean step +2 V {row[0]} um, -2 V {row[1]} um")
     for signal, measured in (("one", 0.37), ("two", 0.30)):
-        drive, _ = stepping_drive(ps, periods=5, signal=signal)
+        drive, _ = stepping_drive(ps, periods=5, signal=signal, cycles=1)
         r = simulate(ps, drive, axis="B", model=model)
         print(
             f"   {signal}-directional about B: step {r.step_size * 1e6:.3f} um "

@@ -15,6 +15,7 @@ SECTIONS = {
     "friction",
     "drive",
     "stepping_real",
+    "stepping_calibrated",
     "stepping_thesis",
     "render",
     "speed",

@@ -20,10 +20,24 @@ instant source the thesis's simulation assumed (V_out = G·u).
 The slew-adapted input (Fig. 4.3) jumps past the end value, to
 V_end − k·(V_start − V_end), and back to V_end when the output gets there;
 :meth:`Amplifier.adapted_hold_time` is that time.
+
+**Fast path** (``fast_fraction`` a > 0, ``fast_time`` τ_f): the four figures of §4.1.2 are
+not one first-order stage — 0.9 and 2.7 V/µs for 1 V and 3 V steps (linear: "divide the
+3 V response by three"), 8.0 V/µs for the adapted flyback, where a first-order stage with
+the same settling time gives 3.6 V/µs, and 12 V/µs at the full 900 V swing. A linear
+amplifier whose step response has a fast partial rise before the slow tail, followed by
+the output's rate limit, gives all four: the output follows
+
+    V_lin = V_s + V_f,   dV_s/dt = clip(((1 − a)·G·u − V_s)/τ, ±R),   dV_f/dt = (a·G·u − V_f)/τ_f,
+    dV/dt = clip towards V_lin at ±R (a slew-limited output stage),
+
+with τ derived so that the 1 V step's 10–90 % slew rate stays the measured 0.9 V/µs
+(unloaded, R = 12 V/µs). a = 0 is exactly the first-order model above.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 from typing import Any
@@ -40,7 +54,14 @@ from .validation import (
     check_time_array,
 )
 
-__all__ = ["Amplifier", "AmplifierResponse", "adapted_hold_core", "measure_slew_rate"]
+__all__ = [
+    "Amplifier",
+    "AmplifierResponse",
+    "adapted_hold_core",
+    "amplifier_step",
+    "measure_slew_rate",
+    "ramp_step",
+]
 
 LN9 = math.log(9.0)
 
@@ -60,16 +81,66 @@ def slew_step(v, target, dt, tau, rate):
 
 
 @njit(cache=True)
-def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal):
+def ramp_step(v0, u0, u1, h, gain, tau, rate):
+    """Output of the slew-limited first-order stage after h [s] for a target input ramping
+    u0 → u1 [V] (§4.1.2 stage).
+
+    Exact first-order response to the ramp when the stage is linear over the step
+    (error and ramp both inside the slew limit); otherwise the slew-limited step with
+    the mid-step input held (:func:`slew_step`)."""
+    slope = gain * (u1 - u0) / h  # V/s of the target
+    lag = slope * tau
+    e0 = gain * u0 - lag - v0  # distance from the ramp's steady response
+    if abs(gain * u0 - v0) <= rate * tau and abs(slope) < rate:
+        return gain * u1 - lag - e0 * math.exp(-h / tau)
+    return slew_step(v0, gain * 0.5 * (u0 + u1), h, tau, rate)
+
+
+@njit(cache=True)
+def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
+    """(output, slow path, fast path) [V] after h [s] of an input ramping u0 → u1 [V] for the
+    amplifier ``row`` (:meth:`Amplifier.kernel_row`; module docstring). Without a fast path
+    (a = 0) the slow path is the output: :func:`ramp_step`. With one, the fast path is
+    exact for the ramp, the slow path as :func:`ramp_step` with gain (1 − a)G, and the output
+    moves towards their sum by at most R·h."""
+    gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
+    if a == 0.0:
+        v1 = ramp_step(v0, u0, u1, h, gain, tau, rate)
+        return v1, v1, 0.0
+    vs1 = ramp_step(vs0, u0, u1, h, (1.0 - a) * gain, tau, rate)
+    slope = a * gain * (u1 - u0) / h
+    vf1 = a * gain * u1 - slope * tf + (vf0 - a * gain * u0 + slope * tf) * math.exp(-h / tf)
+    lim = rate * h
+    return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
+
+
+@njit(cache=True)
+def amplifier_hold_step(v0, vs0, vf0, u, dt, gain, tau, rate, a, tf):
+    """The amplifier after dt [s] under a constant input u [V] (zero-order hold): the
+    compiled 3-D integrator's and :meth:`Amplifier.simulate`'s update."""
+    if a == 0.0:
+        v1 = slew_step(v0, gain * u, dt, tau, rate)
+        return v1, v1, 0.0
+    vs1 = slew_step(vs0, (1.0 - a) * gain * u, dt, tau, rate)
+    vf1 = a * gain * u + (vf0 - a * gain * u) * math.exp(-dt / tf)
+    lim = rate * dt
+    return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
+
+
+@njit(cache=True)
+def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0):
     """Time [s] the Fig. 4.3 adapted input stays past the end value (see
     :meth:`Amplifier.adapted_hold_time`, which validates the arguments): the output of the
     slew-limited first-order stage (gain G, τ [s], rate limit [V/s]) covers G·|v_start −
-    v_end| [V] from an error G·|v_start − u_over|, u_over = v_end − k(v_start − v_end)."""
+    v_end| [V] from an error G·|v_start − u_over|, u_over = v_end − k(v_start − v_end);
+    with a fast path (a > 0) the output is integrated in steps of min(τ, τ_f)/200."""
     if ideal or v_start == v_end:
         return 0.0
     if k == 0.0:
         return math.inf
     u_over = v_end - k * (v_start - v_end)
+    if a > 0.0:
+        return _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf)
     dist = gain * abs(v_start - v_end)  # output travel to the end value [V]
     e0 = gain * abs(v_start - u_over)  # initial error [V]
     if e0 > rate * tau:
@@ -81,14 +152,38 @@ def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal):
 
 
 @njit(cache=True)
-def _first_order_slew(t, u, v0, gain, tau, rate):
-    """Exact response of the slew-limited first-order stage to a zero-order-hold input u [V]."""
+def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf):
+    """Time [s] until the output, settled at G·v_start, reaches G·v_end under the constant
+    input u_over (linear interpolation at the crossing; inf if it never does)."""
+    target = gain * v_end
+    v = gain * v_start
+    vs = (1.0 - a) * v
+    vf = a * v
+    sgn = 1.0 if target > v else -1.0
+    dt = min(tf, tau) / 200.0
+    t = 0.0
+    while t < 20.0 * (tau + tf):
+        v1, vs, vf = amplifier_hold_step(v, vs, vf, u_over, dt, gain, tau, rate, a, tf)
+        if (v1 - target) * sgn >= 0.0:
+            return t + dt * (target - v) / (v1 - v)
+        v = v1
+        t += dt
+    return math.inf
+
+
+@njit(cache=True)
+def _first_order_slew(t, u, v0, row):
+    """Response of the amplifier ``row`` to a zero-order-hold input u [V] from the settled
+    output v0 [V] (exact for the first-order stage; :func:`amplifier_hold_step`)."""
     n = t.shape[0]
     out = np.empty(n)
+    gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
     v = v0
+    vs = (1.0 - a) * v0
+    vf = a * v0
     out[0] = v
     for i in range(n - 1):
-        v = slew_step(v, gain * u[i], t[i + 1] - t[i], tau, rate)
+        v, vs, vf = amplifier_hold_step(v, vs, vf, u[i], t[i + 1] - t[i], gain, tau, rate, a, tf)
         out[i + 1] = v
     return out
 
@@ -138,6 +233,9 @@ class Amplifier:
         slew_per_input_volt: measured 10–90 % slew rate for a 1 V input step [V/s] (0.9 V/µs).
         slew_rate_max: datasheet slew rate at full swing [V/s] (12 V/µs).
         ideal: instant source V_out = G·u (the thesis's simulation).
+        fast_fraction: a, the share of a step the fast path covers (module docstring) [-];
+            0: the first-order model.
+        fast_time: τ_f of the fast path [s].
     """
 
     gain: float = 45.0
@@ -146,6 +244,8 @@ class Amplifier:
     slew_per_input_volt: float = 0.9e6
     slew_rate_max: float = 12e6
     ideal: bool = False
+    fast_fraction: float = 0.0
+    fast_time: float = 1e-6
 
     def __post_init__(self) -> None:
         check_positive("gain", self.gain)
@@ -155,11 +255,20 @@ class Amplifier:
         check_positive("slew_rate_max", self.slew_rate_max)
         if not isinstance(self.ideal, bool):
             raise ValueError(f"ideal={self.ideal!r}: must be a bool")
+        if not 0.0 <= check_nonnegative("fast_fraction", self.fast_fraction) < 1.0:
+            raise ValueError(f"fast_fraction={self.fast_fraction!r}: must be in [0, 1)")
+        check_positive("fast_time", self.fast_time)
 
     @property
     def tau(self) -> float:
-        """Time constant τ = 0.8·G/(SR₁V·ln 9) [s] of the linear stage (18.2 µs)."""
-        return 0.8 * self.gain / (self.slew_per_input_volt * LN9)
+        """Time constant τ [s] of the slow (first-order) stage: 0.8·G/(SR₁V·ln 9) = 18.2 µs
+        without a fast path; with one, the τ that keeps the 1 V step's 10–90 % slew rate at
+        ``slew_per_input_volt`` (unloaded), found numerically."""
+        tau0 = 0.8 * self.gain / (self.slew_per_input_volt * LN9)
+        if self.fast_fraction == 0.0:
+            return tau0
+        return _slow_tau(self.gain, self.slew_per_input_volt, self.slew_rate_max,
+                         self.fast_fraction, self.fast_time, tau0)  # fmt: skip
 
     def rate_limit(self, load_capacitance: float) -> float:
         """R = min(SR_max, I_max/C_load) [V/s]; C_load = 0 means unloaded."""
@@ -197,7 +306,7 @@ class Amplifier:
                 if initial_output is None
                 else check_finite("initial_output", initial_output)
             )
-            out = _first_order_slew(t, uc, v0, self.gain, self.tau, self.rate_limit(c))
+            out = _first_order_slew(t, uc, v0, self.kernel_row(c))
         current = c * np.gradient(out, t) if t.size > 1 else np.zeros_like(out)
         return AmplifierResponse(t, u, out, current)
 
@@ -240,8 +349,9 @@ class Amplifier:
                 f"±{self.input_limit} V"
             )
         return adapted_hold_core(
-            a, b, kk, self.gain, self.tau, self.rate_limit(load_capacitance), self.ideal
-        )
+            a, b, kk, self.gain, self.tau, self.rate_limit(load_capacitance), self.ideal,
+            self.fast_fraction, self.fast_time,
+        )  # fmt: skip
 
     def scaled(self, slew: float = 1.0, current: float = 1.0) -> Amplifier:
         """This amplifier with its slew per input volt × ``slew`` (settling time τ ÷) and its
@@ -254,7 +364,8 @@ class Amplifier:
 
     def kernel_row(self, load_capacitance: float) -> np.ndarray:
         """The amplifier as the compiled kernels read it: (gain G, τ [s], ideal (1/0),
-        input limit [V], rate limit R [V/s] on ``load_capacitance`` [F])."""
+        input limit [V], rate limit R [V/s] on ``load_capacitance`` [F], fast fraction a,
+        τ_f [s])."""
         return np.array(
             [
                 self.gain,
@@ -262,6 +373,8 @@ class Amplifier:
                 1.0 if self.ideal else 0.0,
                 self.input_limit,
                 self.rate_limit(load_capacitance),
+                self.fast_fraction,
+                self.fast_time,
             ]
         )
 
@@ -287,7 +400,29 @@ class Amplifier:
             ),
             Quantity(f"{prefix}.tau", self.tau, "s", d, "0.8*G/(SR_1V*ln 9)"),
             Quantity(f"{prefix}.ideal", self.ideal, "-", g, "instant source if true"),
+            Quantity(
+                f"{prefix}.fast_fraction", self.fast_fraction, "-", g,
+                "share of a step the fast path covers (0: first order)",
+            ),
+            Quantity(f"{prefix}.fast_time", self.fast_time, "s", g, "fast path tau_f"),
         ]
+
+
+@functools.lru_cache(maxsize=256)
+def _slow_tau(gain: float, sr_1v: float, rate: float, a: float, tf: float, tau0: float) -> float:
+    """τ [s] at which the 1 V step's 10–90 % slew rate equals ``sr_1v`` (brentq over the
+    compiled step response, sampled at τ_f/20)."""
+    import scipy.optimize
+
+    dt = tf / 20.0
+
+    def slew(tau: float) -> float:
+        t = np.arange(0.0, 12.0 * tau + 10.0 * tf, dt)
+        row = np.array([gain, tau, 0.0, 10.0, rate, a, tf])
+        out = _first_order_slew(t, np.ones(t.size), 0.0, row)
+        return measure_slew_rate(t, out, 0.0, gain) - sr_1v
+
+    return float(scipy.optimize.brentq(slew, 0.5 * tau0, 5.0 * tau0, xtol=1e-4 * tau0))
 
 
 def measure_slew_rate(

@@ -44,7 +44,9 @@ def simulate_scipy(
     ap = model.axis_params
     nu, kk = ar["nu"], ar["kk"]
     c_gms, mu_s, mu_c, v_s, delta, sigma2, beta_t = ar["gms"]
-    gain, tau, ideal, ulim, rate = ar["amp"]
+    gain, tau, ideal, ulim, rate = ar["amp"][:5]
+    if ar["amp"][5] != 0.0:
+        raise ValueError("model: the SciPy baseline has the first-order amplifier only")
     ne = kk.size
     wave = model.full.drive_waveforms({model.axis: drive})[model.axis]
     lever = np.array(ap.lever)

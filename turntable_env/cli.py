@@ -17,7 +17,7 @@ import math
 import sys
 from collections.abc import Sequence
 
-from .params import get_parameter_set
+from .params import PARAMETER_SETS, get_parameter_set
 
 __all__ = ["main"]
 
@@ -67,7 +67,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             wall = r.info["wall_s"]
             out = {
                 "model": "reduced",
-                "step_um": r.step_size * 1e6,
+                "mean_abs_step_um": r.step_size * 1e6,
                 "steps_um": [float(x) * 1e6 for x in r.steps],
                 "net_rotation_rad": r.net_rotation,
                 "detector_V_net": r.detector_V_net,
@@ -80,9 +80,27 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 coarse_factor=args.coarse_factor or None, output_dt=output_dt,
             )  # fmt: skip
             out = {"model": "full", **r.summary()}
+            out["mean_abs_step_um"] = out.pop("step_um")
     except SimulationError as exc:
         print(f"turntable: error: {exc}", file=sys.stderr)
         return 3
+    two = drive.pattern == "two"
+    fig = r.figure_step(drive.n_periods, two)
+    out = {
+        "step_um": fig["step"] * 1e6,
+        "figure": (
+            f"Fig. 4.6: t1 -> t2 = the last forward block ({drive.n_periods} steps after a "
+            "reversal when cycles > 1), read from the detector with Eq. 4.1-4.2; return "
+            "t3 - t1 over its cycle"
+            if two
+            else f"Fig. 4.7: t1 -> t2 over {drive.n_periods} periods from rest, read from the "
+            "detector with Eq. 4.1-4.2"
+        ),
+        "excursion_um": fig["excursion"] * 1e6,
+        **({"return_um": fig["return"] * 1e6,
+            "return_fraction": fig["return"] / fig["excursion"]} if two else {}),
+        **out,
+    }  # fmt: skip
     out["drive"] = {
         "amplitude_V_input": drive.amplitude,
         "amplitude_V_tubes": drive.amplitude * ps.amplifier.gain,
@@ -94,8 +112,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         "amplifier": args.amplifier or ("ideal" if ps.amplifier.ideal else "adapted"),
         "flyback": drive.flyback,
     }
-    if args.params == "real":
-        out["measured_step_um"] = 0.37 if args.signal == "one" else 0.30
+    if args.params in ("real", "calibrated") and args.axis == "B":
+        from .calibration.thesis_data import thesis_step_sizes
+
+        measured = thesis_step_sizes()["one_directional" if not two else "two_directional"]
+        out["measured_step_um"] = measured * 1e6
     if args.out:
         r.to_pandas().to_csv(args.out)
     if args.json:
@@ -180,7 +201,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         res = calibrate(files, fit_fraction=args.fit_fraction)
     paths = write_report(res, args.report)
     print(
-        f"selected effects: {', '.join(res.selected_effects) or 'none'}; held-out error "
+        f"selected effects: {', '.join(res.selected_effects) or 'none'}; {res.error_label} "
         f"{res.error_before:.3g} → {res.error_after:.3g} {res.error_unit}; residual structured: "
         f"{res.residual_structured}; {res.wall_s:.1f} s; report: {paths['json']}"
     )
@@ -202,9 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
     pp = sub.add_parser("params", help="print a parameter set with every given and derived value")
     pp.add_argument(
         "--set",
-        choices=["real", "thesis"],
+        choices=list(PARAMETER_SETS),
         default="real",
-        help="Table D.1 (real) or Table D.2 (thesis)",
+        help="Table D.1 (real), Table D.2 (thesis) or the calibrated real turntable",
     )
     pp.add_argument("--json", action="store_true", help="print JSON")
     pp.set_defaults(func=_cmd_params)
@@ -216,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
         "radius (Eq. 4.2), every step, the net rotation, the detector's net voltage, the "
         "energy closure and the real-time factor.",
     )
-    ps.add_argument("--params", choices=["real", "thesis"], default="real")
+    ps.add_argument("--params", choices=list(PARAMETER_SETS), default="real")
     ps.add_argument("--axis", choices=["A", "B", "C", "Z"], default="B")
     ps.add_argument("--signal", choices=["one", "two"], default="one")
     ps.add_argument("--amplitude", type=float, default=2.0, help="amplifier input [V] (x45)")
@@ -224,7 +245,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--frequency", type=float, default=None, help="[Hz] (default: the set's, 100 / 2)"
     )
     ps.add_argument("--periods", type=int, default=10, help="periods (per direction)")
-    ps.add_argument("--cycles", type=int, default=1, help="forward-back cycles (--signal two)")
+    ps.add_argument(
+        "--cycles", type=int, default=None,
+        help="forward-back cycles (--signal two; default 3: Fig. 4.6 is read on the last)",
+    )  # fmt: skip
     ps.add_argument("--a", type=float, default=None, help="ramp ratio (default: 0.95)")
     ps.add_argument(
         "--amplifier",

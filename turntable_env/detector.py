@@ -5,6 +5,19 @@ Eq. 4.2: x_table = θ·R_table, the displacement at the contact radius.
 S = 9.9e-5 m/V is linear within ±0.2 mm of spot travel (Fig. 4.4); beyond it the
 photodiode output saturates (modelled as a hard clip at ±0.2 mm/S = ±2.02 V).
 Optional additive Gaussian voltage noise.
+
+Two properties of the rig, not of Eq. 4.1 (the laboratory's conversion knows neither):
+
+* the beam reads the tilt of the *mirror*, not the table's rotation: a rotation θ about
+  axis u tilts a mirror of normal m by θ·|u × m| (``tilt_factor``). A mirror lying on
+  the table's flat face (m vertical) under a rotation about a tube axis (35.26° below
+  the horizon, Eq. 3.2) tilts by θ·cos 35.26° = 0.8165·θ; one facing the axis's
+  perpendicular tilts by θ (the default, as the thesis reads Eq. 4.1);
+* the photodiode's volts per metre of spot travel may differ from the calibrated 1/S
+  (``gain``: true over calibrated, Fig. 4.4).
+
+:meth:`Detector.voltage` is what the photodiode outputs for a table angle; :meth:`angle`
+is the laboratory's Eq. 4.1 reading of a voltage.
 """
 
 from __future__ import annotations
@@ -17,7 +30,7 @@ import numpy as np
 from .quantities import Quantity
 from .validation import check_array_finite, check_nonnegative, check_positive
 
-__all__ = ["Detector"]
+__all__ = ["Detector", "mirror_tilt_factor"]
 
 
 @dataclass(frozen=True)
@@ -30,6 +43,9 @@ class Detector:
         linear_range: half-width of the linear spot range [m] (0.2e-3).
         table_radius: R_table for Eq. 4.2 [m].
         noise_std: standard deviation of additive voltage noise [V] (0 = noise off).
+        tilt_factor: mirror tilt per table rotation about the watched axis, |u × m| [-]
+            (module docstring; :func:`mirror_tilt_factor`).
+        gain: photodiode volts per metre of spot travel, times S [-] (1: Fig. 4.4 exact).
     """
 
     sensitivity: float = 9.9e-5
@@ -37,6 +53,8 @@ class Detector:
     linear_range: float = 0.2e-3
     table_radius: float = 0.01
     noise_std: float = 0.0
+    tilt_factor: float = 1.0
+    gain: float = 1.0
 
     def __post_init__(self) -> None:
         check_positive("sensitivity", self.sensitivity)
@@ -44,6 +62,9 @@ class Detector:
         check_positive("linear_range", self.linear_range)
         check_positive("table_radius", self.table_radius)
         check_nonnegative("noise_std", self.noise_std)
+        if not 0.0 < check_positive("tilt_factor", self.tilt_factor) <= 1.0:
+            raise ValueError(f"tilt_factor={self.tilt_factor!r}: must be in (0, 1]")
+        check_positive("gain", self.gain)
 
     @property
     def saturation_voltage(self) -> float:
@@ -67,12 +88,18 @@ class Detector:
         th = check_array_finite("angle", angle)
         if (np.abs(th) >= math.pi / 4).any():
             raise ValueError(f"angle={angle!r}: |θ| must be < π/4 (beam leaves the detector plane)")
-        x_spot = self.distance * np.tan(2.0 * th)
-        v = x_spot / self.sensitivity
+        v = self.unclipped_voltage(th)
         if rng is not None and self.noise_std > 0.0:
             v = v + rng.normal(0.0, self.noise_std, size=v.shape)
         vs = self.saturation_voltage
         return np.clip(v, -vs, vs)
+
+    def unclipped_voltage(self, angle: np.ndarray) -> np.ndarray:
+        """Photodiode output [V] for table angle θ [rad] before saturation (Eq. 4.1 inverted
+        for the mirror's tilt, times the gain; no validation: the compiled-path helper)."""
+        th = 2.0 * angle if self.tilt_factor == 1.0 else 2.0 * self.tilt_factor * angle
+        v = self.distance * np.tan(th) / self.sensitivity
+        return v if self.gain == 1.0 else self.gain * v
 
     def is_saturated(self, voltage: np.ndarray | float) -> np.ndarray:
         """True where a reading sits at the saturation voltage (angle not recoverable)."""
@@ -105,4 +132,21 @@ class Detector:
                 f"{prefix}.angle_range", self.angle_range, "rad", d, "0.5*arctan(linear_range/L)"
             ),
             Quantity(f"{prefix}.noise_std", self.noise_std, "V", g, "additive noise (0 = off)"),
+            Quantity(
+                f"{prefix}.tilt_factor", self.tilt_factor, "-", g,
+                "mirror tilt per table rotation |u x m| (1: as Eq. 4.1 is read)",
+            ),
+            Quantity(f"{prefix}.gain", self.gain, "-", g, "photodiode V per m of spot, times S"),
         ]
+
+
+def mirror_tilt_factor(axis_unit: np.ndarray, mirror_normal: np.ndarray) -> float:
+    """|u × m|: the tilt of a mirror of normal ``mirror_normal`` per unit table rotation
+    about ``axis_unit`` (both in the table frame; normalised here) [-]. A horizontal mirror
+    (m = z) under a rotation about a tube axis at α = 35.26° below the horizon gives
+    cos α = 0.8165."""
+    u = np.asarray(axis_unit, dtype=float)
+    m = np.asarray(mirror_normal, dtype=float)
+    u = u / np.linalg.norm(u)
+    m = m / np.linalg.norm(m)
+    return float(np.linalg.norm(np.cross(u, m)))

@@ -10,6 +10,10 @@ effect                  stage       model (parameters)
 amplifier_dynamics      parameters  HVA 900 slower or faster than measured: slew per input volt
                                     (settling time τ ∝ 1/slew, slew ∝ step, §4.1.2) and current
                                     limit scaled (``slew_scale``, ``current_scale``)
+amplifier_fast_path     parameters  the HVA 900 is not first order: its step response has a fast
+                                    partial rise before the slow tail, then the output's rate
+                                    limit (``fraction``, ``tau_fast`` [s],
+                                    :mod:`turntable_env.amplifier`)
 piezo_hysteresis        input       Prandtl–Ishlinskii operator on the drive: (1 − h)·u + h·mean of
                                     8 play operators with thresholds up to ``width``; PZT shows
                                     10–15 % of stroke (``h``, ``width`` [V])
@@ -151,6 +155,18 @@ CATALOGUE: dict[str, Effect] = {
             "quadrants' capacitance. Aged or different units settle slower or faster.",
         ),
         Effect(
+            "amplifier_fast_path",
+            "parameters",
+            (
+                _P("fraction", "-", 0.0, 0.6, 0.0, 0.3, "share of a step the fast path covers"),
+                _P("tau_fast", "s", 0.2e-6, 5e-6, 1e-6, 1e-6, "fast path time constant"),
+            ),
+            "§4.1.2: 1 V and 3 V steps scale linearly (0.9, 2.7 V/µs: 'divide the 3 V response "
+            "by three') while the adapted flyback reaches 8.0 V/µs, which no first-order "
+            "stage with the same settling time gives (3.6 V/µs): the amplifier's step response "
+            "has a fast partial rise followed by the slow tail.",
+        ),
+        Effect(
             "piezo_hysteresis",
             "input",
             (
@@ -271,6 +287,8 @@ def parse_effects(spec: str) -> dict[str, dict[str, float]]:
 EFFECT_FIELDS = (
     "amplifier_dynamics.slew_scale",
     "amplifier_dynamics.current_scale",
+    "amplifier_fast_path.fraction",
+    "amplifier_fast_path.tau_fast",
     "piezo_hysteresis.h",
     "piezo_hysteresis.width",
     "piezo_creep.gamma",
@@ -285,6 +303,9 @@ EFFECT_FIELDS = (
     "vibration.phase",
 )
 _COL = {name: i for i, name in enumerate(EFFECT_FIELDS)}
+_H_COL = _COL["piezo_hysteresis.h"]  # the input stage's columns (compiled constants)
+_WIDTH_COL = _COL["piezo_hysteresis.width"]
+_GAMMA_COL = _COL["piezo_creep.gamma"]
 N_PLAY = 8  # play operators of the Prandtl–Ishlinskii model
 WEAR_LENGTH = 10e-6  # m of travel at the table radius per unit of friction_wear.beta
 CREEP_TAUS = (1e-3, 1e-2, 1e-1, 1.0, 10.0)  # s, one first-order mode per decade
@@ -314,10 +335,15 @@ assert set(_NEUTRAL) == set(EFFECT_FIELDS), "EFFECT_FIELDS must list every catal
 
 # --- parameters stage ---------------------------------------------------------------------------
 def apply_parameters(ps: ParameterSet, effects: Mapping[str, Mapping[str, float]]) -> ParameterSet:
-    """Parameter-stage effects (amplifier_dynamics: slew per input volt and current limit)."""
+    """Parameter-stage effects: amplifier_dynamics (slew per input volt and current limit),
+    amplifier_fast_path (the amplifier's fast partial response)."""
     if "amplifier_dynamics" in effects:
         v = effects["amplifier_dynamics"]
         ps = replace(ps, amplifier=ps.amplifier.scaled(v["slew_scale"], v["current_scale"]))
+    if "amplifier_fast_path" in effects:
+        v = effects["amplifier_fast_path"]
+        amp = replace(ps.amplifier, fast_fraction=v["fraction"], fast_time=v["tau_fast"])
+        ps = replace(ps, amplifier=amp)
     return ps
 
 
@@ -341,9 +367,9 @@ def input_stage_nb(t, u, n, seconds, row, plays, creep, ref, out_t, out_v):
     Writes the output breakpoints to out_t, out_v and returns their count (at most
     n·(N_PLAY + 1) + the creep pieces).
     """
-    h = row[2]
-    width = row[3]
-    gamma = row[4]
+    h = row[_H_COL]
+    width = row[_WIDTH_COL]
+    gamma = row[_GAMMA_COL]
     widths = np.empty(N_PLAY)
     for j in range(N_PLAY):
         widths[j] = width * (j + 1) / N_PLAY
@@ -478,16 +504,19 @@ def detector_stage(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(x, y) detector voltages [V] before noise and saturation for table angle θ [rad] at
     times t [s] (since the plant's start) with effect rows broadcast against them:
-    vibration adds A·sin(2πft + φ) to θ; Eq. 4.1 reads 2θ·cos φ (x) and 2θ·sin φ (y) for a
-    misalignment φ; the photodiode adds κ·V³/V_sat² and drift offset + rate·t."""
+    vibration adds A·sin(2πft + φ) to θ; the beam turns by twice the mirror's tilt
+    (``detector.tilt_factor``·θ, Eq. 4.1), read as 2θ·cos φ (x) and 2θ·sin φ (y) for a
+    misalignment φ, times the photodiode's ``gain``; the photodiode adds κ·V³/V_sat² and
+    drift offset + rate·t."""
     th = np.asarray(theta, dtype=float)
     c = _COL
     amp = rows[..., c["vibration.amplitude"]]
     freq = rows[..., c["vibration.frequency"]]
     th = th + amp * np.sin(2.0 * math.pi * freq * t + rows[..., c["vibration.phase"]])
     phi = rows[..., c["axis_misalignment.phi"]]
-    x = detector.distance * np.tan(2.0 * th * np.cos(phi)) / detector.sensitivity
-    y = detector.distance * np.tan(2.0 * th * np.sin(phi)) / detector.sensitivity
+    tilt = 2.0 * detector.tilt_factor * th  # the mirror's tilt, doubled by the reflection
+    x = detector.gain * detector.distance * np.tan(tilt * np.cos(phi)) / detector.sensitivity
+    y = detector.gain * detector.distance * np.tan(tilt * np.sin(phi)) / detector.sensitivity
     kappa = rows[..., c["detector_nonlinearity.kappa"]]
     vs = detector.saturation_voltage
     x = x * (1.0 + kappa * (x / vs) ** 2)

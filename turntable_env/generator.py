@@ -100,13 +100,15 @@ def template_nb(s, out_t, out_v):
 def adapted_hold(amp, amplitude, frequency, a, k):
     """(k, hold [s]) of the Fig. 4.3 adapted flyback of a sawtooth of ``amplitude`` [V input]:
     the overshoot k capped so that −k·A stays inside the input range, the time the amplifier
-    (``amp`` row: gain, τ, ideal, input limit, rate limit of the channel's load) needs to
+    (``amp`` row, :meth:`~turntable_env.amplifier.Amplifier.kernel_row`) needs to
     reach 0 V (:meth:`~turntable_env.amplifier.Amplifier.adapted_hold_time`), capped at the
     flyback interval (1 − a)/f. k = 0 or A = 0: (k, 0)."""
     if k <= 0.0 or amplitude == 0.0:
         return k, 0.0
     k = min(k, amp[3] / abs(amplitude))
-    hold = adapted_hold_core(abs(amplitude), 0.0, k, amp[0], amp[1], amp[4], amp[2] > 0.5)
+    hold = adapted_hold_core(
+        abs(amplitude), 0.0, k, amp[0], amp[1], amp[4], amp[2] > 0.5, amp[5], amp[6]
+    )
     return k, min(hold, (1.0 - a) / frequency)
 
 
@@ -297,7 +299,7 @@ def generate_interval(
             are filled in here for adapted flybacks (:func:`adapted_hold`);
         offset0, offset1: scan level at the start and the end of the interval [V input]
             (ramped linearly in between);
-        amp: (N, 5) amplifier rows (gain, τ, ideal, input limit, rate limit);
+        amp: (N, 7) amplifier rows (:meth:`~turntable_env.amplifier.Amplifier.kernel_row`);
         c_load: capacitance of the driven channel [F].
     Outputs: wg, wv, wn: the amplifier input as grid breakpoints (grid units, V, count);
     flybacks: steps started; energy: C∫|V dV| of the amplifier output [J].

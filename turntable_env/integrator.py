@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .amplifier import slew_step
+from .amplifier import amplifier_hold_step
 from .friction.gms2d import gms2d_rates, gms2d_update
 from .friction.kernels import stribeck_magnitude
 from .screw import log_so3_nb, rotate_left_inplace
@@ -48,7 +48,7 @@ STATUS_NAMES = {0: "ok", 1: "non-finite", 2: "diverging", 3: "rim"}
 # layout of the packed scalar arrays (documented here, filled by turntable_env.model)
 # table_p: [m, g, P, R_table, R_ball, r_nom, k_c, e, d_c, w_ball, w_table, bound_u, bound_delta]
 # gms_p:   [C, mu_s, mu_c, v_s, delta, sigma2, beta_t]
-# amp_p:   [gain, tau, ideal, input_limit]
+# amp_p:   [gain, tau, ideal, input_limit, fast_fraction, fast_time]
 # energy accumulators acc: [W_elec, W_interface, D_tube, D_contact, gross |W_elec|]
 
 
@@ -264,11 +264,13 @@ def contact_forces(
 
 
 @njit(cache=True)
-def quadrant_voltages(vch, qchan, vq):
+def quadrant_voltages(vch, qchan, qsign, vq):
+    """Quadrant voltages [V] from the channel voltages (sign −1: the symmetric mode's
+    opposite quadrant)."""
     for k in range(3):
         for q in range(4):
             c = qchan[k, q]
-            vq[k, q] = vch[c] if c >= 0 else 0.0
+            vq[k, q] = qsign[k, q] * vch[c] if c >= 0 else 0.0
 
 
 @njit(cache=True)
@@ -447,14 +449,15 @@ def _first_bad(pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, 
 @njit(cache=True)
 def _is_quiet(
     t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst, gnu, gk, fn,
-    cinfo, table_p, gms_p, vch, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load, quiet_volt,
-    dt_coarse, scr,
+    cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load,
+    quiet_volt, dt_coarse, scr,
 ):  # fmt: skip
     """True if a coarse step is safe now: every GMS element sticks with a margin to its static
     capacity ν_i μ_s F_N that lasts ``quiet_load`` coarse steps at its present loading rate
     k_i|v|, no body accelerates faster than ``quiet_acc`` [m/s²]
     (table rotation and tube-top rotation times their levers), and no amplifier channel
-    would move more than ``quiet_volt`` [V] in a coarse step."""
+    would move more than ``quiet_volt`` [V] in a coarse step, nor its fast path still be
+    settling by more than that."""
     mu_s = gms_p[1]
     kn_tangent = table_p[6] * table_p[7]  # × δ^(e−1) below: normal stiffness [N/m]
     for k in range(3):
@@ -513,6 +516,8 @@ def _is_quiet(
         u = min(ulim, max(-ulim, u))
         if not ideal and abs(gain * u - vch[c]) * dt_coarse / tau > quiet_volt:
             return False
+        if not ideal and abs(amp_p[4] * gain * u - vfast[c]) > quiet_volt:
+            return False
     return True
 
 
@@ -543,12 +548,14 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording):
         state.pc_disp, state.vc, state.rot, state.lam, state.xi, state.xid
     )  # fmt: skip
     gf, gst, vch, acc = state.gf, state.gst, state.vch, state.acc
+    vslow, vfast = state.amp_slow, state.amp_fast
     table_p, jinv, c_body = model.table_p, model.jinv, model.c_body
     d_nom, r0 = model.d_nom, model.r0
     basis_ref, mtube, minv, ktop, dtop = (
         model.basis_ref, model.mtube, model.minv, model.ktop, model.dtop
     )  # fmt: skip
     bcoup, cs, qchan, gnu, gk = model.bcoup, model.cs, model.qchan, model.gnu, model.gk
+    qsign = model.qsign
     gms_p, amp_p, amp_rate = model.gms_p, model.amp_p, model.amp_rate
     wt, wv, wn = drive.times, drive.values, drive.count
     t_out, rec_state, rec_contact = recording.t_out, recording.state, recording.contact
@@ -585,6 +592,8 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording):
     gain = amp_p[0]
     ideal = amp_p[2] > 0.5
     ulim = amp_p[3]
+    a_fast = amp_p[4]
+    t_fast = amp_p[5]
     d_rim = d_nom  # the rim check uses the nominal contact directions
     dt_fine = step_p[0]
     dt_coarse = step_p[1]
@@ -603,7 +612,7 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording):
     t = t0
     for c in range(4):
         widx[c] = advance_index(wt[c], wn[c], 0, t)
-    quadrant_voltages(vch, qchan, vq)
+    quadrant_voltages(vch, qchan, qsign, vq)
     _charges(xi, vq, bcoup, cs, qch)
 
     # kinematics and forces at t0
@@ -675,8 +684,8 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording):
         if quiet:
             quiet = _is_quiet(
                 t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst,
-                gnu, gk, fn, cinfo, table_p, gms_p, vch, wt, wv, wn, widx, amp_p, quiet_acc,
-                quiet_load, quiet_volt, dt_coarse, scr,
+                gnu, gk, fn, cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p,
+                quiet_acc, quiet_load, quiet_volt, dt_coarse, scr,
             )  # fmt: skip
             if not quiet:
                 fine_until = t + hold
@@ -806,8 +815,10 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording):
             if ideal:
                 vch[c] = gain * u
             else:
-                vch[c] = slew_step(vch[c], gain * u, dt, tau_amp, amp_rate[c])
-        quadrant_voltages(vch, qchan, vq_new)
+                vch[c], vslow[c], vfast[c] = amplifier_hold_step(
+                    vch[c], vslow[c], vfast[c], u, dt, gain, tau_amp, amp_rate[c], a_fast, t_fast
+                )
+        quadrant_voltages(vch, qchan, qsign, vq_new)
         _charges(xi, vq_new, bcoup, cs, qch_new)
         for k in range(3):
             for q in range(4):

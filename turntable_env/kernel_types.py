@@ -56,6 +56,8 @@ class ReducedState(NamedTuple):
         f: (N, 2, n_e) GMS element forces of the two contacts [N].
         st: (N, 2, n_e) 1 stick / 0 slip.
         n: (N,) time in grid units.
+        vslow, vfast: (N,) the amplifier's slow and fast paths [V]
+            (:mod:`turntable_env.amplifier`; without a fast path vslow = volt, vfast = 0).
     """
 
     y: np.ndarray
@@ -63,6 +65,8 @@ class ReducedState(NamedTuple):
     f: np.ndarray
     st: np.ndarray
     n: np.ndarray
+    vslow: np.ndarray
+    vfast: np.ndarray
 
 
 class ReducedArrays(NamedTuple):
@@ -70,7 +74,8 @@ class ReducedArrays(NamedTuple):
     :meth:`turntable_env.reduced.ReducedModel` for each field's derivation).
 
     ``mech`` [J, k_g, ρ1, ρ2, M1, M2, K1, K2, D1, D2, g1, g2, F_N1, F_N2]; ``gms`` [C, μ_s,
-    μ_c, v_s, δ, σ2, β_t]; ``amp`` [gain, τ, ideal, input limit, rate]; ``ctl`` [quiet length
+    μ_c, v_s, δ, σ2, β_t]; ``amp`` [gain, τ, ideal, input limit, rate, fast fraction, τ_f] (as
+    :meth:`~turntable_env.amplifier.Amplifier.kernel_row`); ``ctl`` [quiet length
     [m], largest rung while an element slips]; ``nu``, ``kk`` the GMS elements; ``lvl``,
     ``nlvl`` stick-configuration levels; ``phi_*``, ``gam_*`` exact step matrices per
     configuration and rung; ``qs``, ``modal_*`` the quasi-static and modal projections of
@@ -125,7 +130,8 @@ class FullState(NamedTuple):
         [kg·m²/s]; xi, xid: (3, 6) tube-top twists [rad, m] and rates; gf: (3, n_e, 2) GMS
         element forces [N]; gst: (3, n_e) 1 stick / 0 slip; vch: (4,) channel voltages
         [V]; acc: (5,) energy accumulators [J] (W_elec, W_interface, D_tube, D_contact,
-        gross |W_elec|).
+        gross |W_elec|); amp_slow, amp_fast: (4,) each channel amplifier's slow and fast
+        paths [V] (:mod:`turntable_env.amplifier`).
     """
 
     pc_disp: np.ndarray
@@ -138,6 +144,8 @@ class FullState(NamedTuple):
     gst: np.ndarray
     vch: np.ndarray
     acc: np.ndarray
+    amp_slow: np.ndarray
+    amp_fast: np.ndarray
 
     def copy(self) -> FullState:
         """A deep copy (the kernel modifies the arrays in place)."""
@@ -166,6 +174,7 @@ class FullArrays(NamedTuple):
     bcoup: np.ndarray
     cs: np.ndarray
     qchan: np.ndarray
+    qsign: np.ndarray
     gnu: np.ndarray
     gk: np.ndarray
     gms_p: np.ndarray

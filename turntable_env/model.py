@@ -126,12 +126,17 @@ class TurntableLayout:
         tube_frames: (3, 3, 3) rotation tube frame → world; columns x_k, y_k, z_k.
         axis_units: (4, 3) unit vectors of the rotation axes A, B, C, Z.
         quadrant_channel: (3, 4) channel index (0..3 = A, B, C, Z) of each quadrant.
+        quadrant_sign: (3, 4) +1 or −1: the quadrant sees that sign times its channel's
+            voltage (−1 only in the symmetric drive mode).
+        drive_mode: "asymmetric" or "symmetric" (§2.1.2, Fig. 2.5).
     """
 
     d: np.ndarray
     tube_frames: np.ndarray
     axis_units: np.ndarray
     quadrant_channel: np.ndarray
+    quadrant_sign: np.ndarray
+    drive_mode: str = "asymmetric"
 
     def channel_quadrants(self, axis: str) -> list[tuple[str, int]]:
         """(tube, quadrant) pairs driven by channel ``axis``."""
@@ -141,9 +146,17 @@ class TurntableLayout:
         ]
 
 
-def layout(alpha: float) -> TurntableLayout:
-    """Build the :class:`TurntableLayout` for the tube angle α [rad] below the horizon."""
+def layout(alpha: float, drive_mode: str = "asymmetric") -> TurntableLayout:
+    """Build the :class:`TurntableLayout` for the tube angle α [rad] below the horizon.
+
+    ``drive_mode`` (§2.1.2, Fig. 2.5): ``"asymmetric"`` — channel X drives one quadrant of
+    each other tube, the remaining six quadrants are channel Z's (the thesis's wiring);
+    ``"symmetric"`` — channel X drives that quadrant at +V and the opposite one at −V,
+    which doubles the bending (Eq. 2.11 vs 2.12) and cancels the mean axial strain; every
+    quadrant then belongs to A, B or C and channel Z drives none."""
     a = check_finite("alpha", alpha)
+    if drive_mode not in ("asymmetric", "symmetric"):
+        raise ValueError(f"drive_mode={drive_mode!r}: must be 'asymmetric' or 'symmetric'")
     d = np.empty((3, 3))
     for k in range(3):
         phi = math.pi / 2 + 2 * math.pi * k / 3  # A, B, C counter-clockwise seen from above
@@ -152,6 +165,7 @@ def layout(alpha: float) -> TurntableLayout:
         d[[1, 2]] = d[[2, 1]]
     frames = np.empty((3, 3, 3))
     qchan = np.empty((3, 4), dtype=np.int64)
+    qsign = np.ones((3, 4))
     for k in range(3):
         nxt, prv = (k + 1) % 3, (k + 2) % 3
         z = -d[k]
@@ -160,9 +174,16 @@ def layout(alpha: float) -> TurntableLayout:
         y = np.cross(z, x)
         frames[k] = np.column_stack([x, y, z])
         # +x bends along d_next × d_k (channel next); −y = d_next... see module docstring
-        qchan[k] = [nxt, 3, 3, prv]
+        if drive_mode == "asymmetric":
+            qchan[k] = [nxt, 3, 3, prv]
+        else:  # quadrants +x, +y, −x, −y: the opposite quadrant at minus the voltage
+            qchan[k] = [nxt, prv, nxt, prv]
+            qsign[k] = [1.0, -1.0, -1.0, 1.0]
     axis_units = np.vstack([d, [0.0, 0.0, 1.0]])
-    return TurntableLayout(d=d, tube_frames=frames, axis_units=axis_units, quadrant_channel=qchan)
+    return TurntableLayout(
+        d=d, tube_frames=frames, axis_units=axis_units, quadrant_channel=qchan,
+        quadrant_sign=qsign, drive_mode=drive_mode,
+    )  # fmt: skip
 
 
 def axis_index(axis: str) -> int:
@@ -263,8 +284,18 @@ class TurntableModel:
         return self.params.tube.quadrant.capacitance
 
     def load_capacitance(self, axis: str) -> float:
-        """Capacitance on amplifier channel ``axis`` [F] (its quadrants in parallel)."""
+        """Capacitance channel ``axis`` drives [F]: all its quadrants (the electrical
+        energy's load)."""
         return len(self.layout.channel_quadrants(axis)) * self.quadrant_capacitance
+
+    def output_capacitance(self, axis: str) -> float:
+        """Capacitance on one amplifier output of channel ``axis`` [F] (its current limit's
+        load): all the channel's quadrants in the asymmetric mode; in the symmetric mode
+        the +V quadrants, the −V ones hanging on a second, inverting output."""
+        c = axis_index(axis)
+        lay = self.layout
+        n = int(np.sum((lay.quadrant_channel == c) & (lay.quadrant_sign > 0.0)))
+        return n * self.quadrant_capacitance
 
     @property
     def omega_max(self) -> float:
@@ -275,7 +306,7 @@ class TurntableModel:
         tube, table, contact, fr = ps.tube, ps.table, ps.contact, ps.friction
         assert contact is not None and fr is not None
         geo = ps.geometry
-        lay = layout(geo.alpha)
+        lay = layout(geo.alpha, ps.rig.drive_mode)
         R = table.radius
         r_ball = tube.outer_radius
         h_seat = tube.seat_height
@@ -341,10 +372,17 @@ class TurntableModel:
             ]
         )
         amp = ps.amplifier
-        amp_p = np.array([amp.gain, amp.tau, 1.0 if amp.ideal else 0.0, amp.input_limit])
+        amp_p = np.array(
+            [amp.gain, amp.tau, 1.0 if amp.ideal else 0.0, amp.input_limit, amp.fast_fraction,
+             amp.fast_time]
+        )  # fmt: skip
         c_free = tube.quadrant.capacitance
+        per_output = (lay.quadrant_sign > 0.0)  # quadrants on each channel's +V output
         amp_rate = np.array(
-            [amp.rate_limit(c_free * int(np.sum(lay.quadrant_channel == c))) for c in range(4)]
+            [
+                amp.rate_limit(c_free * int(np.sum((lay.quadrant_channel == c) & per_output)))
+                for c in range(4)
+            ]
         )
         # highest natural frequency: each tube top on its spring and contact springs
         kn = contact.static_stiffness
@@ -376,6 +414,7 @@ class TurntableModel:
             "bcoup": bcoup,
             "cs": cs,
             "qchan": lay.quadrant_channel.copy(),
+            "qsign": lay.quadrant_sign.copy(),
             "gnu": gnu,
             "gk": gk,
             "gms_p": gms_p,
@@ -394,7 +433,7 @@ class TurntableModel:
         ar = self.packed
         vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
         vq = np.zeros((3, 4))
-        quadrant_voltages(vch, ar["qchan"], vq)
+        quadrant_voltages(vch, ar["qchan"], ar["qsign"], vq)
         scale = 1e-2 * ar["table_p"][12]  # length scale of the unknowns [m]
         f_scale = self.params.contact.preload  # type: ignore[union-attr]
         ne = ar["gnu"].size
@@ -451,7 +490,7 @@ class TurntableModel:
         for axis, sig in drive.items():
             axis_index(axis)
             if isinstance(sig, DriveSignal):
-                out[axis] = sig.waveform(self.params.amplifier, self.load_capacitance(axis))
+                out[axis] = sig.waveform(self.params.amplifier, self.output_capacitance(axis))
             elif isinstance(sig, Waveform):
                 out[axis] = sig
             else:
@@ -475,6 +514,8 @@ class TurntableModel:
             gst=np.ones((3, ne), dtype=np.int64),
             vch=vch.copy(),
             acc=np.zeros(5),
+            amp_slow=(1.0 - self.params.amplifier.fast_fraction) * vch,
+            amp_fast=self.params.amplifier.fast_fraction * vch,
         )
 
     @property
@@ -551,7 +592,10 @@ class TurntableModel:
             if not isinstance(initial_state, FullState):
                 raise ValueError(f"initial_state: must be a FullState, got {type(initial_state)}")
             ne = self.packed["gnu"].size
-            shapes = ((3,), (3,), (3, 3), (3,), (3, 6), (3, 6), (3, ne, 2), (3, ne), (4,), (5,))
+            shapes = (
+                (3,), (3,), (3, 3), (3,), (3, 6), (3, 6), (3, ne, 2), (3, ne), (4,), (5,), (4,),
+                (4,),
+            )  # fmt: skip
             for name, shape, v in zip(FullState._fields, shapes, initial_state, strict=True):
                 if np.shape(v) != shape:
                     raise ValueError(f"initial_state.{name}: not of shape {shape}")

@@ -26,6 +26,7 @@ tube's (0.16), which reproduces D.2's R_bending lever to 2 % — evidence for re
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import tomllib
@@ -45,9 +46,13 @@ from .tube import TubeParams, TubeStiffness
 from .validation import check_finite, check_in_open
 
 __all__ = [
+    "PARAMETER_SETS",
+    "RIG_CHOICES",
+    "RIG_PRIORS",
     "UNLISTED_FILE",
     "ContactParams",
     "ParameterSet",
+    "RigParams",
     "UnlistedRealInputs",
     "get_parameter_set",
     "load_unlisted",
@@ -183,6 +188,105 @@ def load_unlisted(
         raise ValueError(f"{p}: {exc}") from None
 
 
+RIG_PRIORS: dict[str, tuple[float, float, float, float, str]] = {
+    # name: (low, high, prior mean, prior std, source) — continuous rig parameters
+    "d31_factor": (
+        1.0, 1.4, 1.1, 0.1,
+        "large-signal d31 over Table D.1's small-signal value: soft PZT (PIC 151) gains "
+        "10-30 % at drive fields of a few hundred V/mm; 90 V over the 0.508 mm wall is "
+        "177 V/mm",
+    ),
+    "length_factor": (
+        0.95, 1.05, 1.0, 0.02,
+        "tube length over Table D.1's 6.35 mm (1/4 in): commercial tolerance about ±2 %",
+    ),
+    "detector_gain": (
+        0.9, 1.1, 1.0, 0.03,
+        "photodiode volts per metre of spot times S (Fig. 4.4's S = 9.9e-5 m/V, quoted to "
+        "two digits)",
+    ),
+    "presliding_factor": (
+        0.5, 5.0, 1.0, 0.7,
+        "contact presliding distance over Mindlin's smooth-sphere gross-slip displacement: "
+        "rough surfaces are more compliant (prior std on the natural log)",
+    ),
+}  # fmt: skip
+RIG_CHOICES: dict[str, tuple[tuple, tuple[float, ...], str]] = {
+    # name: (options, prior probabilities, source) — discrete rig parameters
+    "drive_mode": (
+        ("asymmetric", "symmetric"), (0.8, 0.2),
+        "§2.1.2: 'the turntable is used in the asymmetric voltage mode'; symmetric (±V on "
+        "opposite quadrants) doubles the bending",
+    ),
+    "axial_strain_sign": (
+        (1, -1), (0.5, 0.5),
+        "the quadrants' poling relative to the electrode wiring is not documented",
+    ),
+    "mirror_tilt": (
+        (0.8164965809277261, 1.0), (0.8, 0.2),
+        "§4.1.1: 'a mirror sited on top of the turntable' — on the flat face it tilts by "
+        "cos 35.26° per rotation about a tube axis; 1 if it faces the axis's perpendicular",
+    ),
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class RigParams:
+    """Properties of the laboratory rig that the thesis does not pin down (Table D.1 is the
+    design); their priors and sources are :data:`RIG_PRIORS` and :data:`RIG_CHOICES`.
+
+    Attributes:
+        d31_factor: large-signal d₃₁ over the small-signal value [-].
+        drive_mode: ``"asymmetric"`` (one quadrant per channel and tube, §2.1.2) or
+            ``"symmetric"`` (±V on opposite quadrants).
+        axial_strain_sign: +1 if the quadrant that bends a tube forward shortens, −1 if it
+            lengthens (:class:`~turntable_env.tube.TubeParams`).
+        length_factor: tube length over Table D.1's [-].
+        mirror_tilt: mirror tilt per table rotation about the watched axis
+            (:class:`~turntable_env.detector.Detector`) [-].
+        detector_gain: photodiode volts per metre of spot, times S [-].
+        presliding_factor: contact presliding distance over Mindlin's value [-].
+        tube_inertia: ``"thesis"`` (Eq. C.13 as printed: Table D.1's 7/12·mL²) or
+            ``"physical"`` (the parallel-axis shift of a CoM L/2 along the axis: 1/3·mL²).
+    """
+
+    d31_factor: float = 1.0
+    drive_mode: Literal["asymmetric", "symmetric"] = "asymmetric"
+    axial_strain_sign: int = 1
+    length_factor: float = 1.0
+    mirror_tilt: float = 1.0
+    detector_gain: float = 1.0
+    presliding_factor: float = 1.0
+    tube_inertia: Literal["thesis", "physical"] = "thesis"
+
+    def __post_init__(self) -> None:
+        if self.tube_inertia not in ("thesis", "physical"):
+            raise ValueError(f"rig.tube_inertia={self.tube_inertia!r}: 'thesis' or 'physical'")
+        for name, (lo, hi, *_rest) in RIG_PRIORS.items():
+            v = check_finite(name, getattr(self, name))
+            if not lo <= v <= hi:
+                raise ValueError(f"rig.{name}={v!r}: outside its physical range {lo:g}…{hi:g}")
+        if self.drive_mode not in RIG_CHOICES["drive_mode"][0]:
+            raise ValueError(f"rig.drive_mode={self.drive_mode!r}: 'asymmetric' or 'symmetric'")
+        if self.axial_strain_sign not in (1, -1):
+            raise ValueError(f"rig.axial_strain_sign={self.axial_strain_sign!r}: +1 or -1")
+        if not 0.5 <= check_finite("mirror_tilt", self.mirror_tilt) <= 1.0:
+            raise ValueError(f"rig.mirror_tilt={self.mirror_tilt!r}: must be in [0.5, 1]")
+
+    def describe(self, prefix: str = "rig") -> list[Quantity]:
+        out = []
+        for name, (lo, hi, mean, std, src) in RIG_PRIORS.items():
+            note = f"prior {mean:g} ± {std:g} in [{lo:g}, {hi:g}]: {src}"
+            out.append(Quantity(f"{prefix}.{name}", getattr(self, name), "-", "given", note))
+        for name, (options, probs, src) in RIG_CHOICES.items():
+            opts = ", ".join(f"{o} ({p:.0%})" for o, p in zip(options, probs, strict=True))
+            note = f"prior {opts}: {src}"
+            out.append(Quantity(f"{prefix}.{name}", getattr(self, name), "-", "given", note))
+        note = "Eq. C.13 as printed (thesis) or the physical parallel axis"
+        out.append(Quantity(f"{prefix}.tube_inertia", self.tube_inertia, "-", "given", note))
+        return out
+
+
 @dataclass(frozen=True)
 class ParameterSet:
     """A complete, immutable parameter set.
@@ -200,6 +304,9 @@ class ParameterSet:
             (real: 100 Hz, §4.1.3; thesis: 2 Hz, see :func:`thesis_parameters`).
         nominal_flyback: ``"step"`` (laboratory, §4.1.2) or ``"ramp"`` (Fig. 3.14 sawtooth).
         notes: how values not in the thesis were obtained (printed).
+        rig: properties of the laboratory rig (:class:`RigParams`); the defaults are the
+            thesis's design reading. :func:`real_parameters` builds them into the tubes,
+            the detector and the contacts; ``TurntableModel`` wires the drive mode.
     """
 
     name: str
@@ -214,6 +321,7 @@ class ParameterSet:
     nominal_frequency: float = 100.0
     nominal_flyback: Literal["step", "ramp"] = "step"
     notes: tuple[Quantity, ...] = ()
+    rig: RigParams = field(default_factory=RigParams)
 
     def __post_init__(self) -> None:
         check_in_open("ramp_ratio", self.ramp_ratio, 0.0, 1.0)
@@ -298,6 +406,7 @@ class ParameterSet:
             out += self.contact.describe()
         out += self.amplifier.describe()
         out += self.detector.describe()
+        out += self.rig.describe()
         out += list(self.notes)
         names = [q.name for q in out]
         dup = {n for n in names if names.count(n) > 1}
@@ -331,19 +440,28 @@ class ParameterSet:
                 over["mu_coulomb"] = u.mu_coulomb * factors["friction"]
             if "preload" in factors:
                 over["normal_force"] = u.normal_force * factors["preload"]
-        ps = self
-        if over:
-            base = {f.name: getattr(u, f.name) for f in fields(u) if f.name != "sources"}
-            ps = replace(
-                real_parameters(overrides={**base, **over}),
-                name=self.name,
-                amplifier=self.amplifier,
-                detector=self.detector,
-            )
+        ps = self._rebuilt(over, self.rig) if over else self
         if factors.get("amplifier", 1.0) != 1.0:
             s = factors["amplifier"]
             ps = replace(ps, amplifier=ps.amplifier.scaled(s, s))
         return ps
+
+    def with_rig(self, rig: RigParams) -> ParameterSet:
+        """This set built for another rig (:class:`RigParams`); needs unlisted inputs."""
+        if rig == self.rig:
+            return self
+        if self.unlisted is None:
+            raise ValueError(f"rig: set {self.name!r} has no unlisted inputs to rebuild from")
+        return self._rebuilt({}, rig)
+
+    def _rebuilt(self, overrides: Mapping[str, float], rig: RigParams) -> ParameterSet:
+        """:func:`real_parameters` from this set's unlisted inputs with ``overrides`` and
+        ``rig``, keeping its name and amplifier (the detector follows the rig)."""
+        u = self.unlisted
+        assert u is not None
+        base = {f.name: getattr(u, f.name) for f in fields(u) if f.name != "sources"}
+        ps = real_parameters(overrides={**base, **overrides}, rig=rig)
+        return replace(ps, name=self.name, amplifier=self.amplifier)
 
     def to_dict(self) -> dict:
         return {"set": self.name, "parameters": {q.name: q.to_dict() for q in self.describe()}}
@@ -358,7 +476,9 @@ def _hertz(table: TableParams, tube: TubeParams, u: UnlistedRealInputs) -> Hertz
 
 
 def real_parameters(
-    overrides: Mapping[str, float] | None = None, unlisted_file: str | Path | None = None
+    overrides: Mapping[str, float] | None = None,
+    unlisted_file: str | Path | None = None,
+    rig: RigParams | None = None,
 ) -> ParameterSet:
     """Table D.1, the real turntable, with the unlisted values derived (see module docstring).
 
@@ -376,17 +496,33 @@ def real_parameters(
     * Eq. 3.24 weights: each body's E/(1−ν²);
     * tube damping from Q_m (stiffness-proportional, :attr:`TubeParams.damping_coefficient`).
 
+    The rig (:class:`RigParams`) sets the tubes' large-signal d₃₁, length, axial-strain
+    sign and inertia convention, the detector's mirror tilt and gain, the presliding
+    distance's factor on Mindlin's value, and (through ``TurntableModel``) the drive mode.
+
     Args:
         overrides: replace entries of the parameter file (calibration), e.g.
             ``{"normal_force": 2.0}``.
         unlisted_file: another parameter file in the same format.
+        rig: the rig's properties (default: the thesis's design reading, every factor 1).
     """
+    rig = rig if rig is not None else RigParams()
     u = load_unlisted(unlisted_file, overrides)
     table = TableParams(radius=0.01, density=8.0e3)
-    tube = TubeParams(quality_factor=u.tube_quality_factor)
+    design = TubeParams()
+    material = design.material
+    if rig.d31_factor != 1.0:
+        material = replace(material, d31=material.d31 * rig.d31_factor)
+    tube = TubeParams(
+        quality_factor=u.tube_quality_factor,
+        length=design.length * rig.length_factor,
+        material=material,
+        axial_strain_sign=rig.axial_strain_sign,
+        parallel_axis=rig.tube_inertia,
+    )
     hz = _hertz(table, tube, u)
     fn = u.normal_force
-    delta = hz.slip_displacement(fn, u.mu_static)
+    delta = hz.slip_displacement(fn, u.mu_static) * rig.presliding_factor
     n = int(u.gms_elements)
     stribeck = u.stribeck
     friction = GMS.from_rules(
@@ -416,8 +552,11 @@ def real_parameters(
         tube=tube,
         friction=friction,
         contact=contact,
-        detector=Detector(table_radius=table.radius),
+        detector=Detector(
+            table_radius=table.radius, tilt_factor=rig.mirror_tilt, gain=rig.detector_gain
+        ),
         unlisted=u,
+        rig=rig,
     )
 
 
@@ -521,10 +660,20 @@ def thesis_parameters() -> ParameterSet:
     )
 
 
-def get_parameter_set(name: Literal["real", "thesis"]) -> ParameterSet:
-    """``"real"`` (Table D.1) or ``"thesis"`` (Table D.2)."""
+PARAMETER_SETS = ("real", "thesis", "calibrated")
+
+
+@functools.lru_cache(maxsize=8)
+def get_parameter_set(name: Literal["real", "thesis", "calibrated"]) -> ParameterSet:
+    """``"real"`` (Table D.1), ``"thesis"`` (Table D.2) or ``"calibrated"`` (the real
+    turntable with the rig the thesis's figures ask for, ``data/calibrated.toml``,
+    :func:`turntable_env.plant.calibrated_parameters`); immutable, so cached."""
     if name == "real":
         return real_parameters()
     if name == "thesis":
         return thesis_parameters()
-    raise ValueError(f"set={name!r}: must be 'real' or 'thesis'")
+    if name == "calibrated":
+        from .plant import calibrated_parameters
+
+        return calibrated_parameters()
+    raise ValueError(f"set={name!r}: must be one of {', '.join(PARAMETER_SETS)}")

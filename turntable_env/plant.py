@@ -41,6 +41,7 @@ model's 1-D GMS or of the 3-D model's three 2-D GMS contacts.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -79,13 +80,14 @@ from .generator import (
 )
 from .kernel_types import DriveArrays
 from .model import TurntableModel
-from .params import ParameterSet, get_parameter_set
+from .params import ParameterSet, RigParams, get_parameter_set
 from .reduced import H_MIN, REDUCED_AXES, ReducedBatch, ReducedModel
 from .reduced_kernel import N_REC
 from .screw import exp_so3, log_so3
 from .validation import check_finite, check_nonnegative
 
 __all__ = [
+    "CALIBRATED_FILE",
     "DEFAULT_RANDOMIZATION",
     "FACTORS",
     "FIDELITIES",
@@ -93,7 +95,10 @@ __all__ = [
     "Plant",
     "PlantStepper",
     "Records",
+    "calibrated_parameters",
+    "calibrated_set_toml",
     "load_capacitance",
+    "output_capacitance",
     "reduced_model",
     "turntable_model",
 ]
@@ -175,6 +180,9 @@ class Plant:
             (the thesis's simulations, §3.4).
         uncertainty: standard deviations of factors (``"friction"``) and effect parameters
             (``"piezo_creep.gamma"``) from a calibration; :meth:`sample` draws from them.
+        rig: the laboratory rig's properties (:class:`~turntable_env.params.RigParams`:
+            large-signal d₃₁, drive mode, mirror tilt, ...) the base set is built for;
+            None keeps the base set's own.
         source: where the plant came from (a report path), for the record.
     """
 
@@ -185,6 +193,7 @@ class Plant:
     sensor_noise: float = SENSOR_NOISE
     ideal_amplifier: bool = False
     uncertainty: Mapping[str, float] = field(default_factory=dict)
+    rig: RigParams | None = None
     source: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
@@ -197,6 +206,13 @@ class Plant:
         if not isinstance(self.ideal_amplifier, bool):
             raise ValueError(f"ideal_amplifier={self.ideal_amplifier!r}: must be a bool")
         check_nonnegative("sensor_noise", self.sensor_noise)
+        if isinstance(self.rig, Mapping):
+            try:
+                object.__setattr__(self, "rig", RigParams(**self.rig))
+            except TypeError as exc:
+                raise ValueError(f"rig={dict(self.rig)!r}: {exc}") from None
+        elif self.rig is not None and not isinstance(self.rig, RigParams):
+            raise ValueError(f"rig={self.rig!r}: must be a RigParams, a mapping or None")
         factors = _check_factors(self.factors)
         effects = check_effects(_mapping("effects", self.effects))
         unc = {}
@@ -224,13 +240,16 @@ class Plant:
             parts.append("ideal_amplifier=True")
         if self.uncertainty:
             parts.append(f"uncertainty={self.uncertainty!r}")
+        if self.rig is not None:
+            parts.append(f"rig={self.rig!r}")
         return f"Plant({', '.join(parts)})"
 
     # --- derived -------------------------------------------------------------------------
     @property
     def base_parameters(self) -> ParameterSet:
-        """The base parameter set, before factors and effects."""
-        return get_parameter_set(self.base) if isinstance(self.base, str) else self.base
+        """The base parameter set (built for ``rig`` when given), before factors and effects."""
+        ps = get_parameter_set(self.base) if isinstance(self.base, str) else self.base
+        return ps if self.rig is None else ps.with_rig(self.rig)
 
     @functools.cached_property
     def params(self) -> ParameterSet:
@@ -330,6 +349,7 @@ class Plant:
             "sensor_noise": self.sensor_noise,
             "ideal_amplifier": self.ideal_amplifier,
             "uncertainty": dict(self.uncertainty),
+            "rig": None if self.rig is None else dataclasses.asdict(self.rig),
         }
 
     @classmethod
@@ -366,6 +386,57 @@ class Plant:
         if "parameters" not in data or "selected_effects" not in data:
             raise ValueError(f"{p}: not a calibration report (no 'plant' or 'parameters' key)")
         return cls.from_dict(_legacy_plant(data, str(p)), source=str(p))
+
+
+CALIBRATED_FILE = Path(__file__).with_name("data") / "calibrated.toml"
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)
+    return repr(float(v)) if isinstance(v, float) else str(v)
+
+
+def _toml_tables(prefix: str, data: Mapping[str, Any], out: list[str]) -> None:
+    scalars = {k: v for k, v in data.items() if not isinstance(v, Mapping) and v is not None}
+    out.append(f"[{prefix}]")
+    out += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
+    out.append("")
+    for k, v in data.items():
+        if isinstance(v, Mapping):
+            _toml_tables(f"{prefix}.{k}", v, out)
+
+
+def calibrated_set_toml(plant: Plant, source: str, name: str = "calibrated") -> str:
+    """The file of a calibrated parameter set (``data/calibrated.toml``): the plant a
+    calibration found, by name (base set, rig, factors, effects, uncertainties)."""
+    lines = [
+        f"# The parameter set {name!r}: the plant {source} found.",
+        "# Read by turntable_env.params.get_parameter_set(" + repr(name) + ") and",
+        "# `turntable simulate --params " + name + "`; `turntable calibrate --thesis --report DIR`",
+        "# writes DIR/calibrated.toml, of which this file is a copy.",
+        "",
+    ]
+    _toml_tables("set", {"name": name, "source": source}, lines)
+    _toml_tables("plant", plant.to_dict(), lines)
+    return "\n".join(lines)
+
+
+def calibrated_parameters(path: str | os.PathLike[str] | None = None) -> ParameterSet:
+    """The calibrated parameter set of a :func:`calibrated_set_toml` file (default: the
+    shipped ``data/calibrated.toml``). Raises ValueError naming the file."""
+    import tomllib
+
+    p = Path(path) if path is not None else CALIBRATED_FILE
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        name = str(data["set"]["name"])
+        plant = Plant.from_dict(data["plant"], source=str(p))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"{p}: not a calibrated parameter set: {exc}") from None
+    return replace(plant.params, name=name)
 
 
 def _legacy_plant(data: Mapping[str, Any], src: str) -> dict[str, Any]:
@@ -420,13 +491,13 @@ def turntable_model(ps: ParameterSet) -> TurntableModel:
     return TurntableModel(ps)
 
 
-_BODIES: dict[tuple[Any, Any], TurntableModel] = {}
+_BODIES: dict[tuple[Any, Any, str], TurntableModel] = {}
 
 
 def _bodies(ps: ParameterSet) -> TurntableModel:
-    """A 3-D model with the table and tubes of ``ps`` (the first built for them): what
-    the reduced model's condensation and the channel's load capacitance need."""
-    key = (ps.table, ps.tube)
+    """A 3-D model with the table, tubes and wiring of ``ps`` (the first built for them):
+    what the reduced model's condensation and the channel's load capacitance need."""
+    key = (ps.table, ps.tube, ps.rig.drive_mode)
     if key not in _BODIES:
         if len(_BODIES) >= 16:
             _BODIES.pop(next(iter(_BODIES)))
@@ -435,8 +506,15 @@ def _bodies(ps: ParameterSet) -> TurntableModel:
 
 
 def load_capacitance(ps: ParameterSet, axis: str) -> float:
-    """Capacitance on amplifier channel ``axis`` [F]: its quadrants (Eq. 2.2) in parallel."""
+    """Capacitance channel ``axis`` drives [F]: its quadrants (Eq. 2.2) in parallel (the
+    electrical energy's load)."""
     return _bodies(ps).load_capacitance(axis)
+
+
+def output_capacitance(ps: ParameterSet, axis: str) -> float:
+    """Capacitance on one amplifier output of channel ``axis`` [F] (its current limit's
+    load; half the channel's in the symmetric drive mode)."""
+    return _bodies(ps).output_capacitance(axis)
 
 
 @functools.lru_cache(maxsize=128)
@@ -650,7 +728,7 @@ class PlantStepper:
         # per-plant constants
         self._rows = np.stack([p.effect_row for p in plants])
         self._neutral_row = pack_effects({})
-        self._amp = np.empty((n, 5))
+        self._amp = np.empty((n, 7))
         self._c_load = np.empty(n)
         self._radius = np.empty(n)
         self._noise_std = np.empty(n)
@@ -682,10 +760,9 @@ class PlantStepper:
         ps = plant.params
         if ps.detector != self._detector:
             raise ValueError(f"plants[{b}]: its detector differs from the others'")
-        c = load_capacitance(ps, self.axis)
         self._rows[b] = plant.effect_row
-        self._c_load[b] = c
-        self._amp[b] = ps.amplifier.kernel_row(c)
+        self._c_load[b] = load_capacitance(ps, self.axis)  # the energy's load
+        self._amp[b] = ps.amplifier.kernel_row(output_capacitance(ps, self.axis))
         self._radius[b] = ps.table.radius
         self._noise_std[b] = plant.sensor_noise if self.noise else 0.0
 
@@ -841,7 +918,7 @@ class PlantStepper:
             t = (self._physics.grid_time()[r] - self._n_start[r]) * self.grid
             x, _y = detector_stage(th, t, self._rows[r], det)
         else:  # Eq. 4.1, as detector_stage gives it with every output effect neutral
-            x = det.distance * np.tan(2.0 * th) / det.sensitivity
+            x = det.unclipped_voltage(th)
         vs = det.saturation_voltage
         x = np.clip(x, -vs, vs)  # the photodiode saturates, its electronics add the noise
         if rng is not None:

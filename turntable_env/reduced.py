@@ -126,7 +126,7 @@ class AxisParameters:
             kinv_a = np.linalg.solve(ar["ktop"][k], a)
             k_eff = 1.0 / float(a @ kinv_a)
             psi = kinv_a * k_eff
-            q = (ar["qchan"][k] == c).astype(float)
+            q = (ar["qchan"][k] == c) * ar["qsign"][k]  # quadrant voltage per channel volt
             gain = float(a @ np.linalg.solve(ar["ktop"][k], ar["bcoup"][k] @ q))
             fields["lever"].append(ps.table.radius)
             fields["M"].append(float(psi @ ar["mtube"][k] @ psi))
@@ -247,8 +247,12 @@ class ReducedModel:
     ) -> None:
         ps = get_parameter_set(params) if isinstance(params, str) else params
         self.params = ps
-        if model is not None and (model.params.table != ps.table or model.params.tube != ps.tube):
-            raise ValueError("model: its table or tubes differ from those of params")
+        if model is not None and (
+            model.params.table != ps.table
+            or model.params.tube != ps.tube
+            or model.params.rig.drive_mode != ps.rig.drive_mode
+        ):
+            raise ValueError("model: its table, tubes or drive mode differ from those of params")
         self.full = model if model is not None else TurntableModel(ps)
         self.axis = axis
         self.step_scale = check_positive("step_scale", step_scale)
@@ -344,7 +348,7 @@ class ReducedModel:
                 gam_s[i0 * nl + i1] = e[:, :6, 6:10]
         e = _ladder(a_stick, h, MAX_RUNG + 1)
         amp = self.params.amplifier
-        c_load = self.full.load_capacitance(self.axis)
+        c_load = self.full.output_capacitance(self.axis)
         breakaway = min(
             n_ * fr.stribeck.mu_s * min(ap.normal_force) / k_ for n_, k_ in zip(nu, kk, strict=True)
         )
@@ -425,7 +429,11 @@ class ReducedModel:
         y = np.zeros(6)
         y[0] = th
         y[2:6:2] = np.asarray(ap.tube_gain) * v - force / np.asarray(ap.tube_stiffness)
-        return {"y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64)}
+        a = self.params.amplifier.fast_fraction
+        return {
+            "y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64),
+            "vslow": np.array((1.0 - a) * v), "vfast": np.array(a * v),
+        }  # fmt: skip
 
 
 _STACKED = tuple(f for f in ReducedArrays._fields if f != "ring_frac")
@@ -470,6 +478,8 @@ class ReducedBatch:
             f=np.zeros((nb, 2, ne)),
             st=np.ones((nb, 2, ne), dtype=np.int64),
             n=np.zeros(nb, dtype=np.int64),
+            vslow=np.zeros(nb),
+            vfast=np.zeros(nb),
         )
         self.counters = np.zeros((nb, 3), dtype=np.int64)
 
@@ -537,6 +547,8 @@ class ReducedBatch:
         st.f[b] = state["f"]
         st.st[b] = state["st"]
         st.n[b] = round(time / self.grid)
+        st.vslow[b] = float(state["vslow"])
+        st.vfast[b] = float(state["vfast"])
 
     def advance(
         self,

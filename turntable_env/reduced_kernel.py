@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .amplifier import slew_step
+from .amplifier import amplifier_step
 from .friction.kernels import stribeck_magnitude
 from .integrator import advance_index as _advance
 from .integrator import pwl_value as _input_at
@@ -66,21 +66,7 @@ REC_FIELDS = (
 N_REC = len(REC_FIELDS)
 
 # packed rows: see turntable_env.kernel_types.ReducedArrays
-
-
-@njit(cache=True)
-def _amp_step(v0, u0, u1, h, gain, tau, rate):
-    """Amplifier output after h [s] for an input ramping u0 → u1 [V] (§4.1.2 stage).
-
-    Exact first-order response to the ramp when the stage is linear over the step
-    (error and ramp both inside the slew limit); otherwise the slew-limited step with
-    the mid-step input held (:func:`turntable_env.amplifier.slew_step`)."""
-    slope = gain * (u1 - u0) / h  # V/s of the target
-    lag = slope * tau
-    e0 = gain * u0 - lag - v0  # distance from the ramp's steady response
-    if abs(gain * u0 - v0) <= rate * tau and abs(slope) < rate:
-        return gain * u1 - lag - e0 * math.exp(-h / tau)
-    return slew_step(v0, gain * 0.5 * (u0 + u1), h, tau, rate)
+FAST_QUIET = 1e-3  # V: an amplifier fast-path transient above it keeps steps short
 
 
 @njit(cache=True)
@@ -108,6 +94,7 @@ def run_reduced_batch(state, model, drive, h_min, recording):
             ok, 1 non-finite state.
     """
     y, volt, f, st, n_now = state.y, state.volt, state.f, state.st, state.n
+    vslow, vfast = state.vslow, state.vfast
     mech, gms, nu, kk, amp, ctl = model.mech, model.gms, model.nu, model.kk, model.amp, model.ctl
     lvl, nlvl = model.lvl, model.nlvl
     phi_small, gam_small, phi_big, gam_big = (
@@ -138,6 +125,10 @@ def run_reduced_batch(state, model, drive, h_min, recording):
         ideal = amp[b, 2] > 0.5
         ulim = amp[b, 3]
         rate = amp[b, 4]
+        a_fast = amp[b, 5]
+        r_fast = 0  # largest rung short against the amplifier's fast path (τ_f/8)
+        while (1 << (r_fast + 1)) * h_min <= amp[b, 6] / 8.0:
+            r_fast += 1
         quiet_len = ctl[b, 0]
         r_slip = int(ctl[b, 1])
         mu_s = gms[b, 1]
@@ -218,6 +209,14 @@ def run_reduced_batch(state, model, drive, h_min, recording):
                     while (1 << (r_dyn + 1)) <= lim:
                         r_dyn += 1
                     cap = min(cap, r_dyn)
+            if a_fast > 0.0 and not ideal:  # the fast path settling: short steps
+                u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
+                slope = 0.0  # input slope of the present segment [V/s]: the path lags it
+                if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
+                    slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
+                steady = a_fast * gain * (u_now - slope * amp[b, 6])
+                if abs(vfast[b] - steady) > FAST_QUIET:
+                    cap = min(cap, r_fast)
             if rung > cap:
                 rung = cap
             # configuration: stuck stiffness level of each contact
@@ -235,6 +234,10 @@ def run_reduced_batch(state, model, drive, h_min, recording):
                 for i in range(ne):
                     f0[k, i] = f[b, k, i]
             v0 = volt[b]
+            vs0 = vslow[b]
+            vf0 = vfast[b]
+            vs1 = vs0
+            vf1 = vf0
             u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
             while True:
                 dn = 1 << rung
@@ -247,7 +250,7 @@ def run_reduced_batch(state, model, drive, h_min, recording):
                     v1 = gain * u1
                     v0e = gain * u0
                 else:
-                    v1 = _amp_step(v0, u0, u1, h, gain, tau, rate)
+                    v1, vs1, vf1 = amplifier_step(v0, vs0, vf0, u0, u1, h, amp[b])
                     v0e = v0
                 vslope = (v1 - v0e) / h
                 if all_stick:  # every rung of the all-stick configuration
@@ -304,6 +307,8 @@ def run_reduced_batch(state, model, drive, h_min, recording):
                     continue
                 # accept
                 volt[b] = v1
+                vslow[b] = vs1
+                vfast[b] = vf1
                 for k in range(2):
                     for i in range(ne):
                         if st[b, k, i] == 1 and st_new[k, i] == 0:

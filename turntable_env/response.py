@@ -88,6 +88,40 @@ class SteppingMetrics:
         s = self.steps
         return float(np.mean(np.abs(s))) if s.size else float("nan")
 
+    def reading(self, t: float) -> float:
+        """The laboratory's x_table at time t [m]: the noise-free detector voltage read with
+        Eq. 4.1–4.2 (so the mirror's tilt and the photodiode's gain enter, as in the lab)."""
+        v = float(np.interp(t, self.time, self.detector_voltage()))
+        return float(self.detector.table_displacement(v))
+
+    def figure_step(self, n_per_block: int, two_directional: bool) -> dict[str, float]:
+        """The step per period as §4.1.3 reads it from the detector [m].
+
+        One-directional (Fig. 4.7): x(t₂) − x(t₁) over the ``n_per_block`` periods from
+        t₁, the first period's start. Two-directional (Fig. 4.6): t₁ → t₂ is the *last*
+        forward block (``n_per_block`` steps after a reversal; a single cycle has none, so
+        its block starts from rest) and t₁ → t₃ the whole last cycle: ``return`` is
+        x(t₃) − x(t₁), ``excursion`` x(t₂) − x(t₁). Needs the drive's period starts."""
+        ps = self.period_starts
+        n = int(n_per_block)
+        if ps.size < n + 1:
+            raise ValueError(f"n_per_block={n_per_block!r}: the response has {ps.size - 1} periods")
+        if not two_directional:
+            t1, t2 = ps[0], ps[n]
+            exc = self.reading(t2) - self.reading(t1)
+            return {"step": exc / n, "excursion": exc, "t1": t1, "t2": t2}
+        if ps.size < 2 * n + 1:
+            raise ValueError(
+                f"n_per_block={n_per_block!r}: a two-directional cycle needs {2 * n} periods"
+            )
+        t1 = ps[ps.size - 1 - 2 * n]
+        t2, t3 = t1 + (ps[n] - ps[0]), ps[-1]
+        x1, x2, x3 = self.reading(t1), self.reading(t2), self.reading(t3)
+        return {
+            "step": abs(x2 - x1) / n, "excursion": x2 - x1, "return": x3 - x1,
+            "t1": t1, "t2": t2, "t3": t3,
+        }  # fmt: skip
+
 
 @dataclass(frozen=True, eq=False)
 class TurntableResponse(SteppingMetrics):

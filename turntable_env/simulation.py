@@ -21,9 +21,10 @@ from .params import ParameterSet, get_parameter_set
 from .response import ENERGY_TERMS, TurntableResponse
 from .validation import check_nonnegative, check_positive
 
-__all__ = ["AMPLIFIER_MODES", "simulate", "stepping_drive"]
+__all__ = ["AMPLIFIER_MODES", "TWO_DIRECTIONAL_CYCLES", "simulate", "stepping_drive"]
 
 AMPLIFIER_MODES = ("adapted", "unadapted", "ideal")
+TWO_DIRECTIONAL_CYCLES = 3  # Fig. 4.6's forward-and-back cycles (its block is the last's)
 
 
 def stepping_drive(
@@ -36,7 +37,7 @@ def stepping_drive(
     amplifier: Literal["adapted", "unadapted", "ideal"] | None = None,
     a: float | None = None,
     slew_adaptation: float = 1.0,
-    cycles: int = 1,
+    cycles: int | None = None,
 ) -> tuple[DriveSignal, ParameterSet]:
     """The §4.1.3 stepping input and the amplifier mode, as (drive, parameter set).
 
@@ -46,7 +47,9 @@ def stepping_drive(
     input volt. ``"ideal"`` is an instant source (the thesis's simulations) with the set's
     nominal flyback. Defaults come from the set: ``amplifier`` "ideal" if its amplifier
     is ideal (thesis) else "adapted"; ``frequency`` its nominal frequency; ``a`` its ramp
-    ratio. ``amplitude`` is the amplifier input [V] (2 V → 90 V on the tubes).
+    ratio. ``amplitude`` is the amplifier input [V] (2 V → 90 V on the tubes); ``cycles``
+    of a two-directional signal default to ``TWO_DIRECTIONAL_CYCLES`` (Fig. 4.6 is read on
+    the last, after a reversal: :meth:`~turntable_env.response.SteppingMetrics.figure_step`).
     """
     ps = get_parameter_set(params) if isinstance(params, str) else params
     if amplifier is None:
@@ -63,7 +66,7 @@ def stepping_drive(
         pattern=signal,
         slew_adaptation=k,
         flyback=ps.nominal_flyback if amplifier == "ideal" else "step",
-        n_cycles=cycles,
+        n_cycles=(TWO_DIRECTIONAL_CYCLES if signal == "two" else 1) if cycles is None else cycles,
     )
     return drive, ps
 

@@ -74,6 +74,10 @@ class TubeParams:
             √(R_o² − R_i²).
         quality_factor: mechanical quality factor Q_m of the tube (None: undamped).
         axial_coupling: include the quadrants' mean axial strain in the rest twist.
+        axial_strain_sign: +1 if a quadrant whose voltage turns the tip towards its side
+            shortens (a field along the poling, d₃₁ < 0: what the tube equations assume),
+            −1 if it lengthens (the opposite poling relative to the electrode wiring; the
+            bending is the same, the mean axial strain flips).
         stroke_scale: factor on d₃₁ (and on ε₁₁ by its square, so the coupling k² is
             unchanged); 1 for the real tube (see ``thesis_parameters``).
         source: where the given geometry comes from (printed by ``describe``).
@@ -93,6 +97,7 @@ class TubeParams:
     ball_seat_height: float | None = None
     quality_factor: float | None = None
     axial_coupling: bool = True
+    axial_strain_sign: int = 1
     stroke_scale: float = 1.0
     source: str = "Table D.1"
 
@@ -120,6 +125,8 @@ class TubeParams:
             check_positive("quality_factor", self.quality_factor)
         if not isinstance(self.axial_coupling, bool):
             raise ValueError(f"axial_coupling={self.axial_coupling!r}: must be a bool")
+        if self.axial_strain_sign not in (1, -1):
+            raise ValueError(f"axial_strain_sign={self.axial_strain_sign!r}: must be +1 or -1")
         check_positive("stroke_scale", self.stroke_scale)
         # constructing the quadrant validates diameter_convention
         _ = self.quadrant
@@ -261,7 +268,9 @@ class TubeParams:
         quad = self.quadrant
         z_per_v = quad.free_elongation(1.0)  # signed, negative for d31 < 0 [m/V]
         g_theta = abs(z_per_v) / self.bending_lever  # rad/V
-        g_axial = 0.25 * z_per_v if self.axial_coupling else 0.0  # m/V, mean strain × L
+        g_axial = 0.0
+        if self.axial_coupling:  # mean strain × L [m/V]
+            g_axial = 0.25 * z_per_v * self.axial_strain_sign
         ez = np.array([0.0, 0.0, 1.0])
         g = np.zeros((6, 4))
         for q, b in enumerate(self.quadrant_directions()):

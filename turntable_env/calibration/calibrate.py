@@ -43,7 +43,7 @@ import threadpoolctl
 
 from ..effects import CATALOGUE, apply_output
 from ..params import ParameterSet
-from ..plant import Plant
+from ..plant import Plant, calibrated_set_toml
 from .measurement import Measurement, load_measurement
 from .trace import simulate_trace
 
@@ -82,6 +82,8 @@ class CalibrationResult:
     residuals: dict[str, np.ndarray] = field(default_factory=dict)
     wall_s: float = 0.0
     plant: Plant | None = None
+    sections: list[str] = field(default_factory=list)  # further report.md lines
+    error_label: str = "held-out error"
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -90,6 +92,7 @@ class CalibrationResult:
             "error_before": self.error_before,
             "error_after": self.error_after,
             "error_unit": self.error_unit,
+            "error_label": self.error_label,
             "residual_structured": self.residual_structured,
             "parameters": self.parameters,
             "candidates": self.candidates,
@@ -611,68 +614,10 @@ def plot_residual(result: CalibrationResult, path: Path) -> None:
     plt.close(fig)
 
 
-def _summary_lines(diag: Mapping[str, Any]) -> list[str]:
-    """report.md sections for summary-level data: per-target table, amplifier check, the
-    one- vs two-directional step question."""
-    rows = diag.get("targets")
-    if not rows:
-        return []
-    out = [
-        "",
-        "## Targets (relative error; slew rates as transition time)",
-        "",
-        "| target | measured | unit | before | after | error before | error after "
-        "| held-out after | within 3× resolution | source |",
-        "|---|---:|---|---:|---:|---:|---:|---:|---|---|",
-        *[
-            f"| {r['target']} | {r['measured']:.4g} | {r['unit']} | {r['predicted_before']:.4g} "
-            f"| {r['predicted_after']:.4g} | {r['error_before']:+.1%} | {r['error_after']:+.1%} "
-            f"| {r['heldout_error_after']:+.1%} | {r['within_resolution']} | {r['source']} |"
-            for r in rows
-        ],
-    ]
-    need = diag.get("amplifier_slew_scale_needed", {})
-    if need:
-        out += [
-            "",
-            "## Amplifier: slew_scale each slew figure asks for alone",
-            "",
-            "The root, or the bound nearest to one; reproduced: within 3× the resolution.",
-            "",
-            *[
-                f"- {k}: {v['slew_scale']:.3g} (reproduced: {v['reproduced']}; model at scale 1: "
-                f"{v['model_at_scale_1_V_per_s'] / 1e6:.2f} V/µs)"
-                for k, v in need.items()
-            ],
-        ]
-    sr = diag.get("step_ratio", {})
-    if sr:
-        out += [
-            "",
-            "## One- vs two-directional step",
-            "",
-            f"- measured: {sr['measured_step_one_um']:.3f} µm vs "
-            f"{sr['measured_step_two_um']:.3f} µm per step, ratio {sr['measured_ratio']:.3f} "
-            f"± {sr['measured_ratio_resolution']:.3f}",
-            f"- calibrated model: ratio {sr['model_ratio']:.3f}; steps one-directional "
-            f"{', '.join(f'{s:.3f}' for s in sr['model_steps_one_um'])} µm; two-directional "
-            f"{', '.join(f'{s:.3f}' for s in sr['model_steps_two_um'])} µm",
-            f"- if only the first step differed, the figures would need a first step of "
-            f"{sr['implied_first_step_um']:.3f} µm and steady steps of "
-            f"{sr['implied_steady_step_um']:.3f} µm",
-            "- ratio range each further effect reaches within its bounds:",
-            *[
-                f"  - {k} ({v['parameter']}): {v['ratio_min']:.3f} … {v['ratio_max']:.3f}"
-                for k, v in sr["effect_ratio_range"].items()
-            ],
-            "- effects that reach the measured ratio: "
-            + (", ".join(sr["effects_that_reach_measured_ratio"]) or "none"),
-        ]
-    return out
-
-
 def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
-    """``report.json``, ``report.md`` and ``residual.png`` in ``out``."""
+    """``report.json``, ``report.md`` and ``residual.png`` in ``out``; with a rig fit also
+    ``calibrated.toml``, the calibrated parameter set
+    (:func:`~turntable_env.plant.calibrated_set_toml`)."""
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
     pj = d / "report.json"
@@ -682,7 +627,7 @@ def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
         "# Calibration report",
         "",
         f"- selected effects: {', '.join(result.selected_effects) or 'none'}",
-        f"- held-out error before: {result.error_before:.3g} {result.error_unit}, after: "
+        f"- {result.error_label} before: {result.error_before:.3g} {result.error_unit}, after: "
         f"{result.error_after:.3g} {result.error_unit}",
         f"- residual structured: {result.residual_structured}"
         + (f" — {result.diagnosis.get('signature', '')}" if result.residual_structured else ""),
@@ -702,10 +647,17 @@ def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
             for o, ps in result.parameters.items()
             for p, v in ps.items()
         ],
-        *_summary_lines(result.diagnosis),
+        *result.sections,
         "",
         "![residual](residual.png)",
     ]
     pm = d / "report.md"
     pm.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return {"json": pj, "md": pm, "png": d / "residual.png"}
+    paths = {"json": pj, "md": pm, "png": d / "residual.png"}
+    if result.plant is not None and result.plant.rig is not None:
+        paths["parameters"] = d / "calibrated.toml"
+        paths["parameters"].write_text(
+            calibrated_set_toml(result.plant, source=f"turntable calibrate --report {d}"),
+            encoding="utf-8",
+        )
+    return paths

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..drive import StepSetting
 from ..params import ParameterSet
-from ..plant import Plant, load_capacitance
+from ..plant import Plant, output_capacitance
 from ..validation import check_nonnegative
 from .measurement import Measurement
 from .trace import simulate_trace
@@ -148,7 +148,7 @@ def protocol_drive(
             step_back = len(blk) > 6 and blk[6] == "step"
             if k > 0.0 or step_back:
                 if c_load is None:
-                    c_load = load_capacitance(params, axis)
+                    c_load = output_capacitance(params, axis)
                 setting = StepSetting.adapted(a_v, f, a, k, amp, c_load)
             else:
                 setting = StepSetting(a_v, f, a)

@@ -16,7 +16,7 @@ from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
-from ..params import ParameterSet
+from ..params import PARAMETER_SETS, ParameterSet
 from ..plant import DEFAULT_RANDOMIZATION, Plant
 from ..validation import check_nonnegative, check_positive
 
@@ -140,8 +140,9 @@ class EnvConfig:
             ``report.json`` (or its directory) whose plant to run
             (:meth:`~turntable_env.plant.Plant.from_report`): its parameter set, effects,
             fidelity and detector noise. Default: the plant of ``params``.
-        params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2) or a
-            ParameterSet, without effects; give ``plant`` or ``params``, not both.
+        params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2),
+            ``"calibrated"`` (the real turntable with the rig the thesis's figures ask for)
+            or a ParameterSet, without effects; give ``plant`` or ``params``, not both.
         fidelity: ``"reduced"`` (per-axis model) or ``"full"`` (3-D model; ``turntable
             bench`` compares the two real-time factors); default: the plant's (reduced).
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.
@@ -242,10 +243,13 @@ class EnvConfig:
             raise ValueError(f"params={self.params!r}, plant={plant!r}: give one of them")
         if plant is None:
             params = "real" if self.params is None else self.params
-            if isinstance(params, str) and params not in ("real", "thesis"):
-                raise ValueError(f"params={params!r}: must be 'real', 'thesis' or a ParameterSet")
+            if isinstance(params, str) and params not in PARAMETER_SETS:
+                raise ValueError(
+                    f"params={params!r}: must be one of {', '.join(PARAMETER_SETS)} or a "
+                    "ParameterSet"
+                )
             if not isinstance(params, str | ParameterSet):
-                raise ValueError(f"params={params!r}: must be 'real', 'thesis' or a ParameterSet")
+                raise ValueError(f"params={params!r}: must be a set's name or a ParameterSet")
             plant = Plant(params)
         elif isinstance(plant, str | os.PathLike):
             plant = Plant.from_report(plant)
