@@ -9,6 +9,10 @@ environment ``PiezoTurntable-v0`` (registered on import) in :mod:`.envs`.
 
 __version__ = "0.1.0"
 
+from .kernel_cache import configure_kernel_cache
+
+KERNEL_CACHE = configure_kernel_cache()  # before any kernel module is imported
+
 ENV_ID = "PiezoTurntable-v0"
 MAX_EPISODE_STEPS = 200  # 2 s at the default 10 ms control interval
 
@@ -22,8 +26,8 @@ ENV_VARIANTS: dict[str, tuple[dict, str]] = {
     "PiezoTurntableCalibrated-v0": (
         {"params": "calibrated"},
         "the real turntable as the thesis's measured figures calibrate it (turntable "
-        "calibrate --thesis): symmetric drive, horizontal mirror, fitted contacts, the "
-        "amplifier's fast path; the per-axis model steps 13-17 % more than the 3-D one "
+        "calibrate --thesis): symmetric drive, mirror facing the axis, fitted contacts, the "
+        "amplifier's fast path; the per-axis model steps 25-33 % more than the 3-D one "
         "the figures were fitted on (report.md's correction; fidelity='full' to match them)",
     ),
     "PiezoTurntableRandomized-v0": (

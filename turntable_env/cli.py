@@ -198,7 +198,10 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if summary:
         res = calibrate_summary(summary[0])
     else:
-        res = calibrate(files, fit_fraction=args.fit_fraction)
+        res = calibrate(
+            files, base=args.base, workers=args.workers, global_points=args.global_points,
+            seed=args.seed,
+        )  # fmt: skip
     paths = write_report(res, args.report)
     print(
         f"selected effects: {', '.join(res.selected_effects) or 'none'}; {res.error_label} "
@@ -323,17 +326,27 @@ def build_parser() -> argparse.ArgumentParser:
     pc = sub.add_parser(
         "calibrate",
         help="fit measurement files and find the effects the model lacks",
-        description="Fits friction and preload on the first part of each trace, ranks the "
-        "catalogue's effects by the held-out error they remove (BIC-penalised), adds the "
-        "best until the residual is white or nothing helps; writes report.json, report.md "
-        "and a residual plot. A TOML file of summary-level figures (the format of "
+        description="Reads each trace's drive (breakpoints or sampled; single-sample drops "
+        "are steps), cuts it into segments with fit and held-out portions interleaved by "
+        "drive condition, estimates the noise floor, fits the nominal model (stroke, "
+        "detector gain, friction levels, Stribeck velocity, preload, presliding, damping, "
+        "inertia; priors, a parallel Sobol global stage, least squares), then adds a "
+        "catalogue effect only if it beats the nominal refit on held-out data, is 3-sigma "
+        "significant and consistent between portions; writes report.json, report.md, an "
+        "overlay and a residual plot. A TOML file of summary-level figures (the format of "
         "turntable_env/data/thesis_measurements.toml; --thesis for that file) runs the same "
         "loop on figures: ideal-source nominal, leave-one-out held-out error.",
     )
     pc.add_argument("files", nargs="*", help="measurement files (CSV) or one summary file (TOML)")
     pc.add_argument("--thesis", action="store_true", help="the thesis's chapter-4 figures")
     pc.add_argument("--report", required=True, help="output directory")
-    pc.add_argument("--fit-fraction", type=float, default=0.6, help="fit portion of each trace")
+    pc.add_argument(
+        "--base", default="real", choices=["real", "thesis", "calibrated"],
+        help="parameter set the nominal factors scale (calibrated: the thesis rig's set)",
+    )  # fmt: skip
+    pc.add_argument("--workers", type=int, default=None, help="processes of the global stage")
+    pc.add_argument("--global-points", type=int, default=64, help="Sobol points (global stage)")
+    pc.add_argument("--seed", type=int, default=0, help="scrambling seed of the Sobol design")
     pc.set_defaults(func=_cmd_calibrate)
     pr = sub.add_parser(
         "report",

@@ -48,7 +48,9 @@ from .validation import check_finite, check_in_open
 __all__ = [
     "PARAMETER_SETS",
     "RIG_CHOICES",
+    "RIG_LIMITS",
     "RIG_PRIORS",
+    "SET_FACTORS",
     "UNLISTED_FILE",
     "ContactParams",
     "ParameterSet",
@@ -188,6 +190,16 @@ def load_unlisted(
         raise ValueError(f"{p}: {exc}") from None
 
 
+# multiplicative factors on a set's uncertain values (ParameterSet.with_factors)
+SET_FACTORS = (
+    "friction",
+    "coulomb",
+    "stribeck_velocity",
+    "preload",
+    "contact_damping",
+    "tube_damping",
+    "amplifier",
+)
 RIG_PRIORS: dict[str, tuple[float, float, float, float, str]] = {
     # name: (low, high, prior mean, prior std, source) — continuous rig parameters
     "d31_factor": (
@@ -211,6 +223,15 @@ RIG_PRIORS: dict[str, tuple[float, float, float, float, str]] = {
         "rough surfaces are more compliant (prior std on the natural log)",
     ),
 }  # fmt: skip
+# name: (low, high) — the physical range every rig must lie in (wider than the thesis rig's
+# priors above: a calibration of another rig's traces may land anywhere in it)
+RIG_LIMITS: dict[str, tuple[float, float]] = {
+    "d31_factor": (0.3, 3.0),  # soft to hard PZT, also standing in for another rig's lever
+    "length_factor": (0.5, 2.0),
+    "detector_gain": (0.5, 2.0),
+    "presliding_factor": (0.1, 10.0),
+    "inertia_factor": (0.5, 3.0),  # the mirror and its mount add to the half sphere
+}
 RIG_CHOICES: dict[str, tuple[tuple, tuple[float, ...], str]] = {
     # name: (options, prior probabilities, source) — discrete rig parameters
     "drive_mode": (
@@ -246,6 +267,8 @@ class RigParams:
             (:class:`~turntable_env.detector.Detector`) [-].
         detector_gain: photodiode volts per metre of spot, times S [-].
         presliding_factor: contact presliding distance over Mindlin's value [-].
+        inertia_factor: table mass and inertia over the steel half sphere's (Eq. C.1,
+            C.8): the mirror and its mount add to both [-].
         tube_inertia: ``"thesis"`` (Eq. C.13 as printed: Table D.1's 7/12·mL²) or
             ``"physical"`` (the parallel-axis shift of a CoM L/2 along the axis: 1/3·mL²).
     """
@@ -258,11 +281,12 @@ class RigParams:
     detector_gain: float = 1.0
     presliding_factor: float = 1.0
     tube_inertia: Literal["thesis", "physical"] = "thesis"
+    inertia_factor: float = 1.0
 
     def __post_init__(self) -> None:
         if self.tube_inertia not in ("thesis", "physical"):
             raise ValueError(f"rig.tube_inertia={self.tube_inertia!r}: 'thesis' or 'physical'")
-        for name, (lo, hi, *_rest) in RIG_PRIORS.items():
+        for name, (lo, hi) in RIG_LIMITS.items():
             v = check_finite(name, getattr(self, name))
             if not lo <= v <= hi:
                 raise ValueError(f"rig.{name}={v!r}: outside its physical range {lo:g}…{hi:g}")
@@ -284,6 +308,8 @@ class RigParams:
             out.append(Quantity(f"{prefix}.{name}", getattr(self, name), "-", "given", note))
         note = "Eq. C.13 as printed (thesis) or the physical parallel axis"
         out.append(Quantity(f"{prefix}.tube_inertia", self.tube_inertia, "-", "given", note))
+        note = "table mass and inertia over the half sphere's (mirror and mount); prior 1"
+        out.append(Quantity(f"{prefix}.inertia_factor", self.inertia_factor, "-", "given", note))
         return out
 
 
@@ -418,29 +444,52 @@ class ParameterSet:
         """This set with multiplicative factors on its uncertain values (the one place
         they become parameters: domain randomisation, calibration, plants):
 
-        * ``friction``: μ_s and μ_c; ``preload``: F_N — through the unlisted inputs, so the
-          GMS elements, presliding distance and contact damping are re-derived
-          (Hertz–Mindlin, :func:`real_parameters`); needs a set with unlisted inputs;
+        * ``friction``: μ_s and μ_c; ``coulomb``: μ_c alone (μ_c ≤ μ_s must hold);
+          ``stribeck_velocity``: v_S; ``preload``: F_N; ``tube_damping``: the tubes' loss
+          1/Q_m — all through the unlisted inputs, so the GMS elements, presliding
+          distance and contact damping are re-derived (Hertz–Mindlin,
+          :func:`real_parameters`); they need a set with unlisted inputs;
+        * ``contact_damping``: the tangential micro-slip damping β_t of the sticking GMS
+          elements (the bristle damping σ₁ of LuGre-type models), after the re-derivation;
         * ``amplifier``: slew rate per input volt and current limit (:meth:`Amplifier.scaled`).
 
         Factors of 1 (or none) return the set unchanged."""
-        unknown = set(factors) - {"friction", "preload", "amplifier"}
+        unknown = set(factors) - set(SET_FACTORS)
         if unknown:
-            raise ValueError(f"factors: unknown {sorted(unknown)} (friction, preload, amplifier)")
+            raise ValueError(f"factors: unknown {sorted(unknown)} ({', '.join(SET_FACTORS)})")
         over: dict[str, float] = {}
         u = self.unlisted
-        if factors.get("friction", 1.0) != 1.0 or factors.get("preload", 1.0) != 1.0:
+        physical = [k for k in factors if k != "amplifier" and factors[k] != 1.0]
+        if physical:
             if u is None:
                 raise ValueError(
-                    f"factors: friction and preload need unlisted inputs; set {self.name!r} "
+                    f"factors {sorted(physical)} need unlisted inputs; set {self.name!r} "
                     "has none (its friction is given directly)"
                 )
-            if "friction" in factors:
-                over["mu_static"] = u.mu_static * factors["friction"]
-                over["mu_coulomb"] = u.mu_coulomb * factors["friction"]
+            f_mu = factors.get("friction", 1.0)
+            if f_mu != 1.0:
+                over["mu_static"] = u.mu_static * f_mu
+            if f_mu != 1.0 or factors.get("coulomb", 1.0) != 1.0:
+                mu_c = u.mu_coulomb * f_mu * factors.get("coulomb", 1.0)
+                mu_s = over.get("mu_static", u.mu_static)
+                over["mu_coulomb"] = min(mu_c, mu_s)  # μ_c = μ_s up to rounding
+                if mu_c > mu_s * (1.0 + 1e-9):
+                    raise ValueError(
+                        f"factors['coulomb']={factors.get('coulomb', 1.0)!r}: μ_c would exceed "
+                        f"μ_s (at most {u.mu_static / u.mu_coulomb:.4g} on set {self.name!r})"
+                    )
+            if "stribeck_velocity" in factors:
+                over["stribeck_velocity"] = u.stribeck_velocity * factors["stribeck_velocity"]
             if "preload" in factors:
                 over["normal_force"] = u.normal_force * factors["preload"]
+            if "tube_damping" in factors:
+                over["tube_quality_factor"] = u.tube_quality_factor / factors["tube_damping"]
         ps = self._rebuilt(over, self.rig) if over else self
+        if factors.get("contact_damping", 1.0) != 1.0:
+            c = ps.contact
+            assert c is not None
+            beta_t = c.tangential_damping * factors["contact_damping"]
+            ps = replace(ps, contact=replace(c, tangential_damping=beta_t))
         if factors.get("amplifier", 1.0) != 1.0:
             s = factors["amplifier"]
             ps = replace(ps, amplifier=ps.amplifier.scaled(s, s))
@@ -508,7 +557,7 @@ def real_parameters(
     """
     rig = rig if rig is not None else RigParams()
     u = load_unlisted(unlisted_file, overrides)
-    table = TableParams(radius=0.01, density=8.0e3)
+    table = TableParams(radius=0.01, density=8.0e3 * rig.inertia_factor)
     design = TubeParams()
     material = design.material
     if rig.d31_factor != 1.0:

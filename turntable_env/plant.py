@@ -109,6 +109,10 @@ FACTORS: dict[str, tuple[float, float, str]] = {
     "friction": (0.1, 10.0, "μ_s and μ_c together (dry-contact scatter)"),
     "preload": (0.1, 10.0, "normal force F_N of the preload spring (not documented)"),
     "amplifier": (0.1, 10.0, "HVA 900 slew rate per input volt and current limit"),
+    "coulomb": (0.1, 10.0, "μ_c alone, on top of friction (μ_c ≤ μ_s)"),
+    "stribeck_velocity": (0.01, 100.0, "Stribeck velocity v_S of the contact"),
+    "contact_damping": (0.01, 1000.0, "tangential micro-slip damping β_t of the contact"),
+    "tube_damping": (0.01, 100.0, "tube loss 1/Q_m"),
 }
 # Domain randomisation: multiplicative factors drawn uniformly per episode.
 DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {

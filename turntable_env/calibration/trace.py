@@ -52,6 +52,7 @@ def simulate_trace(
     drive: np.ndarray,
     *,
     rng: np.random.Generator | None = None,
+    breakpoints: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> TraceResult:
     """The detector trace of a drive (module docstring).
 
@@ -61,6 +62,9 @@ def simulate_trace(
         axis: "A", "B" or "C".
         time: sample times [s] (strictly increasing); drive: amplifier input at them [V].
         rng: generator of the detector noise (None: no noise).
+        breakpoints: (times [s], values [V]) of the drive as read
+            (:class:`~turntable_env.calibration.segments.DriveReading`) instead of the
+            samples taken as piecewise linear; ``time`` then only sets the output samples.
     """
     t = np.asarray(time, dtype=float)
     u = np.asarray(drive, dtype=float)
@@ -73,12 +77,16 @@ def simulate_trace(
     stepper = PlantStepper([plant], axis, noise=rng is not None)
     stepper.reset(0, 0.0, 0.0, level=float(u[0]))
     t_rel = t - t[0]
-    keep = _corners(t_rel, u)
+    if breakpoints is None:
+        keep = _corners(t_rel, u)
+        wave = Waveform(t_rel[keep], u[keep])
+    else:
+        bt, bu = (np.asarray(a, dtype=float) for a in breakpoints)
+        keep = _corners(bt - t[0], bu)
+        wave = Waveform(bt[keep] - t[0], bu[keep])
     # record at the trace's typical sample spacing (each recording stops the integrator)
     dt_med = float(np.median(np.diff(t)))
-    rec = stepper.run_waveform(
-        [Waveform(t_rel[keep], u[keep])], float(t_rel[-1]), min(dt_med, OUTPUT_DT_MAX)
-    )[0]
+    rec = stepper.run_waveform([wave], float(t_rel[-1]), min(dt_med, OUTPUT_DT_MAX))[0]
     theta = np.interp(t_rel, rec.time, rec.angle)
     x, y = stepper.observe_trace(0, t_rel, theta, rng)
     return TraceResult(t, theta, x, y)

@@ -1,0 +1,144 @@
+"""The trace calibrator's reading of a lab file (issue 19): drive, segments, portions,
+noise floor, anchoring, identifiability and argument checks — on synthetic data whose
+answer is known by construction."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from turntable_env.calibration.calibrate import calibrate
+from turntable_env.calibration.residual import Anchoring, noise_floor
+from turntable_env.calibration.segments import read_drive, segment_trace, split_portions
+from turntable_env.calibration.trace_fit import correlation_length, identifiable_effects
+from turntable_env.calibration.virtual_lab import run_virtual_lab
+
+
+def _sampled_sawtooth(fs=20e3, f=100.0, amp=2.0, a=0.95, periods=6, hold=0.02, lsb=None):
+    """A function generator's sawtooth sampled at fs: rise over a/f, drop within one
+    sample, holds before and after."""
+    t = np.arange(0.0, 2 * hold + periods / f, 1.0 / fs)
+    ph = ((t - hold) * f) % 1.0
+    u = np.where((t >= hold) & (t < hold + periods / f), amp * np.minimum(ph / a, 1.0), 0.0)
+    u = np.where(ph > a, 0.0, u) * (t < hold + periods / f)
+    if lsb is not None:
+        u = np.round(u / lsb) * lsb
+    return t, u
+
+
+@pytest.mark.parametrize("lsb", [None, 20.0 / 4096])  # ideal, and a 12-bit ±10 V DAQ
+def test_single_sample_drops_are_read_as_steps_with_their_timing_uncertainty(lsb):
+    t, u = _sampled_sawtooth(lsb=lsb)
+    r = read_drive(t, u)
+    assert r.recording == "sampled"
+    assert r.jumps.size == 6  # one flyback per period
+    assert r.timing_uncertainty == pytest.approx(0.5 / 20e3)
+    # the model's drive drops within 1 ns, not over a 50 µs sample interval
+    tj = r.jumps[0]
+    before, after = np.interp([tj - 2e-9, tj + 1e-9], r.time, r.level)
+    assert before == pytest.approx(2.0, abs=0.05) and after == pytest.approx(0.0, abs=0.01)
+
+
+def test_declared_recording_is_honoured_and_a_bad_one_is_named():
+    t, u = _sampled_sawtooth()
+    assert read_drive(t, u, {"drive_recording": "breakpoints"}).recording == "breakpoints"
+    with pytest.raises(ValueError, match="drive_recording"):
+        read_drive(t, u, {"drive_recording": "analog"})
+
+
+def test_portions_interleave_every_drive_condition():
+    """Every condition the held-out portion holds was also seen in the fit portion."""
+    m = run_virtual_lab("standard", {}, noise_std=0.0, seed=0)
+    segs = split_portions(segment_trace(read_drive(m.time, m.drives[m.axis]), m.time[-1]))
+    fit = {s.condition for s in segs if s.portion == "fit"}
+    held = {s.condition for s in segs if s.portion == "heldout"}
+    assert held and held <= fit
+    kinds = {s.kind for s in segs}
+    assert kinds == {"hold", "scan", "steps"}
+
+
+def test_noise_floor_recovers_white_noise_despite_ringing_holds():
+    rng = np.random.default_rng(3)
+    t, u = _sampled_sawtooth(periods=2, hold=0.05)
+    segs = segment_trace(read_drive(t, u), t[-1])
+    sigma = 1e-3
+    v = rng.normal(0.0, sigma, t.size)
+    # a lightly damped ring (4.7 kHz) through the first hold only
+    first = segs[0]
+    ring = (t < first.end) * 5e-3 * np.sin(2 * np.pi * 4.7e3 * t)
+    holds = [s for s in segs if s.kind == "hold"]
+    assert len(holds) >= 2
+    est, source, n = noise_floor(t, v + ring, segs)
+    assert est == pytest.approx(sigma, rel=0.15) and n >= 50 and "hold" in source
+
+
+def test_anchoring_removes_each_segments_offset():
+    t, u = _sampled_sawtooth()
+    segs = split_portions(segment_trace(read_drive(t, u), t[-1]))
+    an = Anchoring.of(t, segs)
+    # an error that is a different constant in every segment re-reads to zero
+    offsets = np.where(an.unit >= 0, 7.0 * an.unit + 3.0, 0.0)
+    out = an.apply(offsets + 0.0)
+    inner = np.zeros(t.size, bool)
+    for k in range(len(segs)):
+        idx = np.flatnonzero(an.unit == k)
+        if idx.size and an.anchor_start[k] >= idx[0]:  # anchored on its own start
+            inner[idx] = True
+    assert np.allclose(out[inner], 0.0)
+    assert an.fit.any() and an.heldout.any() and not (an.fit & an.heldout).any()
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.5, 0.8])
+def test_correlation_length_of_an_ar1_residual(phi):
+    """AR(1): integrated autocorrelation (1 + φ)/(1 − φ) samples."""
+    rng = np.random.default_rng(1)
+    e = rng.normal(size=200_000)
+    r = np.empty_like(e)
+    r[0] = e[0]
+    for i in range(1, e.size):
+        r[i] = phi * r[i - 1] + e[i]
+    # the sum stops where ρ < 0.05: the truncated tail is Σ_{k≥K} φ^k
+    expect = (1 + phi) / (1 - phi)
+    assert correlation_length(r) == pytest.approx(expect, rel=0.15)
+
+
+def test_a_protocol_without_holds_or_y_channel_cannot_identify_creep_or_misalignment():
+    from dataclasses import replace
+
+    from turntable_env.calibration.trace_fit import _prepare
+
+    m = run_virtual_lab("standard", {}, noise_std=1e-3, seed=0)
+    td, _w = _prepare(m)
+    why = identifiable_effects([td])
+    assert why["piezo_creep"] == "" and why["piezo_hysteresis"] == ""
+    assert why["axis_misalignment"] == ""  # the file records the y channel
+    td, _w = _prepare(replace(m, detector_y_v=None))
+    assert identifiable_effects([td])["axis_misalignment"] == "no y channel"
+    td_noholds = type(td)(**{**td.__dict__, "segments": [s for s in td.segments
+                                                          if s.kind != "hold"]})  # fmt: skip
+    why = identifiable_effects([td_noholds])
+    assert "hold" in why["piezo_creep"] and "hold" in why["vibration"]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"min_improvement": 1.5}, "min_improvement"),
+        ({"candidates": ["wobble"]}, "candidates"),
+        ({"global_points": -1}, "global_points"),
+        ({"workers": 0}, "workers"),
+    ],
+)
+def test_bad_arguments_are_named_before_any_work(kwargs, field):
+    m = run_virtual_lab("thesis", {}, noise_std=1e-3, seed=0)
+    with pytest.raises(ValueError, match=field):
+        calibrate([m], progress=None, **kwargs)
+
+
+def test_the_z_axis_is_refused_with_the_reason(tmp_path):
+    from dataclasses import replace
+
+    m = run_virtual_lab("thesis", {}, noise_std=1e-3, seed=0)
+    z = replace(m, axis="Z", drives={"Z": m.drives[m.axis]})
+    with pytest.raises(ValueError, match="axis 'Z'"):
+        calibrate([z], progress=None, global_points=0)

@@ -1,0 +1,237 @@
+"""Residual statistics judged against the data's own noise: anchoring, noise floor,
+structure, spectral peaks, ringing after flybacks, correlations.
+
+* **Anchored residual.** A stick–slip positioner integrates its steps, so a model whose
+  step is 1 % short drifts away from the measurement for ever. The calibrator compares
+  each segment (:mod:`.segments`) as a prediction from where the table *was*: the error
+  e = measured − model (detector volts → nm at R_table, Eq. 4.1–4.2 linearised) minus
+  its mean over the ``ANCHOR`` window just before the segment starts. The model itself
+  runs the whole drive once, so every segment starts from the state the drive history
+  left it in; only the position offset is re-read, as a lab re-reads its encoder.
+* **Noise floor.** From the data, never assumed: the detector's white noise σ from the
+  first differences in quiet holds (robust: 1.4826·MAD(Δv)/√2, insensitive to slow drift
+  or creep), or from the residual's first differences where the file has no holds; the
+  floor of an anchored error is σ·√(1 + 1/n_anchor).
+* **Structure.** The residual's excess over the floor, √(max(0, RMS² − floor²)); a
+  whiteness test is not used (on 10⁴ samples any model error fails it).
+* **Signatures.** Spectral peaks above ``PEAK_MIN_HZ`` (Welch, each at least
+  ``PEAK_FACTOR`` times the local median level), ringing after flybacks (the residual's
+  RMS in the ``RING_WINDOW`` after each step vs elsewhere, its dominant frequency from
+  the synchronous average), and correlations with time, position, velocity, direction
+  and drive level.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from .segments import Segment
+
+__all__ = [
+    "ANCHOR",
+    "Anchoring",
+    "noise_floor",
+    "ringing",
+    "spectral_peaks",
+    "structured_rms",
+]
+
+ANCHOR = 1e-3  # s, window before a segment whose mean error re-reads the position
+ANCHOR_MIN = 10  # samples in the anchor window at least
+SETTLE = 5e-3  # s, start of a hold skipped for the noise estimate (settling, creep)
+PEAK_MIN_HZ = 5.0  # Hz, lowest frequency searched for peaks (below: trends)
+PEAK_FACTOR = 8.0  # a peak's PSD over the local median PSD
+RING_WINDOW = 5e-3  # s, after a flyback searched for ringing
+MAD_SCALE = 1.4826  # MAD → σ of a normal distribution
+
+
+@dataclass(frozen=True, eq=False)
+class Anchoring:
+    """Sample structure of one trace's anchored residual.
+
+    Attributes:
+        unit: (n,) index of the segment each sample belongs to (−1: not compared).
+        fit: (n,) True on fit-portion samples; heldout: (n,) True on held-out ones.
+        anchor_start, anchor_end: (n_segments,) sample range of each segment's anchor.
+        mean_anchor: mean anchor length [samples].
+    """
+
+    unit: np.ndarray
+    fit: np.ndarray
+    heldout: np.ndarray
+    anchor_start: np.ndarray
+    anchor_end: np.ndarray
+    mean_anchor: float
+
+    @classmethod
+    def of(cls, time: np.ndarray, segments: list[Segment]) -> Anchoring:
+        t = np.asarray(time, float)
+        n = t.size
+        dt = float(np.median(np.diff(t)))
+        n_a = max(ANCHOR_MIN, round(ANCHOR / dt))
+        unit = np.full(n, -1, np.int64)
+        fit = np.zeros(n, bool)
+        a0 = np.zeros(len(segments), np.int64)
+        a1 = np.zeros(len(segments), np.int64)
+        for k, s in enumerate(segments):
+            i0 = int(np.searchsorted(t, s.start, "left"))
+            i1 = int(np.searchsorted(t, s.end, "left")) if k + 1 < len(segments) else n
+            if i1 <= i0:
+                a0[k], a1[k] = i0, min(i0 + 1, n)
+                continue
+            if i0 >= n_a:
+                a0[k], a1[k] = i0 - n_a, i0
+            else:  # the trace's first segment: anchored on its own start
+                a0[k], a1[k] = i0, min(i0 + n_a, i1)
+            unit[i0:i1] = k
+            fit[i0:i1] = s.portion == "fit"
+        heldout = (unit >= 0) & ~fit
+        return cls(unit, fit, heldout, a0, a1, float(np.mean(a1 - a0)) if a1.size else 1.0)
+
+    def apply(self, error: np.ndarray) -> np.ndarray:
+        """The anchored error: each segment's error minus its anchor window's mean (0 on
+        samples no segment covers)."""
+        e = np.asarray(error, float)
+        cs = np.concatenate([[0.0], np.cumsum(e)])
+        anchor = (cs[self.anchor_end] - cs[self.anchor_start]) / np.maximum(
+            self.anchor_end - self.anchor_start, 1
+        )
+        out = np.zeros_like(e)
+        ok = self.unit >= 0
+        out[ok] = e[ok] - anchor[self.unit[ok]]
+        return out
+
+
+def _mad_sigma(d: np.ndarray) -> float:
+    return MAD_SCALE * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
+
+
+def noise_floor(
+    time: np.ndarray, signal: np.ndarray, segments: list[Segment]
+) -> tuple[float, str, int]:
+    """White-noise σ of a detector signal [its unit] from its first differences in the
+    quiet holds: (σ, source, samples used); (nan, "", 0) with fewer than 50 quiet samples
+    (the caller then uses another estimate).
+
+    Each hold's second half (past ``SETTLE``) gives an estimate; a lightly damped table
+    still rings in some holds, so only the holds within 1.5× of the lower quartile of
+    the estimates are pooled (robust MAD of their differences)."""
+    t = np.asarray(time, float)
+    v = np.asarray(signal, float)
+    diffs, est = [], []
+    for s in segments:
+        if s.kind != "hold" or s.duration < 2 * SETTLE:
+            continue
+        sel = (t >= max(s.start + SETTLE, 0.5 * (s.start + s.end))) & (t < s.end)
+        if sel.sum() > 30:
+            d = np.diff(v[sel])
+            diffs.append(d)
+            est.append(_mad_sigma(d))
+    if not est:
+        return math.nan, "", 0
+    q = float(np.quantile(est, 0.25))
+    d = np.concatenate([d for d, e in zip(diffs, est, strict=True) if e <= 1.5 * q])
+    if d.size < 50:
+        return math.nan, "", 0
+    return _mad_sigma(d), "first differences in quiet holds", int(d.size)
+
+
+def residual_sigma(residual: np.ndarray) -> float:
+    """White-noise σ of a residual from its first differences (robust)."""
+    r = np.asarray(residual, float)
+    return _mad_sigma(np.diff(r)) if r.size > 10 else math.nan
+
+
+def structured_rms(rms: float, floor: float) -> float:
+    """The residual's RMS beyond the noise floor: √(max(0, rms² − floor²))."""
+    return math.sqrt(max(0.0, rms**2 - floor**2))
+
+
+def spectral_peaks(
+    time: np.ndarray, residual: np.ndarray, *, max_peaks: int = 3
+) -> list[dict[str, float]]:
+    """Peaks of the residual's Welch spectrum above ``PEAK_MIN_HZ``: each
+    ``{"frequency_Hz", "share", "prominence"}`` (share: of the residual's power in the
+    searched band; prominence: PSD over the local median), strongest first."""
+    t = np.asarray(time, float)
+    r = np.asarray(residual, float)
+    if t.size < 64:
+        return []
+    dt = float(np.median(np.diff(t)))
+    tu = np.arange(t[0], t[-1], dt)
+    ru = np.interp(tu, t, r)
+    nper = int(min(tu.size, max(256, round(1.0 / (PEAK_MIN_HZ * dt)))))
+    f, p = scipy.signal.welch(ru, fs=1.0 / dt, nperseg=nper, detrend="linear")
+    band = f >= PEAK_MIN_HZ
+    if band.sum() < 8:
+        return []
+    fb, pb = f[band], p[band]
+    base = _running_median(pb)
+    prom = pb / np.maximum(base, 1e-300)
+    idx, _ = scipy.signal.find_peaks(prom, height=PEAK_FACTOR)
+    total = float(np.sum(pb)) or 1.0
+    out = []
+    for i in sorted(idx, key=lambda i: -pb[i])[:max_peaks]:
+        lo, hi = max(i - 1, 0), min(i + 2, pb.size)
+        out.append(
+            {
+                "frequency_Hz": float(fb[i]),
+                "share": float(np.sum(pb[lo:hi]) / total),
+                "prominence": float(prom[i]),
+            }
+        )
+    return out
+
+
+def _running_median(p: np.ndarray, half: int = 10) -> np.ndarray:
+    pad = np.concatenate([np.full(half, np.nan), p, np.full(half, np.nan)])
+    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1)
+    return np.nanmedian(win, axis=1)
+
+
+def ringing(
+    time: np.ndarray, residual: np.ndarray, jumps: np.ndarray, compared: np.ndarray
+) -> dict[str, float] | None:
+    """Residual after the flybacks: RMS in the ``RING_WINDOW`` after each step over the
+    RMS elsewhere (``ratio``), and the dominant frequency of their synchronous average
+    [Hz]; None without steps."""
+    t = np.asarray(time, float)
+    r = np.asarray(residual, float)
+    if jumps.size == 0:
+        return None
+    dt = float(np.median(np.diff(t)))
+    n_w = max(round(RING_WINDOW / dt), 8)
+    starts = np.searchsorted(t, jumps)
+    starts = starts[(starts + n_w < t.size)]
+    # one window per flyback (an overshoot's two jumps are one flyback)
+    if starts.size == 0:
+        return None
+    keep = np.concatenate([[True], np.diff(starts) > n_w // 4])
+    starts = starts[keep]
+    mask = np.zeros(t.size, bool)
+    windows = []
+    for i in starts:
+        if compared[i : i + n_w].all():
+            mask[i : i + n_w] = True
+            w = r[i : i + n_w]
+            windows.append(w - w.mean())
+    if not windows or (compared & ~mask).sum() < 10:
+        return None
+    rms_in = float(np.sqrt(np.mean(r[mask] ** 2)))
+    rms_out = float(np.sqrt(np.mean(r[compared & ~mask] ** 2)))
+    # the dominant frequency of the windows' power spectra (phase-independent)
+    spec = np.mean([np.abs(np.fft.rfft(w, 4 * n_w)) ** 2 for w in windows], axis=0)
+    freqs = np.fft.rfftfreq(4 * n_w, dt)
+    ok = freqs > 1.0 / RING_WINDOW
+    f_peak = float(freqs[ok][np.argmax(spec[ok])]) if ok.any() else math.nan
+    return {
+        "ratio": rms_in / max(rms_out, 1e-300),
+        "rms_after_flyback": rms_in,
+        "rms_elsewhere": rms_out,
+        "frequency_Hz": f_peak,
+        "flybacks": len(windows),
+    }

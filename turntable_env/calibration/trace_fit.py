@@ -1,0 +1,876 @@
+"""Calibrate measured traces: the nominal model first, effects only after it fits.
+
+:func:`calibrate_traces` (``turntable calibrate FILE.csv ...``) works on any lab's file:
+
+1. **Read the drive** (:mod:`.segments`): breakpoints, or a sampled function-generator
+   output whose single-sample drops are read as steps (the amplifier shapes them,
+   §4.1.2), with the timing uncertainty; cut it into hold / scan / steps segments and
+   interleave the fit and held-out portions by drive condition, so the held-out error
+   measures prediction at conditions the fit has seen, not extrapolation.
+2. **Noise floor** from the quiet holds (first differences, robust), else from the
+   residual's high-frequency part (:func:`~.residual.noise_floor`).
+3. **Residual** (:mod:`.residual`): measured − model [nm at R_table, Eq. 4.1–4.2], each
+   segment re-anchored on the 1 ms before it (a model whose steps are 2 % off is
+   otherwise judged by the position error it accumulates over hundreds of steps, and a
+   detector offset is not a dynamic property).
+4. **Nominal model** (:mod:`.nominal`): stroke, detector gain, friction levels, Stribeck
+   velocity, preload, presliding distance, contact and tube damping, table inertia as
+   ln-factors with normal priors; a global stage (a scrambled Sobol design over ±2.5 σ
+   of the priors, evaluated in parallel over ``workers`` processes) picks the starts of
+   bounded least squares (``scipy.optimize.least_squares``, the priors as residual
+   rows); the starts' optima are reported side by side (do they agree?). Standard
+   errors come from the Jacobian with the residual's correlation length counted
+   (N/L effective samples), never ``nan``; parameters at a bound are flagged; those
+   whose posterior σ is above 70 % of the prior's are reported as not identified.
+5. **Effects** (:data:`~turntable_env.effects.CATALOGUE`), only those the protocol can
+   identify (creep needs holds after motion, hysteresis a scan, asymmetry both
+   directions, misalignment the y channel, …): each screened on top of the fitted nominal
+   model, the best two refitted jointly with it. One is added only if its held-out error
+   beats the nominal model refitted with the same budget by ``min_improvement``, its
+   parameter lies 3 σ from neutral, and a refit of it on the held-out portion alone
+   agrees with the fit portion's (within 3 σ, same sign) — a misfit nominal model is
+   never "explained" by an effect.
+6. **Diagnosis** of the final held-out residual against the floor: its structured part
+   √(rms² − floor²), spectral peaks above 5 Hz, ringing after the flybacks,
+   correlations with time, position, direction and drive level.
+   ``residual_structured`` is true when the structured part exceeds the floor (or a peak
+   or ringing stands out) — not a whiteness test that 10⁴ samples always fail.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+import scipy.stats.qmc
+
+from ..effects import CATALOGUE, apply_output
+from ..plant import Plant
+from .measurement import Measurement, load_measurement
+from .nominal import NominalModel
+from .residual import Anchoring, noise_floor, residual_sigma, ringing, spectral_peaks
+from .segments import DriveReading, Segment, read_drive, segment_trace, split_portions
+from .trace import simulate_trace
+
+__all__ = ["TRACE_NOMINAL", "TraceProblem", "calibrate_traces", "identifiable_effects"]
+
+# the nominal parameters a trace fit frees (nominal.NOMINAL_PARAMETERS; the amplifier is
+# the datasheet's — a different one is the catalogue's amplifier_dynamics)
+TRACE_NOMINAL = (
+    "stroke",
+    "detector_gain",
+    "friction",
+    "coulomb",
+    "stribeck_velocity",
+    "preload",
+    "presliding",
+    "contact_damping",
+    "tube_damping",
+    "inertia",
+)
+GLOBAL_BOX = 2.5  # Sobol design over ±GLOBAL_BOX prior σ
+DIFF_STEP = 0.02  # finite-difference step on ln-factors (2 %) — the objective is piecewise
+STRUCTURED_FACTOR = 1.5  # residual RMS over the floor above which structure remains
+ERROR_UNIT = "nm"
+
+
+def _nm_per_volt(m: Measurement) -> float:
+    """Detector volts → displacement at R_table [nm], Eq. 4.1–4.2 linearised at θ = 0."""
+    d = m.detector
+    return d.sensitivity / (2.0 * d.distance) * d.table_radius * 1e9
+
+
+@dataclass
+class TraceData:
+    """One file as the fit sees it."""
+
+    m: Measurement
+    reading: DriveReading
+    segments: list[Segment]
+    anchoring: Anchoring
+    scale: float  # nm per detector volt
+    floor: float  # noise floor [nm]
+    floor_source: str
+    has_y: bool
+
+    @property
+    def drive(self) -> np.ndarray:
+        return self.m.drives[self.m.axis]
+
+
+def _prepare(m: Measurement) -> tuple[TraceData, list[str]]:
+    warnings: list[str] = []
+    if m.axis not in ("A", "B", "C"):
+        raise ValueError(
+            f"{m.source}: axis {m.axis!r}: the per-axis model calibrates A, B and C (the "
+            "Z axis needs the full 3-D model; run it with `turntable simulate --axis Z`)"
+        )
+    reading = read_drive(m.time, m.drives[m.axis], m.meta)
+    warnings += [f"{Path(m.source).name or 'trace'}: {w}" for w in reading.warnings]
+    segs = split_portions(segment_trace(reading, float(m.time[-1])))
+    anch = Anchoring.of(m.time, segs)
+    scale = _nm_per_volt(m)
+    floor, src, _n = noise_floor(m.time, m.detector_v, segs)
+    if not math.isfinite(floor):
+        floor, src = residual_sigma(m.detector_v), "first differences of the whole trace"
+        warnings.append(
+            f"{Path(m.source).name or 'trace'}: no quiet hold of 10 ms: the noise floor is "
+            "estimated from the whole trace's first differences (an upper bound)"
+        )
+    if not anch.fit.any() or not anch.heldout.any():
+        raise ValueError(f"{m.source}: the drive has no segment to fit or to hold out")
+    td = TraceData(m, reading, segs, anch, scale, floor * scale, src, m.detector_y_v is not None)
+    return td, warnings
+
+
+def identifiable_effects(traces: Sequence[TraceData]) -> dict[str, str]:
+    """effect → "" if the traces' protocol can identify it, else the reason it cannot."""
+    kinds = [s for td in traces for s in td.segments]
+    steps = [s for s in kinds if s.kind == "steps"]
+    holds_after = any(
+        s.kind == "hold" and s.duration >= 0.01 and k > 0 and kinds[k - 1].kind != "hold"
+        for k, s in enumerate(kinds)
+    )
+    dirs = {s.direction for s in steps}
+    settings = {(round(s.amplitude, 1), round(s.frequency)) for s in steps}
+    dur = sum(td.m.duration for td in traces)
+    vs = max(td.m.detector.saturation_voltage for td in traces)
+    vmax = max(float(np.max(np.abs(td.m.detector_v))) for td in traces)
+    travel = max(float(np.ptp(td.m.detector_v)) * td.scale for td in traces)
+    why = {
+        "piezo_creep": "" if holds_after else "no hold of 10 ms after motion",
+        "piezo_hysteresis": "" if any(s.kind == "scan" for s in kinds) else "no scan ramp",
+        "friction_asymmetry": "" if {-1, 1} <= dirs else "steps in one direction only",
+        "friction_wear": "" if len(steps) >= 3 and travel > 500.0 else "too little travel",
+        "amplifier_dynamics": "" if steps else "no stepping",
+        "axis_misalignment": "" if any(td.has_y for td in traces) else "no y channel",
+        "sensor_drift": "" if dur >= 0.2 else "trace shorter than 0.2 s",
+        "vibration": "" if any(s.kind == "hold" for s in kinds) else "no hold",
+        "detector_nonlinearity": "" if vmax > 0.3 * vs else "detector below 30 % of its range",
+    }
+    if len(settings) < 2 and why["amplifier_dynamics"] == "":
+        why["amplifier_dynamics"] = "one stepping setting only"
+    return {k: why.get(k, "") for k in CATALOGUE}
+
+
+class TraceProblem:
+    """Anchored residuals of (nominal x, effects) over the traces, with a physics cache.
+
+    Picklable: the global stage sends it to worker processes once."""
+
+    def __init__(self, traces: list[TraceData], model: NominalModel, cache_size: int = 64):
+        self.traces = traces
+        self.model = model
+        self.cache_size = cache_size
+        self._cache: OrderedDict[tuple, list[np.ndarray]] = OrderedDict()
+        self.n_sims = 0
+        self.weight = 1.0  # 1 / (σ_r·√L): data rows' scale [1/nm]
+
+    def __getstate__(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d["_cache"] = OrderedDict()
+        return d
+
+    def _theta(self, x: np.ndarray, phys: Mapping[str, Mapping[str, float]]) -> list[np.ndarray]:
+        key = (
+            tuple(np.round(x, 12)),
+            repr(sorted((k, sorted(v.items())) for k, v in phys.items())),
+        )
+        hit = self._cache.get(key)
+        if hit is not None:
+            self._cache.move_to_end(key)
+            return hit
+        plant = self.model.plant(x, phys)
+        out = []
+        for td in self.traces:
+            r = td.reading
+            res = simulate_trace(
+                plant, td.m.axis, td.m.time, td.drive, breakpoints=(r.time, r.level)
+            )
+            out.append(res.theta)
+        self.n_sims += 1
+        self._cache[key] = out
+        if len(self._cache) > self.cache_size:
+            self._cache.popitem(last=False)
+        return out
+
+    def detector(self, x: np.ndarray, td: TraceData) -> Any:
+        """The file's detector geometry with the plant's mirror tilt and photodiode gain."""
+        d = self.model.plant(x).params.detector
+        m = td.m.detector
+        return replace(
+            d, sensitivity=m.sensitivity, distance=m.distance, table_radius=m.table_radius
+        )
+
+    def errors(
+        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]]
+    ) -> list[list[np.ndarray]]:
+        """Per trace: the anchored errors [nm] of its channels (x, and y if recorded)."""
+        phys = {k: dict(v) for k, v in effects.items() if CATALOGUE[k].stage != "output"}
+        out_fx = {k: v for k, v in effects.items() if CATALOGUE[k].stage == "output"}
+        thetas = self._theta(np.asarray(x, float), phys)
+        res = []
+        for td, th in zip(self.traces, thetas, strict=True):
+            m = td.m
+            xv, yv = apply_output(m.time - m.time[0], th, out_fx, self.detector(x, td))
+            vs = m.detector.saturation_voltage
+            chans = [td.anchoring.apply((m.detector_v - np.clip(xv, -vs, vs)) * td.scale)]
+            if td.has_y and m.detector_y_v is not None:
+                chans.append(td.anchoring.apply((m.detector_y_v - np.clip(yv, -vs, vs)) * td.scale))
+            res.append(chans)
+        return res
+
+    def residual(
+        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]], portion: str
+    ) -> np.ndarray:
+        """Concatenated anchored errors [nm] on the ``"fit"`` or ``"heldout"`` samples."""
+        parts = []
+        for td, chans in zip(self.traces, self.errors(x, effects), strict=True):
+            mask = td.anchoring.fit if portion == "fit" else td.anchoring.heldout
+            parts += [c[mask] for c in chans]
+        return np.concatenate(parts)
+
+    def rms(self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]], portion: str) -> float:
+        r = self.residual(x, effects, portion)
+        return float(np.sqrt(np.mean(r**2)))
+
+    def objective(self, x: np.ndarray) -> float:
+        """Weighted fit-portion SSE plus the prior's Σ(x/σ)² (the nominal model alone)."""
+        r = self.residual(x, {}, "fit") * self.weight
+        z = x / self.model.sigma
+        return float(r @ r + z @ z)
+
+
+def correlation_length(r: np.ndarray, max_lag: int = 2000) -> float:
+    """Integrated autocorrelation length of a residual [samples]: 1 + 2Σρ_k up to the
+    first lag where ρ falls below 0.05 (≥ 1)."""
+    r = np.asarray(r, float) - np.mean(r)
+    n = r.size
+    if n < 20:
+        return 1.0
+    f = np.fft.rfft(r, 2 * n)
+    ac = np.fft.irfft(f * np.conj(f))[: min(max_lag, n // 4)]
+    if ac[0] <= 0:
+        return 1.0
+    rho = ac / ac[0]
+    below = np.nonzero(rho < 0.05)[0]
+    k = int(below[0]) if below.size else rho.size
+    return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:k])))
+
+
+# --- fitting -------------------------------------------------------------------------------
+@dataclass
+class Spec:
+    """A model specification: nominal ln-factors and effects, with what is free."""
+
+    x: np.ndarray
+    effects: dict[str, dict[str, float]]
+
+
+@dataclass
+class LocalFit:
+    x: np.ndarray  # nominal ln-factors
+    effects: dict[str, dict[str, float]]
+    std_x: np.ndarray  # standard errors of x (ln units)
+    std_effects: dict[str, dict[str, float]]
+    cost: float  # weighted fit SSE + prior
+    heldout_rms: float  # [nm]
+    fit_rms: float  # [nm]
+    nfev: int
+    corr: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+
+def _effect_rows(effects: Mapping[str, Mapping[str, float]], free: Sequence[str]):
+    rows = []
+    for name in free:
+        for p in CATALOGUE[name].parameters:
+            if p.name in effects[name]:
+                rows.append((name, p))
+    return rows
+
+
+def local_fit(
+    problem: TraceProblem,
+    x0: np.ndarray,
+    effects: Mapping[str, Mapping[str, float]],
+    *,
+    free_nominal: bool = True,
+    free_effects: Sequence[str] = (),
+    max_nfev: int = 15,
+    portion: str = "fit",
+) -> LocalFit:
+    """Bounded least squares of the free parameters on ``portion`` (priors as extra rows
+    on the nominal ln-factors; effect parameters bounded by the catalogue)."""
+    mdl = problem.model
+    nx = len(mdl) if free_nominal else 0
+    eff = {k: dict(v) for k, v in effects.items()}
+    rows = _effect_rows(eff, free_effects)
+    lo = np.concatenate([mdl.low[:nx], [p.low for _n, p in rows]])
+    hi = np.concatenate([mdl.high[:nx], [p.high for _n, p in rows]])
+    scale = np.concatenate([mdl.sigma[:nx], [(p.high - p.low) / 4.0 for _n, p in rows]])
+    v0 = np.concatenate([np.asarray(x0, float)[:nx], [eff[n][p.name] for n, p in rows]])
+    v0 = np.clip(v0, lo, hi)
+
+    def unpack(v: np.ndarray) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
+        x = np.array(v[:nx]) if free_nominal else np.asarray(x0, float)
+        e = {k: dict(d) for k, d in eff.items()}
+        for (name, p), val in zip(rows, v[nx:], strict=True):
+            e[name][p.name] = float(val)
+        return x, e
+
+    def fun(v: np.ndarray) -> np.ndarray:
+        x, e = unpack(v)
+        r = problem.residual(x, e, portion) * problem.weight
+        return np.concatenate([r, x / mdl.sigma]) if free_nominal else r
+
+    if v0.size == 0:
+        x, e = unpack(v0)
+        r = fun(v0)
+        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, nx, rows)
+    res = scipy.optimize.least_squares(
+        fun, v0, bounds=(lo, hi), x_scale=scale, diff_step=DIFF_STEP, max_nfev=max_nfev,
+        method="trf",
+    )  # fmt: skip
+    x, e = unpack(res.x)
+    jac = res.jac
+    try:
+        cov = np.linalg.pinv(jac.T @ jac)
+    except np.linalg.LinAlgError:
+        cov = np.diag(np.full(res.x.size, np.inf))
+    return _finish(problem, x, e, res.x, cov, float(res.fun @ res.fun), int(res.nfev), nx, rows)
+
+
+def _finish(problem, x, e, v, cov, cost, nfev, nx, rows) -> LocalFit:
+    mdl = problem.model
+    var = np.clip(np.diag(cov), 0.0, None) if cov.size else np.zeros(0)
+    # a parameter the data do not constrain keeps its prior σ (never nan)
+    std = np.where(np.isfinite(var), np.sqrt(var), np.inf)
+    std_x = mdl.sigma.copy()
+    std_x[:nx] = np.minimum(std[:nx], mdl.sigma[:nx])
+    std_eff: dict[str, dict[str, float]] = {}
+    for (name, p), s in zip(rows, std[nx:], strict=True):
+        std_eff.setdefault(name, {})[p.name] = float(min(s, p.high - p.low))
+    d = np.sqrt(np.clip(np.diag(cov), 1e-300, None)) if cov.size else np.zeros(0)
+    corr = cov / np.outer(d, d) if cov.size else np.zeros((0, 0))
+    return LocalFit(
+        x=np.asarray(x, float),
+        effects=e,
+        std_x=std_x,
+        std_effects=std_eff,
+        cost=cost,
+        heldout_rms=problem.rms(x, e, "heldout"),
+        fit_rms=problem.rms(x, e, "fit"),
+        nfev=nfev,
+        corr=corr,
+    )
+
+
+_WORKER: TraceProblem | None = None
+
+
+def _init_worker(problem: TraceProblem) -> None:
+    global _WORKER
+    import threadpoolctl
+
+    threadpoolctl.threadpool_limits(1)
+    _WORKER = problem
+
+
+def _worker_objective(x: np.ndarray) -> float:
+    assert _WORKER is not None
+    try:
+        return _WORKER.objective(x)
+    except Exception:  # a diverging corner of the box is a bad point, not a crash
+        return math.inf
+
+
+def _safe_objective(problem: TraceProblem, x: np.ndarray) -> float:
+    try:
+        return problem.objective(x)
+    except Exception:
+        return math.inf
+
+
+def global_stage(
+    problem: TraceProblem, n_points: int, workers: int, seed: int, bar: Callable | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(points, objectives) of a scrambled Sobol design over ±GLOBAL_BOX prior σ."""
+    mdl = problem.model
+    sob = scipy.stats.qmc.Sobol(len(mdl), scramble=True, seed=seed)
+    u = sob.random_base2(max(0, math.ceil(math.log2(n_points))))[:n_points]
+    pts = np.clip((2.0 * u - 1.0) * GLOBAL_BOX * mdl.sigma, mdl.low, mdl.high)
+    if workers > 1:
+        with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(problem,)) as ex:
+            it = ex.map(_worker_objective, pts, chunksize=max(1, n_points // (4 * workers)))
+            vals = np.array(list(bar(it, total=n_points) if bar else it))
+    else:
+        seq = bar(pts, total=n_points) if bar else pts
+        vals = np.array([_safe_objective(problem, p) for p in seq])
+    return pts, vals
+
+
+# --- effects -------------------------------------------------------------------------------
+def _start_values(name: str, problem: TraceProblem, x: np.ndarray, effects) -> dict[str, float]:
+    """Starting values for an effect's parameters from the current residual."""
+    e = CATALOGUE[name]
+    start = e.neutral()
+    if name == "piezo_hysteresis":
+        start = {"h": 0.02, "width": e.defaults()["width"]}
+    elif name == "piezo_creep":
+        start = {"gamma": 0.005}
+    elif name == "amplifier_dynamics":
+        start = {"slew_scale": 0.9, "current_scale": 1.0}
+    elif name in ("friction_asymmetry", "friction_wear"):
+        start = {e.parameters[0].name: 0.02}
+    td = problem.traces[0]
+    m = td.m
+    mask = td.anchoring.fit
+    r = problem.errors(x, effects)[0][0][mask] / td.scale  # V
+    t = m.time[mask] - m.time[0]
+    if name == "sensor_drift" and t.size > 2:
+        # anchoring removes offsets: the rate is the slope within segments
+        unit = td.anchoring.unit[mask]
+        mean_t = np.bincount(unit, t) / np.maximum(np.bincount(unit), 1)
+        tc = t - mean_t[unit]
+        denom = float(tc @ tc)
+        start = {"offset": 0.0, "rate": float(r @ tc / denom) if denom > 0 else 0.0}
+    elif name == "vibration" and t.size > 16:
+        peaks = spectral_peaks(m.time[mask], r)
+        f = peaks[0]["frequency_Hz"] if peaks else 50.0
+        ru = r / (2.0 * m.detector.distance / m.detector.sensitivity)  # rad
+        a = np.column_stack([np.sin(2 * math.pi * f * t), np.cos(2 * math.pi * f * t)])
+        c, *_ = np.linalg.lstsq(a, ru, rcond=None)
+        start = {
+            "amplitude": float(np.hypot(*c)),
+            "frequency": f,
+            "phase": float(np.arctan2(c[1], c[0])),
+        }
+    elif name == "axis_misalignment" and td.has_y and m.detector_y_v is not None:
+        xv, yv = m.detector_v, m.detector_y_v
+        start = {"phi": float(abs(np.arctan2(xv @ yv, xv @ xv)))}
+    elif name == "detector_nonlinearity":
+        v = m.detector_v[mask]
+        vs = m.detector.saturation_voltage
+        basis = v * (v / vs) ** 2
+        denom = float(basis @ basis)
+        start = {"kappa": float(r @ basis / denom) if denom > 0 else 0.0}
+    return {p.name: float(np.clip(start[p.name], p.low, p.high)) for p in e.parameters}
+
+
+def screen_effect(problem: TraceProblem, base: LocalFit, name: str) -> LocalFit:
+    """One candidate on top of the fitted nominal model (nominal fixed): a 7-point grid
+    over its first parameter for physics effects, then least squares of its parameters."""
+    e = CATALOGUE[name]
+    start = _start_values(name, problem, base.x, base.effects)
+    x_at = base.x
+    if e.stage != "output":
+        # the grid at the fitted nominal model and at the prior one: the nominal fit may
+        # have absorbed part of the effect (a stroke factor mimics a slower amplifier)
+        p0 = e.parameters[0]
+        best, start_best = math.inf, start
+        for x_try in (base.x, np.zeros_like(base.x)):
+            for v in np.linspace(p0.low, p0.high, 7):
+                trial = {**start, p0.name: float(v)}
+                try:
+                    rr = problem.residual(x_try, {**base.effects, name: trial}, "fit")
+                except Exception:
+                    continue
+                sse = float(rr @ rr)
+                if sse < best:
+                    best, start_best, x_at = sse, trial, x_try
+        start = start_best
+    return local_fit(
+        problem, x_at, {**base.effects, name: start}, free_nominal=False,
+        free_effects=(name,), max_nfev=12,
+    )  # fmt: skip
+
+
+def is_significant(fit: LocalFit, name: str, n_sigma: float = 3.0) -> bool:
+    """At least one of the effect's parameters lies n_sigma standard errors from neutral."""
+    neutral = CATALOGUE[name].neutral()
+    std = fit.std_effects.get(name, {})
+    return any(
+        abs(fit.effects[name][k] - neutral[k]) > n_sigma * std.get(k, math.inf)
+        for k in fit.effects[name]
+    )
+
+
+def consistent(problem: TraceProblem, fit: LocalFit, name: str) -> tuple[bool, str]:
+    """The effect refitted on the held-out portion alone (everything else fixed) agrees
+    with the fit portion's estimate: within 3 combined σ and of the same sign."""
+    held = local_fit(
+        problem, fit.x, fit.effects, free_nominal=False, free_effects=(name,), max_nfev=10,
+        portion="heldout",
+    )  # fmt: skip
+    neutral = CATALOGUE[name].neutral()
+    p0 = CATALOGUE[name].parameters[0].name
+    a, b = fit.effects[name][p0], held.effects[name][p0]
+    sa, sb = fit.std_effects[name][p0], held.std_effects.get(name, {}).get(p0, math.inf)
+    same_sign = (a - neutral[p0]) * (b - neutral[p0]) > 0
+    close = abs(a - b) <= 3.0 * math.hypot(sa, sb) or abs(a - b) <= 0.25 * abs(a - neutral[p0])
+    return bool(same_sign and close), f"{p0}: fit {a:.4g} ± {sa:.2g}, held-out {b:.4g} ± {sb:.2g}"
+
+
+# --- the calibration -----------------------------------------------------------------------
+def calibrate_traces(
+    files: Sequence[str | Path | Measurement],
+    *,
+    base: str | Plant = "real",
+    candidates: Sequence[str] | None = None,
+    max_effects: int = 3,
+    min_improvement: float = 0.05,
+    global_points: int = 64,
+    starts: int = 3,
+    workers: int | None = None,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = print,
+) -> Any:
+    """Calibrate measurement files (module docstring); returns a
+    :class:`~turntable_env.calibration.calibrate.CalibrationResult`.
+
+    Args:
+        files: measurement files or loaded :class:`Measurement` objects (fitted together).
+        base: the plant the nominal factors scale (a parameter-set name or a Plant;
+            ``"calibrated"`` for the thesis rig's calibrated set).
+        candidates: catalogue effects to consider (default: all).
+        max_effects: at most this many effects are added.
+        min_improvement: relative held-out gain an effect must bring over the nominal
+            model refitted with the same budget.
+        global_points: Sobol points of the global stage; starts: local fits from the best
+            of them (and one from the prior).
+        workers: processes for the global stage (default: the CPUs this process may use).
+        seed: the Sobol design's scrambling seed.
+        progress: message sink (None: silent); tqdm bars go to stderr when given.
+    """
+    from .calibrate import CalibrationResult
+
+    t0 = time.perf_counter()
+    if not 0.0 <= min_improvement < 1.0:
+        raise ValueError(f"min_improvement={min_improvement!r}: must be in [0, 1)")
+    for name, v, lo in (("global_points", global_points, 0), ("starts", starts, 1),
+                        ("max_effects", max_effects, 0)):  # fmt: skip
+        if not isinstance(v, int) or v < lo:
+            raise ValueError(f"{name}={v!r}: must be an integer ≥ {lo}")
+    names = list(candidates) if candidates is not None else list(CATALOGUE)
+    for n in names:
+        if n not in CATALOGUE:
+            raise ValueError(f"candidates: unknown effect {n!r} ({', '.join(CATALOGUE)})")
+    n_workers = workers if workers is not None else len(os.sched_getaffinity(0))
+    if n_workers < 1:
+        raise ValueError(f"workers={workers!r}: must be ≥ 1")
+    say = progress or (lambda _msg: None)
+    bar = None
+    if progress is not None:
+        from tqdm.auto import tqdm
+
+        def bar(it, total):
+            return tqdm(it, total=total, leave=False, desc="  global stage", unit="pt")
+
+    warnings: list[str] = []
+    traces = []
+    for f in files:
+        m = f if isinstance(f, Measurement) else load_measurement(f)
+        td, w = _prepare(m)
+        traces.append(td)
+        warnings += w
+    base_plant = base if isinstance(base, Plant) else Plant(base, fidelity="reduced")
+    if base_plant.fidelity != "reduced":
+        base_plant = base_plant.replace(fidelity="reduced")
+    model = NominalModel(base_plant, TRACE_NOMINAL)
+    problem = TraceProblem(traces, model)
+    floor = float(np.sqrt(np.mean([td.floor**2 for td in traces])))
+    motion = float(
+        np.sqrt(np.mean(np.concatenate([(td.m.detector_v - td.m.detector_v[0]) * td.scale
+                                        for td in traces]) ** 2))
+    )  # fmt: skip
+    ident = identifiable_effects(traces)
+    say(
+        f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
+        f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})"
+    )
+    x_prior = np.zeros(len(model))
+    before = problem.rms(x_prior, {}, "heldout")
+    r0 = problem.residual(x_prior, {}, "fit")
+    problem.weight = 1.0 / (
+        max(float(np.sqrt(np.mean(r0**2))), floor) * math.sqrt(correlation_length(r0))
+    )
+    say(f"prior model: held-out error {before:.3g} {ERROR_UNIT}")
+
+    # global stage → local fits from the best points and the prior
+    starts_x = [x_prior]
+    if global_points > 0:
+        say(f"global stage: {global_points} Sobol points on {n_workers} process(es)")
+        pts, vals = global_stage(problem, global_points, n_workers, seed, bar)
+        for i in np.argsort(vals)[:starts]:
+            if np.isfinite(vals[i]):
+                starts_x.append(pts[i])
+    fits: list[LocalFit] = []
+    for k, xs in enumerate(starts_x):
+        f1 = local_fit(problem, xs, {}, max_nfev=15)
+        fits.append(f1)
+        say(f"  start {k}: held-out {f1.heldout_rms:.3g} {ERROR_UNIT} (cost {f1.cost:.4g})")
+    best = min(fits, key=lambda f: f.cost)
+    # re-weight at the optimum (σ_r, correlation length), polish; honest standard errors
+    r_fit = problem.residual(best.x, {}, "fit")
+    problem.weight = 1.0 / (max(best.fit_rms, floor) * math.sqrt(correlation_length(r_fit)))
+    nominal = local_fit(problem, best.x, {}, max_nfev=10)
+    if nominal.heldout_rms > best.heldout_rms:
+        nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
+    spread = _start_spread(fits, nominal)
+    say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
+
+    # effects, only after the nominal model fits
+    current = nominal
+    selected: list[str] = []
+    history = [{"effects": [], "heldout_rms": nominal.heldout_rms}]
+    candidates_out: list[dict[str, Any]] = []
+    considered = [n for n in names if not ident.get(n)]
+    for n in names:
+        if ident.get(n):
+            warnings.append(f"{n}: not identifiable from this protocol ({ident[n]})")
+    if base_plant.params.amplifier.fast_fraction > 0 and "amplifier_fast_path" in considered:
+        considered.remove("amplifier_fast_path")  # the base plant has one already
+    while len(selected) < max_effects and considered:
+        if current.heldout_rms <= STRUCTURED_FACTOR * floor:
+            say("  residual at the noise floor: no effect searched")
+            break
+        screened = []
+        for n in considered:
+            if n in selected:
+                continue
+            try:
+                c = screen_effect(problem, current, n)
+            except Exception as exc:  # a candidate that cannot run is reported, not fatal
+                warnings.append(f"{n}: screening failed ({exc})")
+                continue
+            screened.append((n, c))
+            candidates_out.append(
+                {"round": len(selected) + 1, "effect": n, "heldout_error": c.heldout_rms}
+            )
+            say(f"  candidate {n:<22} held-out {c.heldout_rms:.3g} {ERROR_UNIT}")
+        if not screened:
+            break
+        top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
+        refit_nom = local_fit(problem, current.x, current.effects,
+                              free_effects=selected, max_nfev=6)  # fmt: skip
+        baseline = min(current.heldout_rms, refit_nom.heldout_rms)
+        accepted = None
+        for n, c in top:
+            joint = local_fit(problem, c.x, c.effects, free_effects=[*selected, n], max_nfev=6)
+            cand = joint if joint.heldout_rms < c.heldout_rms else c
+            if cand is c:  # standard errors with the nominal free too
+                cand = replace(c, std_effects={**c.std_effects, **joint.std_effects})
+            gain = 1.0 - cand.heldout_rms / baseline
+            sig = is_significant(cand, n)
+            ok, note = consistent(problem, cand, n) if sig else (False, "")
+            at_bound = _at_bounds_effect(cand, n)
+            say(
+                f"  {n}: held-out {cand.heldout_rms:.3g} vs nominal refit {baseline:.3g} "
+                f"{ERROR_UNIT} ({gain:+.1%}), 3σ {sig}, consistent {ok} {note}"
+            )
+            if at_bound:
+                warnings.append(f"{n}: {', '.join(at_bound)} at its bound")
+            if gain >= min_improvement and sig and ok:
+                accepted = (n, cand)
+                break
+        if accepted is None:
+            say("  no effect beats the nominal model on held-out data")
+            break
+        n, current = accepted
+        selected.append(n)
+        history.append({"effects": list(selected), "heldout_rms": current.heldout_rms})
+        say(f"selected {n}: held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
+
+    diag = diagnose(problem, current, floor)
+    diag.update(
+        noise_floor=floor, noise_floor_source=traces[0].floor_source, rms_motion=motion,
+        target=max(3.0 * floor, 0.02 * motion), starts=spread, n_simulations=problem.n_sims,
+        identifiability={k: (v or "identifiable") for k, v in ident.items()},
+        error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
+        drive_recording=[td.reading.recording for td in traces],
+    )  # fmt: skip
+    params = _parameter_table(model, current)
+    for owner, ps in params.items():
+        for p, v in ps.items():
+            if v.get("at_bound"):
+                warnings.append(f"{owner}.{p} = {v['value']:.4g} at its bound")
+            if owner == "nominal" and not v.get("identified", True):
+                warnings.append(f"nominal.{p}: not identified by the data (held at its prior)")
+    plant = model.plant(current.x, current.effects)
+    unc = {}
+    for i, p in enumerate(model.parameters):  # factor σ = factor · σ(ln factor)
+        if p.target == "factor" and p.key in plant.factors:
+            unc[p.key] = float(plant.factors[p.key] * current.std_x[i])
+    for name in selected:
+        for k, s in current.std_effects.get(name, {}).items():
+            unc[f"{name}.{k}"] = float(s)
+    plant = plant.replace(uncertainty=unc)
+    diag["warnings"] = warnings
+    overlay = _overlay(problem, current)
+    return CalibrationResult(
+        selected_effects=selected,
+        parameters=params,
+        error_before=before,
+        error_after=current.heldout_rms,
+        error_unit=ERROR_UNIT,
+        residual_structured=bool(diag["structured"]),
+        candidates=candidates_out,
+        diagnosis=diag,
+        history=history,
+        residuals={"after": current_heldout(problem, current), **overlay},
+        wall_s=time.perf_counter() - t0,
+        plant=plant,
+    )
+
+
+def current_heldout(problem: TraceProblem, fit: LocalFit) -> np.ndarray:
+    return problem.residual(fit.x, fit.effects, "heldout")
+
+
+def _at_bounds_effect(fit: LocalFit, name: str) -> list[str]:
+    out = []
+    for p in CATALOGUE[name].parameters:
+        v = fit.effects[name][p.name]
+        if p.high > p.low and min(v - p.low, p.high - v) < 1e-3 * (p.high - p.low):
+            out.append(f"{name}.{p.name} = {v:.4g}")
+    return out
+
+
+def _start_spread(fits: list[LocalFit], final: LocalFit) -> dict[str, Any]:
+    """The local fits' optima side by side: cost, held-out error, and whether they reach
+    the same optimum (within 2 standard errors on every parameter, or the same cost)."""
+    rows = []
+    for f in fits:
+        dz = np.abs(f.x - final.x) / np.maximum(final.std_x, 1e-6)
+        rows.append(
+            {
+                "cost": f.cost,
+                "heldout_rms": f.heldout_rms,
+                "max_distance_sigma": float(np.max(dz)),
+                "factors": {k: float(v) for k, v in zip(TRACE_NOMINAL, np.exp(f.x), strict=True)},
+            }
+        )
+    best = min(r["cost"] for r in rows)
+    agree = [r["max_distance_sigma"] <= 2.0 or r["cost"] <= 1.01 * best for r in rows]
+    return {"fits": rows, "agreeing": int(sum(agree)), "total": len(rows)}
+
+
+def _parameter_table(model: NominalModel, fit: LocalFit) -> dict[str, dict[str, dict[str, Any]]]:
+    """owner → parameter → {value, std, ...}: nominal factors with their ln-σ turned into
+    factor σ (delta method), identification against the prior, bound flags."""
+    out: dict[str, dict[str, dict[str, Any]]] = {"nominal": {}}
+    for i, p in enumerate(model.parameters):
+        v = math.exp(fit.x[i])
+        s = fit.std_x[i]
+        out["nominal"][p.name] = {
+            "value": v,
+            "std": v * s,
+            "prior_std_ln": p.sigma,
+            "identified": bool(s < 0.7 * p.sigma),
+            "at_bound": bool(min(fit.x[i] - model.low[i], model.high[i] - fit.x[i]) < 1e-3),
+            "meaning": p.meaning,
+        }
+    for name, vals in fit.effects.items():
+        e = CATALOGUE[name]
+        for p in e.parameters:
+            s = fit.std_effects.get(name, {}).get(p.name, p.high - p.low)
+            v = vals[p.name]
+            out.setdefault(name, {})[p.name] = {
+                "value": v,
+                "std": float(s),
+                "at_bound": bool(min(v - p.low, p.high - v) < 1e-3 * (p.high - p.low)),
+                "unit": getattr(p, "unit", ""),
+                "meaning": getattr(p, "description", getattr(p, "meaning", "")),
+            }
+    return out
+
+
+def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, Any]:
+    """The held-out residual's signature against the noise floor (module docstring)."""
+    errs = problem.errors(fit.x, fit.effects)
+    phys = {k: v for k, v in fit.effects.items() if CATALOGUE[k].stage != "output"}
+    thetas = problem._theta(fit.x, phys)
+    regress: dict[str, list[np.ndarray]] = {
+        k: [] for k in ("residual", "time", "position", "direction", "drive_level")
+    }
+    peaks, rings = [], []
+    for td, chans, th in zip(problem.traces, errs, thetas, strict=True):
+        held = td.anchoring.heldout
+        t = td.m.time
+        r = chans[0]
+        regress["residual"].append(r[held])
+        regress["time"].append((t - t[0])[held])
+        regress["position"].append(th[held])
+        vel = np.gradient(th, t)
+        regress["direction"].append(np.sign(vel[held]))
+        regress["drive_level"].append(td.drive[held])
+        compared = td.anchoring.unit >= 0
+        peaks += spectral_peaks(t[compared], r[compared])
+        rg = ringing(t, r, td.reading.jumps, compared)
+        if rg is not None:
+            rings.append(rg)
+    res_x = np.concatenate(regress.pop("residual"))
+    corr = {}
+    for k, parts in regress.items():
+        v = np.concatenate(parts)
+        if np.std(v) > 0 and np.std(res_x) > 0:
+            corr[k] = float(np.corrcoef(v, res_x)[0, 1])
+    rms = fit.heldout_rms
+    structured_part = math.sqrt(max(0.0, rms**2 - floor**2))
+    ring = max(rings, key=lambda g: g["ratio"]) if rings else None
+    structured = (
+        rms > STRUCTURED_FACTOR * floor
+        or any(p["share"] > 0.1 for p in peaks)
+        or (ring is not None and ring["ratio"] > 2.0 and ring["rms_after_flyback"] > 2 * floor)
+    )
+    out: dict[str, Any] = {
+        "rms": rms,
+        "structured_rms": structured_part,
+        "structured": bool(structured),
+        "spectral_peaks": peaks,
+        "ringing": ring,
+        "correlation": corr,
+    }
+    if structured:
+        strongest = max(corr.items(), key=lambda kv: abs(kv[1])) if corr else ("none", 0.0)
+        pk = (
+            f"spectral peak at {peaks[0]['frequency_Hz']:.1f} Hz ({peaks[0]['share']:.0%} of "
+            "the power above 5 Hz)"
+            if peaks
+            else "no spectral peak above 5 Hz"
+        )
+        rg = (
+            f"ringing after flybacks ×{ring['ratio']:.1f} at {ring['frequency_Hz']:.0f} Hz"
+            if ring is not None and ring["ratio"] > 2.0
+            else "no ringing after the flybacks"
+        )
+        out["signature"] = (
+            f"held-out RMS {rms:.3g} nm against a noise floor of {floor:.3g} nm (structured "
+            f"part {structured_part:.3g} nm); {pk}; {rg}; strongest correlation with "
+            f"{strongest[0]} ({strongest[1]:+.2f})"
+        )
+    return out
+
+
+def _overlay(problem: TraceProblem, fit: LocalFit) -> dict[str, np.ndarray]:
+    """The first trace's measured and model detector signals [nm] and drive [V] for the
+    report's overlay plot (model re-anchored per segment as the residual is)."""
+    td = problem.traces[0]
+    err = problem.errors(fit.x, fit.effects)[0][0]
+    meas = (td.m.detector_v - td.m.detector_v[0]) * td.scale
+    return {
+        "overlay_time": td.m.time.copy(),
+        "overlay_measured": meas,
+        "overlay_model": meas - err,
+        "overlay_drive": td.drive.copy(),
+        "overlay_heldout": td.anchoring.heldout.copy(),
+    }

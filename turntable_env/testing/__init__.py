@@ -1,0 +1,32 @@
+"""Independent test benches for the calibration tools.
+
+:mod:`.independent_plant` is a piezo stick–slip turntable simulator written from the
+thesis's physics and the measurement file format only; it shares no model code with the
+rest of the package, so data from it can judge the calibrator fairly.
+"""
+
+from .independent_plant import (
+    PROTOCOLS,
+    Burst,
+    Effects,
+    Hold,
+    PlantParams,
+    Protocol,
+    Ramp,
+    build_drive,
+    simulate,
+    write_trace,
+)
+
+__all__ = [
+    "PROTOCOLS",
+    "Burst",
+    "Effects",
+    "Hold",
+    "PlantParams",
+    "Protocol",
+    "Ramp",
+    "build_drive",
+    "simulate",
+    "write_trace",
+]
