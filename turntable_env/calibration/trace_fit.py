@@ -80,6 +80,9 @@ TRACE_NOMINAL = (
 GLOBAL_BOX = 2.5  # Sobol design over ±GLOBAL_BOX prior σ
 DIFF_STEP = 0.02  # finite-difference step on ln-factors (2 %) — the objective is piecewise
 STRUCTURED_FACTOR = 1.5  # residual RMS over the floor above which structure remains
+FLOOR_REACHED = 1.05  # held-out RMS over the floor at which no effect is searched (the
+# anchor's mean adds ~2.5 % to white noise); between this and STRUCTURED_FACTOR an effect
+# is still searched — a small drift hides there — and must pass the acceptance rules
 ERROR_UNIT = "nm"
 
 
@@ -640,7 +643,7 @@ def calibrate_traces(
     if base_plant.params.amplifier.fast_fraction > 0 and "amplifier_fast_path" in considered:
         considered.remove("amplifier_fast_path")  # the base plant has one already
     while len(selected) < max_effects and considered:
-        if current.heldout_rms <= STRUCTURED_FACTOR * floor:
+        if current.heldout_rms <= FLOOR_REACHED * floor:
             say("  residual at the noise floor: no effect searched")
             break
         screened = []
