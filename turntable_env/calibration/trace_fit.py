@@ -272,14 +272,6 @@ def correlation_length(r: np.ndarray, max_lag: int = 2000) -> float:
 
 # --- fitting -------------------------------------------------------------------------------
 @dataclass
-class Spec:
-    """A model specification: nominal ln-factors and effects, with what is free."""
-
-    x: np.ndarray
-    effects: dict[str, dict[str, float]]
-
-
-@dataclass
 class LocalFit:
     x: np.ndarray  # nominal ln-factors
     effects: dict[str, dict[str, float]]
@@ -729,14 +721,10 @@ def calibrate_traces(
         candidates=candidates_out,
         diagnosis=diag,
         history=history,
-        residuals={"after": current_heldout(problem, current), **overlay},
+        residuals={"after": problem.residual(current.x, current.effects, "heldout"), **overlay},
         wall_s=time.perf_counter() - t0,
         plant=plant,
     )
-
-
-def current_heldout(problem: TraceProblem, fit: LocalFit) -> np.ndarray:
-    return problem.residual(fit.x, fit.effects, "heldout")
 
 
 def _at_bounds_effect(fit: LocalFit, name: str) -> list[str]:
