@@ -34,12 +34,23 @@ from .baseline import simulate_scipy
 from .reduced import ReducedModel, simulate_batch
 from .simulation import simulate, stepping_drive
 
-__all__ = ["STANDARD", "converge", "env_throughput", "run_bench"]
+__all__ = ["STANDARD", "SWEEP", "accuracy_sweep", "converge", "env_throughput", "run_bench"]
 
 STANDARD = {"amplitude": 2.0, "frequency": 100.0, "a": 0.95, "amplifier": "adapted"}
 REF_PERIODS = 10  # periods over which step errors are measured
 FULL_FINE, FULL_COARSE = 0.05, 0.5  # full model's adaptive step (fractions of 1/ω_max)
 SCIPY_RTOL = 1e-4
+OUTPUT_DT = 1e-4  # s, output interval of the timed reduced runs and of their step errors
+REPEATS = 3  # timed runs of the reduced paths; the best counts (the machine is shared)
+# the accuracy sweep: one factor at a time about the standard scenario, both directions
+SWEEP = {
+    "amplitude": (20.0 / 45.0, 2.0, 200.0 / 45.0),  # V input: 20, 90, 200 V on the tubes
+    "frequency": (10.0, 100.0, 2000.0),  # Hz
+    "a": (0.5, 0.95, 0.99),  # ramp ratio
+    "amplifier": ("ideal", "adapted", "unadapted"),
+}
+SWEEP_PERIODS = 3  # periods per case (the mean |step| of the last two)
+SWEEP_HALVINGS = 5  # at most; the reference is the last halving
 SCIPY_WINDOW = 0.011  # s simulated by the SciPy baseline (one flyback)
 
 
@@ -74,6 +85,57 @@ def _peak(fn: Callable[[], Any]) -> tuple[Any, float]:
     return out, peak / 2**20
 
 
+def _best(fn: Callable[[], Any], repeats: int = REPEATS) -> float:
+    """Shortest wall time [s] of ``repeats`` calls."""
+    return min(_timed(fn)[1] for _ in range(repeats))
+
+
+def sweep_cases(quick: bool = False) -> list[dict[str, Any]]:
+    """The accuracy sweep's scenarios: each factor of :data:`SWEEP` varied alone about
+    :data:`STANDARD`, both directions (``quick``: the standard and the unadapted case)."""
+    cases: list[dict[str, Any]] = []
+    for key, values in SWEEP.items():
+        for v in values:
+            case = {**STANDARD, key: v}
+            if case not in cases and (not quick or (key == "amplifier" and v == "unadapted")):
+                cases.append(case)
+    if quick:
+        cases.insert(0, dict(STANDARD))
+    return [{**c, "amplitude": sign * c["amplitude"]} for c in cases for sign in (1.0, -1.0)]
+
+
+def accuracy_sweep(ps: Any, full: Any, quick: bool = False) -> list[dict[str, Any]]:
+    """Step error of the reduced model at the timed output setting (:data:`OUTPUT_DT`)
+    against its converged reference (:func:`converge` on ``step_scale``, at most
+    :data:`SWEEP_HALVINGS` halvings) for every case of :func:`sweep_cases`.
+
+    Returns rows: the case, ``step_um``, ``reference_um``, ``error`` (relative),
+    ``converged`` (the last halving changed the step by < 0.1 %)."""
+    rows = []
+    for case in sweep_cases(quick):
+        periods = SWEEP_PERIODS
+        drv, ps_case = stepping_drive(ps, periods=periods, **case)  # type: ignore[arg-type]
+        dur = periods / case["frequency"]
+
+        def step(scale: float, drv=drv, dur=dur, p=ps_case) -> float:  # type: ignore[no-untyped-def]
+            m = ReducedModel(p, "B", step_scale=scale, model=full)
+            r = simulate_batch([m], [drv], dur, output_dt=min(OUTPUT_DT, dur / 10))[0]
+            return float(np.mean(np.abs(r.steps[1:])))
+
+        fast = step(1.0)
+        ref, hist = converge(step, 0.5, max_halvings=SWEEP_HALVINGS - 1)
+        rows.append({
+            **case,
+            "amplitude_V": case["amplitude"] * ps_case.amplifier.gain,
+            "step_um": fast * 1e6,
+            "reference_um": ref * 1e6,
+            "error": abs(fast - ref) / ref,
+            "converged": abs(hist[-1][1] - hist[-2][1]) < 1e-3 * abs(hist[-1][1])
+            if len(hist) > 1 else False,
+        })  # fmt: skip
+    return rows
+
+
 def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> dict[str, Any]:
     """Run every path on the standard scenario; returns the figures (see module docstring).
 
@@ -88,7 +150,8 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     # --- compile / cache load ----------------------------------------------------------
     t0 = time.perf_counter()
     reduced = ReducedModel(ps, "B")
-    simulate_batch([reduced], [ref_drive], 1e-3)
+    simulate_batch([reduced], [ref_drive], 1e-3)  # the serial kernel
+    simulate_batch([reduced] * 2, [ref_drive] * 2, 1e-3)  # the parallel one
     simulate(ps, ref_drive, 1e-4, axis="B", model=reduced.full)
     out["compile_s"] = time.perf_counter() - t0
 
@@ -116,30 +179,46 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     out["full_step_error"] = abs(fast - ref) / ref
     out["full_reference"] = {"dt_factor": hist[-1][0], "step_um": ref * 1e6}
 
-    # --- reduced model ---------------------------------------------------------------
-    one_run = lambda: simulate_batch([reduced], [drive], duration, output_dt=1e-4)[0]  # noqa: E731
+    # --- reduced model: the ladder (default), and the analytic all-stick step ----------
+    analytic = ReducedModel(ps, "B", model=full, analytic=True)
+    for name, dt in (("", OUTPUT_DT), ("_no_output", duration)):
+        out[f"reduced_rtf_analytic{name}"] = duration / _best(
+            lambda dt=dt: simulate_batch([analytic], [drive], duration, output_dt=dt)
+        )
+        out[f"reduced_rtf{name}"] = duration / _best(
+            lambda dt=dt: simulate_batch([reduced], [drive], duration, output_dt=dt)
+        )
+    one_run = lambda: simulate_batch([reduced], [drive], duration, output_dt=OUTPUT_DT)[0]  # noqa: E731
     r, wall = _timed(one_run)
-    out["reduced_rtf"] = duration / wall
     out["reduced_axis_parameters"] = dataclasses.asdict(reduced.axis_params)
     evals = r.info["steps"] + r.info["rejected"]
     out["reduced_profile"] = {
         "steps_per_period": r.info["steps"] / periods,
         "rejected_per_period": r.info["rejected"] / periods,
-        "ns_per_step_evaluation": 1e9 * r.info["wall_s"] / evals,
+        "analytic_evaluations_per_period": r.info["analytic_evaluations"] / periods,
+        "ns_per_step_evaluation": 1e9 * r.info["wall_s"] / (evals + r.info["analytic_evaluations"]),
         "python_fraction": 1.0 - r.info["wall_s"] / wall,
     }
     _r, out["reduced_peak_MiB"] = _peak(one_run)
     out["reduced_step_um"] = r.step_size * 1e6
+    out["reduced_output_dt_s"] = OUTPUT_DT
 
     def red_step(scale: float, dur: float = t_ref, drv=ref_drive) -> float:  # type: ignore[no-untyped-def]
         m = reduced if scale == 1.0 else ReducedModel(ps, "B", step_scale=scale, model=full)
-        return simulate_batch([m], [drv], dur, output_dt=1e-5)[0].step_size
+        return simulate_batch([m], [drv], dur, output_dt=OUTPUT_DT)[0].step_size
 
     fast = red_step(1.0)
     ref, hist = converge(red_step, 1.0)
     out["reduced_step_error"] = abs(fast - ref) / ref
+    fast_an = simulate_batch([analytic], [ref_drive], t_ref, output_dt=OUTPUT_DT)[0].step_size
+    out["reduced_step_error_analytic"] = abs(fast_an - ref) / ref
     out["reduced_reference"] = {"step_scale": hist[-1][0], "step_um": ref * 1e6}
     out["reduced_vs_full"] = out["reduced_step_um"] / out["full_step_um"] - 1.0
+    sweep = accuracy_sweep(ps, full, quick=quick)
+    out["reduced_step_error_sweep"] = sweep
+    worst = max(sweep, key=lambda row: row["error"])
+    out["reduced_step_error_max"] = worst["error"]
+    out["reduced_step_error_worst_case"] = worst
 
     # --- batched ---------------------------------------------------------------------
     models = [reduced] * batch
@@ -214,6 +293,8 @@ def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> di
         in_kernel = stepper.kernel_seconds - k0
         out[f"vector_env_steps_per_s_{stream}"] = num_envs * n_vec / wall
         out[f"vector_env_integrator_fraction_{stream}"] = in_kernel / wall
+    out["env_single_steps_per_s"] = out["env_steps_per_s_random"]  # the issue's target keys
+    out["env_vector_steps_per_s"] = out["vector_env_steps_per_s_random"]
     return out
 
 
@@ -241,6 +322,9 @@ def format_table(res: dict[str, Any]) -> str:
          res["full_vs_scipy"]),
         ("reduced", res["reduced_rtf"], res["reduced_step_error"], res["reduced_peak_MiB"],
          res["reduced_vs_scipy"]),
+        ("reduced, analytic all-stick steps", res["reduced_rtf_analytic"],
+         res["reduced_step_error_analytic"], float("nan"),
+         res["reduced_rtf_analytic"] / res["scipy_rtf"]),
         (f"reduced batched N={res['batch']} (aggregate)", res["batched_rtf_aggregate"],
          res["reduced_step_error"], res["batched_peak_MiB"], res["batched_vs_scipy"]),
         ("SciPy solve_ivp (reduced eqs.)", res["scipy_rtf"], res["scipy_step_error"],
@@ -259,6 +343,15 @@ def format_table(res: dict[str, Any]) -> str:
         f"reduced: {rp['steps_per_period']:.0f} steps + {rp['rejected_per_period']:.0f} rejected "
         f"per period, {rp['ns_per_step_evaluation']:.0f} ns each, Python "
         f"{100 * rp['python_fraction']:.0f} %"
+    )
+    worst = res["reduced_step_error_worst_case"]
+    lines.append(
+        f"reduced step error over the sweep ({len(res['reduced_step_error_sweep'])} cases, "
+        f"output every {1e6 * res['reduced_output_dt_s']:.0f} µs): max "
+        f"{100 * res['reduced_step_error_max']:.2f} % ({worst['amplitude_V']:+.0f} V, "
+        f"{worst['frequency']:g} Hz, a = {worst['a']}, {worst['amplifier']}); without "
+        f"output: ladder {res['reduced_rtf_no_output']:.3g}, analytic "
+        f"{res['reduced_rtf_analytic_no_output']:.3g}"
     )
     lines.append(
         f"compile/cache load {res['compile_s']:.2f} s; batched per turntable "

@@ -6,9 +6,10 @@ compiled helper in another module changed keeps running the old helper (this hid
 changed adapted-hold time from a local test run until a fresh clone ran it). Every
 compiled module of the package is therefore hashed together at import, and the cache
 lives in a directory named by that hash — any change to any kernel source starts a
-fresh cache. ``NUMBA_CACHE_DIR``, if set, is the parent of these directories; otherwise
-``$XDG_CACHE_HOME/piezo-turntable/numba`` (``~/.cache``). If the directory cannot be
-written numba falls back to its own ``__pycache__`` locator.
+fresh cache. The threading layer of the parallel batch kernel is a fork-safe one unless
+``NUMBA_THREADING_LAYER`` says otherwise. ``NUMBA_CACHE_DIR``, if set, is the parent of
+these directories; otherwise ``$XDG_CACHE_HOME/piezo-turntable/numba`` (``~/.cache``).
+If the directory cannot be written numba falls back to its own ``__pycache__`` locator.
 """
 
 from __future__ import annotations
@@ -41,6 +42,11 @@ def configure_kernel_cache() -> str | None:
     or None where it cannot be created (numba then uses ``__pycache__``)."""
     from numba.core import config
 
+    if "NUMBA_THREADING_LAYER" not in os.environ:
+        # the batched kernel runs turntables in parallel; GNU OpenMP, numba's first choice
+        # where present, aborts a child forked after the parent used it (Gymnasium's
+        # AsyncVectorEnv, process pools): pick a fork-safe layer (tbb, else workqueue)
+        config.THREADING_LAYER = "forksafe"
     parent = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
         "piezo-turntable",

@@ -79,8 +79,10 @@ class ReducedArrays(NamedTuple):
     [m], largest rung while an element slips]; ``nu``, ``kk`` the GMS elements; ``lvl``,
     ``nlvl`` stick-configuration levels; ``phi_*``, ``gam_*`` exact step matrices per
     configuration and rung; ``qs``, ``modal_*`` the quasi-static and modal projections of
-    the all-stick system; ``ring_frac`` the largest step as a fraction of the fastest
-    ringing mode's period.
+    the all-stick system; ``q2`` = A⁻¹Q[:, 0], ``modal_v``, ``modal_lam`` its eigenvectors and
+    eigenvalues (the analytic all-stick step); ``ring_frac`` the largest step as a fraction
+    of the fastest ringing mode's period; ``use_modal`` whether all-stick phases take the
+    analytic step (else the ladder, as a check).
     """
 
     mech: np.ndarray
@@ -100,7 +102,11 @@ class ReducedArrays(NamedTuple):
     modal_c: np.ndarray
     modal_om: np.ndarray
     modal_om_max: np.ndarray
+    q2: np.ndarray
+    modal_v: np.ndarray
+    modal_lam: np.ndarray
     ring_frac: float
+    use_modal: bool
 
 
 class ReducedRecording(NamedTuple):
@@ -111,7 +117,8 @@ class ReducedRecording(NamedTuple):
         out_every: (N,) record every this many grid units.
         rec: (N, n_out, N_REC) records (fields ``turntable_env.reduced_kernel.REC_FIELDS``).
         n_rec: (N,) records written.
-        counters: (N, 3) accepted steps, rejected steps, status of the last call.
+        counters: (N, 4) accepted steps, rejected steps, status of the last call,
+            evaluations of the all-stick analytic solution.
     """
 
     n_end: np.ndarray

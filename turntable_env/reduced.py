@@ -39,7 +39,7 @@ from .drive import DriveSignal, Waveform
 from .kernel_types import DriveArrays, ReducedArrays, ReducedRecording, ReducedState
 from .model import SimulationError, TurntableModel, axis_index
 from .params import ParameterSet, get_parameter_set
-from .reduced_kernel import N_REC, run_reduced_batch
+from .reduced_kernel import N_REC, run_reduced_batch, run_reduced_serial
 from .response import SteppingMetrics
 from .validation import check_finite, check_positive
 
@@ -235,6 +235,11 @@ class ReducedModel:
         model: a prebuilt :class:`TurntableModel` (saves the packing); it may belong to another
             parameter set with the same table and tubes (friction, preload and amplifier are
             taken from ``params``: the condensation only needs the bodies).
+        analytic: all-stick phases with a linear amplifier take the analytic step (event
+            search on the modal solution, :mod:`turntable_env.reduced_kernel`); off by
+            default: ``turntable bench`` measures it no faster than the ladder where no
+            output is recorded (the env), since sampling the ring near a stuck element's
+            capacity costs as much as the ladder steps it replaces.
     """
 
     def __init__(
@@ -244,6 +249,7 @@ class ReducedModel:
         *,
         step_scale: float = 1.0,
         model: TurntableModel | None = None,
+        analytic: bool = False,
     ) -> None:
         ps = get_parameter_set(params) if isinstance(params, str) else params
         self.params = ps
@@ -256,6 +262,7 @@ class ReducedModel:
         self.full = model if model is not None else TurntableModel(ps)
         self.axis = axis
         self.step_scale = check_positive("step_scale", step_scale)
+        self.analytic = bool(analytic)
         fn = ps.contact.preload  # type: ignore[union-attr]
         condensed = AxisParameters.from_model(self.full, axis)
         self.axis_params = replace(condensed, normal_force=(fn, fn))
@@ -386,6 +393,10 @@ class ReducedModel:
             "modal_c": (c_rel @ vec).astype(complex),
             "modal_om": om,
             "modal_om_max": np.array(omega_hi),
+            "q2": np.linalg.solve(a6, qs[:, 0]),
+            "modal_v": vec.astype(complex),
+            "modal_lam": lam.astype(complex),
+            "use_modal": self.analytic,
             "ring_frac": ring_frac,
             "lvl": np.stack([lvl_of, lvl_of]),
             "nlvl": np.array([nl, nl], dtype=np.int64),
@@ -436,7 +447,8 @@ class ReducedModel:
         }  # fmt: skip
 
 
-_STACKED = tuple(f for f in ReducedArrays._fields if f != "ring_frac")
+_SCALARS = ("ring_frac", "use_modal")
+_STACKED = tuple(f for f in ReducedArrays._fields if f not in _SCALARS)
 
 
 class ReducedBatch:
@@ -450,7 +462,8 @@ class ReducedBatch:
         state: the :class:`~turntable_env.kernel_types.ReducedState` (named views:
             :attr:`angle`, :attr:`angular_velocity`, :attr:`tube_displacement`, :attr:`volt`,
             :attr:`stick`).
-        counters: (N, 3) accepted steps, rejected steps, status of the last call.
+        counters: (N, 4) accepted steps, rejected steps, status of the last call,
+            evaluations of the all-stick analytic solution.
     """
 
     def __init__(self, models: Sequence[ReducedModel]) -> None:
@@ -470,7 +483,10 @@ class ReducedBatch:
             stacked[name] = np.zeros((nb, *shape), dtype=arrs[0].dtype)
             for b, a in enumerate(arrs):
                 stacked[name][(b, *tuple(slice(0, s) for s in a.shape))] = a
-        self.arrays = ReducedArrays(**stacked, ring_frac=models[0].packed["ring_frac"])
+        for name in _SCALARS:
+            if any(m.packed[name] != models[0].packed[name] for m in models):
+                raise ValueError(f"models: {name} differs between models")
+        self.arrays = ReducedArrays(**stacked, **{k: models[0].packed[k] for k in _SCALARS})
         self._mu = self.arrays.gms[:, 1:3].copy()  # μ_s, μ_c of each model (friction scale 1)
         self.state = ReducedState(
             y=np.zeros((nb, 6)),
@@ -481,7 +497,7 @@ class ReducedBatch:
             vslow=np.zeros(nb),
             vfast=np.zeros(nb),
         )
-        self.counters = np.zeros((nb, 3), dtype=np.int64)
+        self.counters = np.zeros((nb, 4), dtype=np.int64)
 
     def __len__(self) -> int:
         return len(self.models)
@@ -566,7 +582,8 @@ class ReducedBatch:
             SimulationError: a state became non-finite (names the state, turntable and time).
         """
         self.counters[:, 2] = 0
-        run_reduced_batch(
+        kernel = run_reduced_batch if len(self) > 1 else run_reduced_serial
+        kernel(
             self.state, self.arrays, drive, self.grid,
             ReducedRecording(n_end, out_every, rec, n_rec, self.counters),
         )  # fmt: skip
@@ -669,6 +686,7 @@ def simulate_batch(
                     "params": m.params.name,
                     "steps": int(counters[b, 0]),
                     "rejected": int(counters[b, 1]),
+                    "analytic_evaluations": int(counters[b, 3]),
                     "grid_s": h,
                     "wall_s": wall,
                     "batch": nb,

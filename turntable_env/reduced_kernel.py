@@ -1,52 +1,62 @@
 """Compiled integrator of the per-axis reduced model (:mod:`turntable_env.reduced`).
 
 Between GMS transitions the reduced model is linear: the table angle θ and the two
-tube contact points u_k are a 6-state linear system driven by the amplifier
-voltage V (first-order hold over a step) and by constant per-contact forces (the
-stuck elements' offsets and the slipping elements' forces, held over a step). The
-kernel therefore steps it *exactly* (exponential integrator):
+tube contact points u_k are a 6-state linear system ẏ = A_c y + b V + B_f f driven by
+the amplifier voltage V and by constant per-contact forces f (the stuck elements'
+offsets and the slipping elements' forces). Two exact propagators serve it:
 
-    y(t+h) = Φ_c(h) y(t) + Γ_c(h) [V(t), V̇, f_1, f_2]
+* **All elements stuck, amplifier linear** (the ramp: most of the time). The solution
+  is analytic for a voltage ramp V(t) = V0 + V̇t:
 
-with Φ_c, Γ_c precomputed (scipy ``expm`` of the augmented matrix, then repeated
-squaring) for every stick configuration c (which elements stick, i.e. the stuck
-stiffness Σk_i on each contact) and every rung h = h_min·2^r of a step ladder.
-Time runs on the integer grid of h_min (1/16 µs by default): drive breakpoints
-and outputs are rounded to it and every step lands on them.
+      y(t) = y_p(t) + Re Σ_j v_j z_j e^{λ_j t},  y_p(t) = Q (V0 + V̇t, f1, f2) + q2 V̇,
 
-Step control (no Python per step):
+  with Q = −A⁻¹[b B_f], q2 = A⁻¹Q[:, 0] and the eigenpairs (λ_j, v_j) of the all-stick
+  A (z = W(y − y_p), W = V⁻¹). The kernel takes one step to the next breakpoint (or
+  the end) unless a transition comes first, and evaluates the solution at the output
+  times in between (no landing on them). Transitions are found on the analytic
+  solution: a bound on the modal amplitudes certifies event-free horizons against each
+  stuck element's margin (|F_i| ≤ |F_i − k_i r_k| + k_i(R_k + |ẋ_p|t) < ν_i s(v_max),
+  R_k = Σ_j|c_kj z_j| the ring amplitude); where the bound cannot certify, the event
+  function g = min_i ν_i|s(ẋ)| − |F_i| is sampled at a quarter period of the fastest
+  ringing mode, and a crossing is located to the grid by the Illinois method.
+* **Some element slipping, or the amplifier slewing**: the step matrices Φ_c(h), Γ_c(h)
+  of the augmented system (scipy ``expm``, then repeated squaring), precomputed for
+  every stick configuration c (stuck stiffness Σk_i of each contact) and every rung
+  h = h_min·2^r of a ladder (first-order hold of V over a step):
 
-* a step whose end shows a GMS transition (stick→slip when |F_i| reaches
-  ν_i|s(v)| while loading; slip→stick when the relative velocity reverses) is
-  rejected and retried one rung lower, down to h_min: the transition is located
-  to the grid (event location by bisection);
-* after an accepted step without a transition the rung grows by one;
-* while an element slips the rung is capped at ``r_slip`` (the slipping
-  elements' forces and the amplifier's slewing are held / linearised over a
-  step); while the contacts ring — a stick mode whose amplitude in the relative
-  motion (deviation from the quasi-static state, in modal coordinates) exceeds
-  ``quiet_len`` — at ``ring_frac`` of that fastest ringing mode's period, so no
-  transition hides inside a step; otherwise up to the next breakpoint or output.
+      y(t+h) = Φ_c(h) y(t) + Γ_c(h) [V(t), V̇, f_1, f_2].
+
+  A step whose end shows a transition (stick→slip when |F_i| reaches ν_i|s(v)| while
+  loading; slip→stick when the relative velocity reverses) is rejected and retried one
+  rung lower, down to h_min; after a step without one the rung grows by one; the rung is
+  capped at ``r_slip`` while an element slips, at ``ring_frac`` of the fastest ringing
+  mode's period while all stick, and lands on breakpoints and output times.
+
+Time runs on the integer grid of h_min (1/16 µs by default): drive breakpoints and
+outputs are rounded to it and transitions are located to it.
 
 Slipping elements relax exactly for the step's mean relative velocity
 (dF/dt = C(ν_i s(v) sgn v − F_i)/|s(v)|, Eq. 2.25); their loading rate is capped at
-k_i|v| as in the 1-D kernel. Batched: the loop runs over N independent turntables
-with their own parameters and drives; a single run is a batch of one.
+k_i|v| as in the 1-D kernel. Batched: ``numba.prange`` runs the N independent
+turntables (own parameters and drives) on all cores; each turntable's arithmetic does
+not depend on the others or on the thread count, so results equal serial runs bit for
+bit. A single run is a batch of one.
 """
 
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .amplifier import amplifier_step
 from .friction.kernels import stribeck_magnitude
 from .integrator import advance_index as _advance
 from .integrator import pwl_value as _input_at
 
-__all__ = ["N_REC", "REC_FIELDS", "run_reduced_batch"]
+__all__ = ["N_REC", "REC_FIELDS", "run_reduced_batch", "run_reduced_serial"]
 
 # per-record fields (rec[b, i, :])
 REC_FIELDS = (
@@ -67,6 +77,9 @@ N_REC = len(REC_FIELDS)
 
 # packed rows: see turntable_env.kernel_types.ReducedArrays
 FAST_QUIET = 1e-3  # V: an amplifier fast-path transient above it keeps steps short
+# samples of the all-stick event function per ladder ring step (ring_frac of a period):
+# 1/4 → 1/16 of the ringing mode's period, so a sampled peak is ≥ cos(11.25°) = 98 % of it
+SAMPLE_FRACTION = 0.25
 
 
 @njit(cache=True)
@@ -77,6 +90,208 @@ def _rel(y, mech, k):
 
 
 @njit(cache=True)
+def _amp_linear(v0, vs0, vf0, u0, slope, row, ideal):
+    """True when the amplifier output [V] is linear in time (to FAST_QUIET) while its input
+    ramps from u0 [V] at ``slope`` [V/s]: inside the slew limit and with the first-order
+    transients of both paths settled (:func:`~turntable_env.amplifier.ramp_step`'s exact
+    branch with e0 ≈ 0)."""
+    if ideal:
+        return True
+    gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
+    if abs(gain * slope) >= rate:
+        return False
+    if a == 0.0:
+        return (
+            abs(gain * u0 - v0) <= rate * tau and abs(gain * (u0 - slope * tau) - v0) <= FAST_QUIET
+        )
+    gs = (1.0 - a) * gain
+    if abs(gs * u0 - vs0) > rate * tau or abs(gs * (u0 - slope * tau) - vs0) > FAST_QUIET:
+        return False
+    if abs(a * gain * (u0 - slope * tf) - vf0) > FAST_QUIET:
+        return False
+    return abs(vs0 + vf0 - v0) <= FAST_QUIET
+
+
+@njit(cache=True)
+def _modal_at(t, z0, lam, ez):
+    """Modal amplitudes z_j e^{λ_j t} at t [s] from the segment start into ez."""
+    for j in range(z0.shape[0]):
+        ez[j] = z0[j] * cmath.exp(lam[j] * t)
+
+
+@njit(cache=True)
+def _stick_check(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez, xs, vs):
+    """Relative motion of both contacts at t [s] on the all-stick analytic solution
+    (into xs [m], vs [m/s]) and the GMS breakaway test of the stuck elements there.
+
+    Returns (event, g): event as the ladder's test (|F_i| ≥ ν_i|s(ẋ)| while loading); g
+    [N] = min over elements of ν_i|s(ẋ)| − |F_i| (the event function)."""
+    _modal_at(t, z0, lam, ez)
+    ne = f0.shape[1]
+    event = False
+    g = math.inf
+    for k in range(2):
+        sx = 0.0
+        sv = 0.0
+        for j in range(ez.shape[0]):
+            c = mc[k, j] * ez[j]
+            sx += c.real
+            sv += (c * lam[j]).real
+        xs[k] = xq0[k] + xrate[k] * t + sx
+        vs[k] = xrate[k] + sv
+        s1 = stribeck_magnitude(vs[k], fn[k], gms[1], gms[2], gms[3], gms[4])
+        for i in range(ne):
+            fi = f0[k, i] + kk[i] * (xs[k] - x0[k])
+            gi = nu[i] * s1 - abs(fi)
+            if gi < g:
+                g = gi
+            if gi <= 0.0 and fi * vs[k] > 0.0:
+                event = True
+    return event, g
+
+
+@njit(cache=True)
+def _certified(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez):
+    """(horizon [s], sampling ω [rad/s], drift time [s]) from t on the all-stick solution.
+
+    The horizon is event-free by a bound: with the ring r_k(t) = x_k − x_p,k (modal
+    part, |r_k| ≤ R_k = Σ_j|c_kj z_j| for stable modes), |F_i(t+τ)| ≤ |F_i(t) − k_i r_k(t)|
+    + k_i(R_k + |ẋ_p,k|τ) must stay below ν_i min(|s(0)|, |s(v_max)|), v_max = |ẋ_p,k| +
+    Σ_j|c_kj λ_j z_j|. Beyond it the event function is sampled: the fastest modes whose
+    summed force amplitude k_max Σ 2|c_kj z_j| stays below half the smallest present margin
+    m = min_i ν_i|s(ẋ)| − |F_i| cannot cause a transition alone, so the samples resolve
+    the fastest remaining mode (ω; 0 when none remains) — and the drift time m/(k_max|ẋ_p|)
+    [s] bounds how far a sample may go when none rings."""
+    _modal_at(t, z0, lam, ez)
+    ne = f0.shape[1]
+    nm = ez.shape[0]
+    horizon = math.inf
+    om_fast = 0.0
+    drift = math.inf
+    k_max = 0.0
+    for i in range(ne):
+        k_max = max(k_max, kk[i])
+    for k in range(2):
+        ring = 0.0
+        ring_v = 0.0
+        amp = 0.0
+        vamp = 0.0
+        for j in range(nm):
+            c = mc[k, j] * ez[j]
+            ring += c.real
+            ring_v += (c * lam[j]).real
+            amp += abs(c)
+            vamp += abs(c) * abs(lam[j])
+        x = xq0[k] + xrate[k] * t + ring
+        v = xrate[k] + ring_v
+        s0 = stribeck_magnitude(0.0, fn[k], gms[1], gms[2], gms[3], gms[4])
+        s_hi = stribeck_magnitude(abs(xrate[k]) + vamp, fn[k], gms[1], gms[2], gms[3], gms[4])
+        s_now = stribeck_magnitude(v, fn[k], gms[1], gms[2], gms[3], gms[4])
+        s_lo = min(s0, s_hi)
+        m_now = math.inf
+        for i in range(ne):
+            fi = f0[k, i] + kk[i] * (x - x0[k])
+            m_now = min(m_now, nu[i] * s_now - abs(fi))
+            margin = nu[i] * s_lo - abs(fi - kk[i] * ring) - kk[i] * amp
+            if margin <= 0.0:
+                horizon = 0.0
+            rate = kk[i] * abs(xrate[k])
+            if rate > 0.0 and margin > 0.0 and margin / rate < horizon:
+                horizon = margin / rate
+        # modes from the fastest down: skip those whose summed amplitude stays small
+        budget = 0.5 * max(m_now, 0.0)
+        used = 0.0
+        om_prev = math.inf
+        while True:
+            om_j = -1.0
+            a_j = 0.0
+            for j in range(nm):
+                w = abs(lam[j])
+                if w < om_prev and w > om_j:
+                    om_j = w
+            if om_j <= 0.0:
+                break
+            for j in range(nm):
+                if abs(lam[j]) == om_j:
+                    a_j += abs(mc[k, j] * ez[j])
+            used += k_max * a_j
+            if used > budget:
+                om_fast = max(om_fast, om_j)
+                break
+            om_prev = om_j
+        if k_max * abs(xrate[k]) > 0.0:
+            drift = min(drift, (max(m_now, 0.0) - min(used, budget)) / (k_max * abs(xrate[k])))
+    return horizon, om_fast, drift
+
+
+@njit(cache=True)
+def _finite(volt, yb):
+    """Whether the amplifier output and every state of one turntable are finite."""
+    chk = volt
+    for j in range(yb.shape[0]):
+        chk += yb[j]
+    return math.isfinite(chk)
+
+
+@njit(cache=True)
+def _modal_y(t, z0, vmat, lam, yp0, yp1, ez, out):
+    """State at t [s] on the all-stick analytic solution: y_p(t) + Re Σ_j v_j z_j e^{λ_j t}."""
+    _modal_at(t, z0, lam, ez)
+    for a in range(out.shape[0]):
+        s = yp0[a] + yp1[a] * t
+        for j in range(ez.shape[0]):
+            s += (vmat[a, j] * ez[j]).real
+        out[a] = s
+
+
+@njit(cache=True)
+def _write_record(row, t, yv, volt, mech, f0, kk, x0, ne):
+    """One record (fields :data:`REC_FIELDS`) of an all-stick state yv at t [s]."""
+    row[0] = t
+    row[1] = yv[0]
+    row[2] = yv[1]
+    row[3] = volt
+    for k in range(2):
+        x, _xd = _rel(yv, mech, k)
+        row[4 + k] = yv[2 + 2 * k]
+        row[6 + k] = x
+        fk = 0.0
+        for i in range(ne):
+            fk += f0[k, i] + kk[i] * (x - x0[k])
+        row[8 + k] = fk
+        row[10 + k] = ne
+
+
+@njit(cache=True)
+def _locate(lo, hi, g_lo, g_hi, h_min, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms,
+            ez, xs, vs):  # fmt: skip
+    """First grid offset in (lo, hi] with a breakaway (none at lo, one at hi): the Illinois
+    method on the event function g, bisection where its signs do not bracket."""
+    side = 0
+    while hi - lo > 1:
+        if g_lo > 0.0 and g_hi < 0.0:
+            m = lo + int((hi - lo) * (g_lo / (g_lo - g_hi)))
+            m = min(hi - 1, max(lo + 1, m))
+        else:
+            m = (lo + hi) // 2
+        ev, g = _stick_check(m * h_min, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms,
+                             ez, xs, vs)  # fmt: skip
+        if ev:
+            hi = m
+            g_hi = g
+            if side == -1:
+                g_lo *= 0.5
+            side = -1
+        else:
+            lo = m
+            g_lo = g
+            if side == 1:
+                g_hi *= 0.5
+            side = 1
+    return hi
+
+
+@njit(cache=True, parallel=True)
 def run_reduced_batch(state, model, drive, h_min, recording):
     """Advance every turntable b of the batch from grid time state.n[b] to recording.n_end[b].
 
@@ -90,9 +305,23 @@ def run_reduced_batch(state, model, drive, h_min, recording):
         h_min: the grid [s].
         recording: :class:`~turntable_env.kernel_types.ReducedRecording`: records every
             ``out_every`` grid units into rec[b, i] (fields :data:`REC_FIELDS`), n_rec[b]
-            counts them; counters[b] = (accepted steps, rejected steps, status). Status 0
-            ok, 1 non-finite state.
+            counts them; counters[b] = (accepted steps, rejected steps, status, evaluations
+            of the analytic solution). Status 0 ok, 1 non-finite state.
     """
+    for b in prange(state.y.shape[0]):
+        _run_one(b, state, model, drive, h_min, recording)
+
+
+@njit(cache=True)
+def run_reduced_serial(state, model, drive, h_min, recording):
+    """:func:`run_reduced_batch` on one thread (a batch of one: no thread launch)."""
+    for b in range(state.y.shape[0]):
+        _run_one(b, state, model, drive, h_min, recording)
+
+
+@njit(cache=True)
+def _run_one(b, state, model, drive, h_min, recording):
+    """Turntable b of :func:`run_reduced_batch`."""
     y, volt, f, st, n_now = state.y, state.volt, state.f, state.st, state.n
     vslow, vfast = state.vslow, state.vfast
     mech, gms, nu, kk, amp, ctl = model.mech, model.gms, model.nu, model.kk, model.amp, model.ctl
@@ -105,7 +334,6 @@ def run_reduced_batch(state, model, drive, h_min, recording):
     wg, wv, wn = drive.times, drive.values, drive.count
     n_end, out_every, rec = recording.n_end, recording.out_every, recording.rec
     n_rec, counters = recording.n_rec, recording.counters
-    nb = y.shape[0]
     ne = f.shape[2]
     r_big = phi_big.shape[1]
     y0 = np.empty(6)
@@ -116,219 +344,367 @@ def run_reduced_batch(state, model, drive, h_min, recording):
     xd0 = np.empty(2)
     fin = np.empty(2)  # constant force inputs [N]
     s_end = np.empty(2)  # Stribeck level |s(v)| at the step end [N]
-    for b in range(nb):
-        n = n_now[b]
-        idx = _advance(wg[b], wn[b], 0, n)
-        rung = 0
-        gain = amp[b, 0]
-        tau = amp[b, 1]
-        ideal = amp[b, 2] > 0.5
-        ulim = amp[b, 3]
-        rate = amp[b, 4]
-        a_fast = amp[b, 5]
-        r_fast = 0  # largest rung short against the amplifier's fast path (τ_f/8)
-        while (1 << (r_fast + 1)) * h_min <= amp[b, 6] / 8.0:
-            r_fast += 1
-        quiet_len = ctl[b, 0]
-        r_slip = int(ctl[b, 1])
-        mu_s = gms[b, 1]
-        n_acc = 0
-        n_rej = 0
-        status = 0
-        while True:
-            # ---- record ---------------------------------------------------------------
-            if n % out_every[b] == 0 and n_rec[b] < rec.shape[1]:
-                i_r = n_rec[b]
-                rec[b, i_r, 0] = n * h_min
-                rec[b, i_r, 1] = y[b, 0]
-                rec[b, i_r, 2] = y[b, 1]
-                rec[b, i_r, 3] = volt[b]
-                for k in range(2):
-                    x, _xd = _rel(y[b], mech[b], k)
-                    rec[b, i_r, 4 + k] = y[b, 2 + 2 * k]
-                    rec[b, i_r, 6 + k] = x
-                    fk = 0.0
-                    ns = 0
-                    for i in range(ne):
-                        fk += f[b, k, i]
-                        ns += st[b, k, i]
-                    rec[b, i_r, 8 + k] = fk
-                    rec[b, i_r, 10 + k] = ns
-                n_rec[b] += 1
-            if n >= n_end[b]:
-                break
-            # ---- rung caps ------------------------------------------------------------------
-            target = n_end[b]
-            nxt_out = (n // out_every[b] + 1) * out_every[b]
-            if nxt_out < target:
-                target = nxt_out
-            if idx + 1 < wn[b] and wg[b, idx + 1] < target:
-                target = wg[b, idx + 1]
-            span = target - n
-            r_land = 0
-            while r_land + 1 < r_big and (1 << (r_land + 1)) <= span:
-                r_land += 1
-            any_slip = False
+    s_start = np.empty(2)  # and at its start [N]
+    # the analytic all-stick step (see the module docstring)
+    q2, modal_v, modal_lam = model.q2, model.modal_v, model.modal_lam
+    use_modal = model.use_modal
+    yp0 = np.empty(6)  # particular solution at the step start [state units]
+    yp1 = np.empty(6)  # and its rate [state units / s]
+    z0 = np.empty(6, dtype=np.complex128)  # modal amplitudes at the step start
+    ez = np.empty(6, dtype=np.complex128)
+    yv = np.empty(6)
+    xq0 = np.empty(2)  # particular relative displacement at the start [m]
+    xrate = np.empty(2)  # its rate [m/s]
+    xs = np.empty(2)
+    vs = np.empty(2)
+    fnk = np.empty(2)  # normal forces [N]
+    n_eval = 0
+    n = n_now[b]
+    idx = _advance(wg[b], wn[b], 0, n)
+    rung = 0
+    gain = amp[b, 0]
+    tau = amp[b, 1]
+    ideal = amp[b, 2] > 0.5
+    ulim = amp[b, 3]
+    rate = amp[b, 4]
+    a_fast = amp[b, 5]
+    r_fast = 0  # largest rung short against the amplifier's fast path (τ_f/8)
+    while (1 << (r_fast + 1)) * h_min <= amp[b, 6] / 8.0:
+        r_fast += 1
+    r_tau = 0  # largest rung short against the amplifier's lag (τ/8)
+    while (1 << (r_tau + 1)) * h_min <= tau / 8.0:
+        r_tau += 1
+    quiet_len = ctl[b, 0]
+    r_slip = int(ctl[b, 1])
+    mu_s = gms[b, 1]
+    n_acc = 0
+    n_rej = 0
+    status = 0
+    while True:
+        # ---- record ---------------------------------------------------------------
+        if n % out_every[b] == 0 and n_rec[b] < rec.shape[1]:
+            row = rec[b, n_rec[b]]
+            row[0] = n * h_min
+            row[1] = y[b, 0]
+            row[2] = y[b, 1]
+            row[3] = volt[b]
             for k in range(2):
+                x, _xd = _rel(y[b], mech[b], k)
+                row[4 + k] = y[b, 2 + 2 * k]
+                row[6 + k] = x
+                fk = 0.0
+                ns = 0
                 for i in range(ne):
-                    if st[b, k, i] == 0:
-                        any_slip = True
-            # constant force inputs over the step (both contacts): the stuck elements'
-            # offsets F_i − k_i x and the slipping elements' forces [N]
-            for k in range(2):
-                x0[k], xd0[k] = _rel(y[b], mech[b], k)
-                fin[k] = 0.0
-                for i in range(ne):
-                    fin[k] += f[b, k, i] - (kk[b, i] * x0[k] if st[b, k, i] == 1 else 0.0)
-            cap = r_land
-            if any_slip:
-                cap = min(cap, r_slip)
-            else:
-                # ringing: modal amplitudes of the deviation from the quasi-static state
-                # (y − y_qs, y_qs = −A⁻¹(b_V V + B_f f)); the fastest mode whose amplitude in
-                # the contacts' relative motion exceeds quiet_len sets the largest step
-                for j in range(6):
-                    dev[j] = y[b, j] - (
-                        qs[b, j, 0] * volt[b] + qs[b, j, 1] * fin[0] + qs[b, j, 2] * fin[1]
-                    )
-                om_fast = 0.0
+                    fk += f[b, k, i]
+                    ns += st[b, k, i]
+                row[8 + k] = fk
+                row[10 + k] = ns
+            n_rec[b] += 1
+        if n >= n_end[b]:
+            break
+        # ---- rung caps ------------------------------------------------------------------
+        target = n_end[b]
+        nxt_out = (n // out_every[b] + 1) * out_every[b]
+        if nxt_out < target:
+            target = nxt_out
+        if idx + 1 < wn[b] and wg[b, idx + 1] < target:
+            target = wg[b, idx + 1]
+        span = target - n
+        r_land = 0
+        while r_land + 1 < r_big and (1 << (r_land + 1)) <= span:
+            r_land += 1
+        any_slip = False
+        for k in range(2):
+            for i in range(ne):
+                if st[b, k, i] == 0:
+                    any_slip = True
+        # constant force inputs over the step (both contacts): the stuck elements'
+        # offsets F_i − k_i x and the slipping elements' forces [N]
+        for k in range(2):
+            x0[k], xd0[k] = _rel(y[b], mech[b], k)
+            fin[k] = 0.0
+            for i in range(ne):
+                fin[k] += f[b, k, i] - (kk[b, i] * x0[k] if st[b, k, i] == 1 else 0.0)
+        # ---- all stuck, amplifier linear: one analytic step -----------------------------
+        if not any_slip and use_modal:
+            seg = n_end[b]
+            if idx + 1 < wn[b] and wg[b, idx + 1] < seg:
+                seg = wg[b, idx + 1]
+            m_seg = seg - n
+            u0r = _input_at(wg[b], wv[b], wn[b], idx, n)
+            u1r = _input_at(wg[b], wv[b], wn[b], idx, seg)
+            u0 = min(ulim, max(-ulim, u0r))
+            u1 = min(ulim, max(-ulim, u1r))
+            inside = abs(u0r) <= ulim and abs(u1r) <= ulim
+            slope = (u1 - u0) / (m_seg * h_min)
+            if (inside or u0 == u1) and _amp_linear(
+                volt[b], vslow[b], vfast[b], u0, slope, amp[b], ideal
+            ):
+                v0 = gain * u0 if ideal else volt[b]  # V (ideal: right after a jump)
+                vsl = gain * slope  # V/s, the output's slope
+                for a in range(6):
+                    yp0[a] = (
+                        qs[b, a, 0] * v0 + qs[b, a, 1] * fin[0] + qs[b, a, 2] * fin[1]
+                        + q2[b, a] * vsl
+                    )  # fmt: skip
+                    yp1[a] = qs[b, a, 0] * vsl
                 for j in range(6):
                     zj = 0.0j
                     for c in range(6):
-                        zj += modal_w[b, j, c] * dev[c]
-                    for k in range(2):
-                        if abs(modal_c[b, k, j] * zj) > quiet_len and modal_om[b, j] > om_fast:
-                            om_fast = modal_om[b, j]
-                if not ideal:
-                    u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
-                    if abs(gain * u_now - volt[b]) > rate * tau:
-                        om_fast = max(om_fast, modal_om_max[b])
-                if om_fast > 0.0:
-                    r_dyn = 0
-                    lim = ring_frac * 2.0 * math.pi / om_fast / h_min
-                    while (1 << (r_dyn + 1)) <= lim:
-                        r_dyn += 1
-                    cap = min(cap, r_dyn)
-            if a_fast > 0.0 and not ideal:  # the fast path settling: short steps
-                u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
-                slope = 0.0  # input slope of the present segment [V/s]: the path lags it
-                if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
-                    slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
-                steady = a_fast * gain * (u_now - slope * amp[b, 6])
-                if abs(vfast[b] - steady) > FAST_QUIET:
-                    cap = min(cap, r_fast)
-            if rung > cap:
-                rung = cap
-            # configuration: stuck stiffness level of each contact
-            m0 = 0
-            m1 = 0
-            for i in range(ne):
-                m0 |= st[b, 0, i] << i
-                m1 |= st[b, 1, i] << i
-            cfg = lvl[b, 0, m0] * nlvl[b, 1] + lvl[b, 1, m1]
-            all_stick = not any_slip
-            # save for a rejected step
-            for j in range(6):
-                y0[j] = y[b, j]
-            for k in range(2):
-                for i in range(ne):
-                    f0[k, i] = f[b, k, i]
-            v0 = volt[b]
-            vs0 = vslow[b]
-            vf0 = vfast[b]
-            vs1 = vs0
-            vf1 = vf0
-            u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
-            while True:
-                dn = 1 << rung
-                h = dn * h_min
-                n1 = n + dn
-                # amplifier
-                i1 = _advance(wg[b], wn[b], idx, n1 - 1)  # same segment (steps never cross)
-                u1 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], i1, n1)))
+                        zj += modal_w[b, j, c] * (y[b, c] - yp0[c])
+                    z0[j] = zj
+                for k in range(2):
+                    rho = mech[b, 2 + k]
+                    xq0[k] = yp0[2 + 2 * k] - rho * yp0[0]
+                    xrate[k] = yp1[2 + 2 * k] - rho * yp1[0]
+                    fnk[k] = mech[b, 12 + k]
+                    for i in range(ne):
+                        f0[k, i] = f[b, k, i]
+                lam, mc = modal_lam[b], modal_c[b]
+                # event search on the analytic solution
+                m_a = 0
+                m_hit = -1
+                while m_a < m_seg:
+                    t_a = m_a * h_min
+                    hor, om_fast, drift = _certified(t_a, z0, lam, mc, xq0, xrate, x0, f0,
+                                                     kk[b], nu[b], fnk, gms[b], ez)  # fmt: skip
+                    n_eval += 1
+                    if t_a + hor >= m_seg * h_min:
+                        break
+                    d_s = hor / h_min
+                    if om_fast > 0.0:  # resolve the ringing mode that could break a contact
+                        period = 2.0 * math.pi / om_fast / h_min  # grid units
+                        d_s = max(d_s, SAMPLE_FRACTION * ring_frac * period)
+                    else:  # nothing rings enough: the drift decides
+                        d_s = max(d_s, min(drift / h_min, float(m_seg)))
+                    m_b = m_a + max(1, int(min(d_s, m_seg)))
+                    if m_b > m_seg:
+                        m_b = m_seg
+                    ev, g_b = _stick_check(m_b * h_min, z0, lam, mc, xq0, xrate, x0, f0,
+                                           kk[b], nu[b], fnk, gms[b], ez, xs, vs)  # fmt: skip
+                    n_eval += 1
+                    if ev:
+                        _e, g_a = _stick_check(t_a, z0, lam, mc, xq0, xrate, x0, f0, kk[b],
+                                               nu[b], fnk, gms[b], ez, xs, vs)  # fmt: skip
+                        m_hit = _locate(m_a, m_b, g_a, g_b, h_min, z0, lam, mc, xq0, xrate,
+                                        x0, f0, kk[b], nu[b], fnk, gms[b], ez, xs, vs)  # fmt: skip
+                        break
+                    m_a = m_b
+                m_step = m_hit if m_hit > 0 else m_seg
+                # outputs inside the step, evaluated on the solution
+                n_o = (n // out_every[b] + 1) * out_every[b]
+                while n_o < n + m_step and n_rec[b] < rec.shape[1]:
+                    t_o = (n_o - n) * h_min
+                    _modal_y(t_o, z0, modal_v[b], lam, yp0, yp1, ez, yv)
+                    _write_record(rec[b, n_rec[b]], n_o * h_min, yv, v0 + vsl * t_o, mech[b],
+                                  f0, kk[b], x0, ne)  # fmt: skip
+                    n_rec[b] += 1
+                    n_o += out_every[b]
+                # the step's end
+                t_e = m_step * h_min
+                _modal_y(t_e, z0, modal_v[b], lam, yp0, yp1, ez, yv)
+                n_eval += 1
+                u_e = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n + m_step)))
                 if ideal:
-                    v1 = gain * u1
-                    v0e = gain * u0
+                    volt[b] = gain * u_e
                 else:
-                    v1, vs1, vf1 = amplifier_step(v0, vs0, vf0, u0, u1, h, amp[b])
-                    v0e = v0
-                vslope = (v1 - v0e) / h
-                if all_stick:  # every rung of the all-stick configuration
-                    ph = phi_big[b, rung]
-                    gm = gam_big[b, rung]
-                else:  # partial slip: rung ≤ r_slip
-                    ph = phi_small[b, cfg, rung]
-                    gm = gam_small[b, cfg, rung]
-                for a in range(6):
-                    s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
-                    for c in range(6):
-                        s += ph[a, c] * y0[c]
-                    y[b, a] = s
-                # elements
-                event = False
+                    volt[b], vslow[b], vfast[b] = amplifier_step(
+                        v0, vslow[b], vfast[b], u0, u_e, t_e, amp[b]
+                    )
+                for j in range(6):
+                    y[b, j] = yv[j]
                 for k in range(2):
                     x1, xd1 = _rel(y[b], mech[b], k)
-                    dx = x1 - x0[k]
-                    vbar = 0.5 * (xd0[k] + xd1)
-                    fn_k = mech[b, 12 + k]
-                    sbar = stribeck_magnitude(vbar, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
-                    s1 = stribeck_magnitude(xd1, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
-                    s_end[k] = s1
+                    s1 = stribeck_magnitude(xd1, fnk[k], mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
                     for i in range(ne):
-                        fi = f0[k, i]
-                        if st[b, k, i] == 1:
-                            fi += kk[b, i] * dx
-                        else:
-                            sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
-                            tgt = nu[b, i] * sbar * sg
-                            fnew = tgt + (fi - tgt) * math.exp(-gms[b, 0] * h / sbar)
-                            d = fnew - fi
-                            lim = kk[b, i] * dx
-                            if fi != 0.0 and d * fi > 0.0 and d * fi > lim * fi:
-                                fnew = fi + lim  # loading no faster than the element spring
-                            fi = fnew
+                        fi = f0[k, i] + kk[b, i] * (x1 - x0[k])
+                        if abs(fi) >= nu[b, i] * s1 and fi * xd1 > 0.0:
+                            st[b, k, i] = 0  # broke away: no overshoot past capacity
+                            capf = nu[b, i] * s1
+                            fi = capf if fi > 0.0 else -capf
                         f[b, k, i] = fi
-                        # transitions (as the 1-D GMS kernel)
-                        if st[b, k, i] == 1:
-                            if abs(fi) >= nu[b, i] * s1 and fi * xd1 > 0.0:
-                                st_new[k, i] = 0
-                                event = True
-                            else:
-                                st_new[k, i] = 1
-                        else:
-                            if fi * xd1 <= 0.0:
-                                st_new[k, i] = 1
-                                event = True
-                            else:
-                                st_new[k, i] = 0
-                if event and rung > 0:
-                    rung -= 1
-                    n_rej += 1
-                    continue
-                # accept
-                volt[b] = v1
-                vslow[b] = vs1
-                vfast[b] = vf1
-                for k in range(2):
-                    for i in range(ne):
-                        if st[b, k, i] == 1 and st_new[k, i] == 0:
-                            capf = nu[b, i] * s_end[k]  # broke away: no overshoot past capacity
-                            if abs(f[b, k, i]) > capf:
-                                f[b, k, i] = capf if f[b, k, i] > 0.0 else -capf
-                        st[b, k, i] = st_new[k, i]
-                n = n1
+                n += m_step
                 idx = _advance(wg[b], wn[b], idx, n)
                 n_acc += 1
-                if not event:
-                    rung += 1
-                break
-            chk = volt[b]
+                if m_hit > 0:
+                    rung = 0
+                if not _finite(volt[b], y[b]):
+                    status = 1
+                    break
+                continue
+        cap = r_land
+        if any_slip:
+            cap = min(cap, r_slip)
+        else:
+            # ringing: modal amplitudes of the deviation from the quasi-static state
+            # (y − y_qs, y_qs = −A⁻¹(b_V V + B_f f)); the fastest mode whose amplitude in
+            # the contacts' relative motion exceeds quiet_len sets the largest step
             for j in range(6):
-                chk += y[b, j]
-            if not math.isfinite(chk):
-                status = 1
-                break
-        n_now[b] = n
-        counters[b, 0] += n_acc
-        counters[b, 1] += n_rej
-        counters[b, 2] = status
+                dev[j] = y[b, j] - (
+                    qs[b, j, 0] * volt[b] + qs[b, j, 1] * fin[0] + qs[b, j, 2] * fin[1]
+                )
+            om_fast = 0.0
+            for j in range(6):
+                zj = 0.0j
+                for c in range(6):
+                    zj += modal_w[b, j, c] * dev[c]
+                for k in range(2):
+                    if abs(modal_c[b, k, j] * zj) > quiet_len and modal_om[b, j] > om_fast:
+                        om_fast = modal_om[b, j]
+            if not ideal:
+                u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
+                if abs(gain * u_now - volt[b]) > rate * tau:
+                    om_fast = max(om_fast, modal_om_max[b])
+            if om_fast > 0.0:
+                r_dyn = 0
+                lim = ring_frac * 2.0 * math.pi / om_fast / h_min
+                while (1 << (r_dyn + 1)) <= lim:
+                    r_dyn += 1
+                cap = min(cap, r_dyn)
+        if a_fast > 0.0 and not ideal:  # the fast path settling: short steps
+            u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
+            slope = 0.0  # input slope of the present segment [V/s]: the path lags it
+            if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
+                slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
+            steady = a_fast * gain * (u_now - slope * amp[b, 6])
+            if abs(vfast[b] - steady) > FAST_QUIET:
+                cap = min(cap, r_fast)
+        if not ideal:  # the first-order lag settling: short steps (V is held linear)
+            u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
+            slope = 0.0
+            if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
+                slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
+            if not _amp_linear(volt[b], vslow[b], vfast[b], u_now, slope, amp[b], ideal):
+                cap = min(cap, r_tau)
+        if rung > cap:
+            rung = cap
+        # configuration: stuck stiffness level of each contact
+        m0 = 0
+        m1 = 0
+        for i in range(ne):
+            m0 |= st[b, 0, i] << i
+            m1 |= st[b, 1, i] << i
+        cfg = lvl[b, 0, m0] * nlvl[b, 1] + lvl[b, 1, m1]
+        all_stick = not any_slip
+        # save for a rejected step
+        for j in range(6):
+            y0[j] = y[b, j]
+        for k in range(2):
+            for i in range(ne):
+                f0[k, i] = f[b, k, i]
+        v0 = volt[b]
+        vs0 = vslow[b]
+        vf0 = vfast[b]
+        vs1 = vs0
+        vf1 = vf0
+        u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
+        for k in range(2):  # Stribeck level at the step start [N] (event interpolation)
+            s_start[k] = stribeck_magnitude(xd0[k], mech[b, 12 + k], mu_s, gms[b, 2], gms[b, 3],
+                                            gms[b, 4])  # fmt: skip
+        while True:
+            dn = 1 << rung
+            h = dn * h_min
+            n1 = n + dn
+            # amplifier
+            i1 = _advance(wg[b], wn[b], idx, n1 - 1)  # same segment (steps never cross)
+            u1 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], i1, n1)))
+            if ideal:
+                v1 = gain * u1
+                v0e = gain * u0
+            else:
+                v1, vs1, vf1 = amplifier_step(v0, vs0, vf0, u0, u1, h, amp[b])
+                v0e = v0
+            vslope = (v1 - v0e) / h
+            if all_stick:  # every rung of the all-stick configuration
+                ph = phi_big[b, rung]
+                gm = gam_big[b, rung]
+            else:  # partial slip: rung ≤ r_slip
+                ph = phi_small[b, cfg, rung]
+                gm = gam_small[b, cfg, rung]
+            for a in range(6):
+                s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
+                for c in range(6):
+                    s += ph[a, c] * y0[c]
+                y[b, a] = s
+            # elements
+            event = False
+            frac = 1.0  # earliest crossing in the step by linear interpolation [-]
+            for k in range(2):
+                x1, xd1 = _rel(y[b], mech[b], k)
+                dx = x1 - x0[k]
+                vbar = 0.5 * (xd0[k] + xd1)
+                fn_k = mech[b, 12 + k]
+                sbar = stribeck_magnitude(vbar, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
+                s1 = stribeck_magnitude(xd1, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
+                s_end[k] = s1
+                decay = math.exp(-gms[b, 0] * h / sbar)  # slipping elements' relaxation
+                sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
+                for i in range(ne):
+                    fi = f0[k, i]
+                    if st[b, k, i] == 1:
+                        fi += kk[b, i] * dx
+                    else:
+                        tgt = nu[b, i] * sbar * sg
+                        fnew = tgt + (fi - tgt) * decay
+                        d = fnew - fi
+                        lim = kk[b, i] * dx
+                        if fi != 0.0 and d * fi > 0.0 and d * fi > lim * fi:
+                            fnew = fi + lim  # loading no faster than the element spring
+                        fi = fnew
+                    f[b, k, i] = fi
+                    # transitions (as the 1-D GMS kernel)
+                    if st[b, k, i] == 1:
+                        if abs(fi) >= nu[b, i] * s1 and fi * xd1 > 0.0:
+                            st_new[k, i] = 0
+                            event = True
+                            g0 = nu[b, i] * s_start[k] - abs(f0[k, i])
+                            g1 = nu[b, i] * s1 - abs(fi)
+                        else:
+                            st_new[k, i] = 1
+                            continue
+                    else:
+                        if fi * xd1 <= 0.0:
+                            st_new[k, i] = 1
+                            event = True
+                            g0 = f0[k, i] * xd0[k]
+                            g1 = fi * xd1
+                        else:
+                            st_new[k, i] = 0
+                            continue
+                    if g0 > 0.0 and g1 < g0:
+                        frac = min(frac, g0 / (g0 - g1))
+                    else:
+                        frac = 0.0
+            if event and rung > 0:
+                # retry below the interpolated crossing (regula falsi on the ladder)
+                r_new = rung - 1
+                while r_new > 0 and (1 << r_new) > frac * dn:
+                    r_new -= 1
+                rung = r_new
+                n_rej += 1
+                continue
+            # accept
+            volt[b] = v1
+            vslow[b] = vs1
+            vfast[b] = vf1
+            for k in range(2):
+                for i in range(ne):
+                    if st[b, k, i] == 1 and st_new[k, i] == 0:
+                        capf = nu[b, i] * s_end[k]  # broke away: no overshoot past capacity
+                        if abs(f[b, k, i]) > capf:
+                            f[b, k, i] = capf if f[b, k, i] > 0.0 else -capf
+                    st[b, k, i] = st_new[k, i]
+            n = n1
+            idx = _advance(wg[b], wn[b], idx, n)
+            n_acc += 1
+            if not event:
+                rung += 1
+            break
+        if not _finite(volt[b], y[b]):
+            status = 1
+            break
+    n_now[b] = n
+    counters[b, 0] += n_acc
+    counters[b, 1] += n_rej
+    counters[b, 2] = status
+    counters[b, 3] += n_eval
