@@ -10,6 +10,7 @@ judges the agent like any other controller.
 from __future__ import annotations
 
 import pickle
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +18,7 @@ import numpy as np
 import yaml
 
 from controllers.base import Controller, ControllerContext
+from controllers.lab import LabBrief
 
 from .interface import AgentInterface, InterfaceConfig
 from .train import ENV_ID, _algos
@@ -55,7 +57,7 @@ class AgentController(Controller):
         self.name = name or cfg["run"]["algo"]
         self.interface = AgentInterface(ctx, InterfaceConfig(**cfg[ENV_ID].get("interface", {})))
 
-    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         pass  # the policy is memoryless: everything it uses is in the observation
 
     def policy_action(self, obs: np.ndarray) -> np.ndarray:
@@ -66,3 +68,18 @@ class AgentController(Controller):
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self.interface.env_action(self.policy_action(obs), obs)
+
+    @classmethod
+    def act_many(cls, controllers: Sequence[Controller], obs: np.ndarray) -> np.ndarray:
+        """One policy evaluation for every row that shares a model (the benchmark's batch)."""
+        first = controllers[0]
+        if not all(isinstance(c, AgentController) and c.model is first.model for c in controllers):
+            return super().act_many(controllers, obs)
+        feats = np.stack([c.interface.features(o) for c, o in zip(controllers, obs, strict=True)])
+        actions, _ = first.model.predict(first.vecnorm.normalize_obs(feats), deterministic=True)
+        return np.stack(
+            [
+                c.interface.env_action(a, o)
+                for c, a, o in zip(controllers, actions, obs, strict=True)
+            ]
+        )

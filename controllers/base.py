@@ -2,7 +2,8 @@
 
 Every controller answers :meth:`Controller.act` with an action of ``PiezoTurntable-v0``'s
 Box and is told about a new episode by :meth:`Controller.reset` (the reset observation
-and info). :class:`ControllerContext` carries what a controller may know about the plant
+and a :class:`~controllers.lab.LabBrief`: what a lab knows; never the env's info).
+:class:`ControllerContext` carries what a controller may know about the plant
 it was designed for: the nominal parameters, the axis, the control interval, the action
 scaling, the detector range and the scan gain of the linear stick plant.
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 import abc
 import functools
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,11 +34,13 @@ from turntable_env.envs.config import OBS, ActionScaling, EnvConfig
 from turntable_env.linear import scan_plant, stick_plant
 from turntable_env.params import ParameterSet
 
+from .lab import LabBrief
 from .scan_pid import PIDGains, ScanPID, design_scan_pid
 
 __all__ = ["Controller", "ControllerContext", "Move", "StepScanController"]
 
 SATURATION_FRACTION = 0.995  # of θ_lin: readings beyond it count as saturated
+UNWIND_FRACTION = 0.5  # of u_max: a larger scan offset is ramped to 0 before stepping
 
 
 @dataclass(frozen=True)
@@ -100,13 +104,24 @@ def _scan_design(ps: ParameterSet, axis: str, dt: float) -> tuple[float, PIDGain
 
 
 class Controller(abc.ABC):
-    """Observation → action for ``PiezoTurntable-v0`` (see the module docstring)."""
+    """Observation → action for ``PiezoTurntable-v0`` (see the module docstring).
+
+    A controller sees only what a lab sees: the observations and, at reset, a
+    :class:`~controllers.lab.LabBrief`. Every subclass's :meth:`reset` is wrapped so that
+    anything else — the env's reset ``info`` with its true angle and parameter draw above
+    all — is refused with a ValueError (the information boundary is in the interface, not a
+    convention)."""
 
     name: str = "controller"
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "reset" in cls.__dict__:
+            cls.reset = _lab_only(cls.__dict__["reset"])  # type: ignore[method-assign]
+
     @abc.abstractmethod
-    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Start an episode from the reset observation and info."""
+    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
+        """Start an episode from the reset observation and what the lab knows."""
 
     @abc.abstractmethod
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -114,6 +129,28 @@ class Controller(abc.ABC):
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         return self.act(obs)
+
+    @classmethod
+    def act_many(cls, controllers: Sequence[Controller], obs: np.ndarray) -> np.ndarray:
+        """(N, 5) actions of N controllers of this class for their (N, 8) observations (the
+        benchmark's batched call; subclasses may evaluate them together, as the agents do)."""
+        return np.stack([c.act(o) for c, o in zip(controllers, obs, strict=True)])
+
+
+def _lab_only(reset: Callable[..., None]) -> Callable[..., None]:
+    """Wrap a controller's reset: the second argument must be a LabBrief."""
+
+    @functools.wraps(reset)
+    def checked(self: Controller, obs: np.ndarray, brief: LabBrief) -> None:
+        if not isinstance(brief, LabBrief):
+            raise ValueError(
+                f"{type(self).__name__}.reset: brief={type(brief).__name__}: a controller gets a "
+                "LabBrief (what a lab knows), never the env's info (ground truth is "
+                "evaluation-only)"
+            )
+        reset(self, obs, brief)
+
+    return checked
 
 
 @dataclass(frozen=True)
@@ -137,6 +174,8 @@ class StepScanController(Controller):
             range K·u_max [-]; scan mode hands back to step mode above ``scan_exit``.
     """
 
+    steps: bool = True  # the controller steps (False: scan mode only)
+
     def __init__(
         self, ctx: ControllerContext, *, scan_fraction: float = 0.5, scan_exit: float = 0.9
     ) -> None:
@@ -148,10 +187,16 @@ class StepScanController(Controller):
         self._sat = ctx.angle_range * SATURATION_FRACTION
 
     # --- episode ----------------------------------------------------------------------
-    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         self.target = float(obs[OBS.target_angle_rad])
         meas = float(obs[OBS.measured_angle_rad])
-        self.estimate = float(info.get("angle_rad", meas))  # rad, believed angle
+        self.estimate = meas  # rad, believed angle: the reading where it is valid, ...
+        if self.saturated(meas):  # ... beyond the detector the dead-reckoned start, ...
+            edge = math.copysign(self.ctx.angle_range * 1.05, meas)
+            est = brief.start_estimate_rad
+            # ... unless it contradicts the reading (it lies on the other side or inside)
+            ok = est is not None and np.sign(est) == np.sign(meas) and abs(est) > abs(edge)
+            self.estimate = float(est) if ok else edge
         self.mode = "step"
         self.offset = 0.0  # V, scan offset commanded for the interval now ending
         self.last_move: Move | None = None
@@ -177,6 +222,7 @@ class StepScanController(Controller):
     # --- control law ------------------------------------------------------------------
     def act(self, obs: np.ndarray) -> np.ndarray:
         meas = float(obs[OBS.measured_angle_rad])
+        self.target = float(obs[OBS.target_angle_rad])  # the commanded target now
         sat = self.saturated(meas)
         self.observe(meas, sat)
         k_scan = self.ctx.scan_gain
@@ -186,7 +232,10 @@ class StepScanController(Controller):
                 self.estimate = edge
         if self.mode == "scan":
             err = self.target - meas
-            if sat or abs(err) > self.scan_exit * self.ctx.scan_range:
+            # leave the scan when the error leaves its range, or when the offset is saturated
+            # and the table still short of the target (the scan cannot reach it)
+            stuck = self.pid.saturated and err * self.offset > 0.0
+            if sat or abs(err) > self.scan_exit * self.ctx.scan_range or (stuck and self.steps):
                 self.mode = "step"
                 self.estimate = meas if not sat else self.estimate
             else:
@@ -195,6 +244,8 @@ class StepScanController(Controller):
         remaining = self.target - self.estimate + k_scan * self.offset
         move = None
         if abs(remaining) > self.scan_fraction * self.ctx.scan_range or sat:
+            if self.steps and abs(self.offset) > UNWIND_FRACTION * self.ctx.input_limit:
+                return self._unwind()
             move = self.choose_move(remaining, meas, sat)
         if move is None:
             self.mode = "scan"
@@ -205,6 +256,15 @@ class StepScanController(Controller):
         self.offset = 0.0
         self.last_measured = None if sat else meas
         return self.ctx.scaling.encode(move.amplitude, move.frequency, move.a, move.k, 0.0)
+
+    def _unwind(self) -> np.ndarray:
+        """One interval with the generator idle and the scan offset ramped to 0 (the table
+        follows it back, K·u): a saturated offset would leave no amplitude to step with."""
+        self.estimate -= self.ctx.scan_gain * self.offset
+        self.offset = 0.0
+        self.last_move = None
+        self.last_measured = None
+        return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, 0.0)
 
     def _scan(self, err: float, meas: float) -> np.ndarray:
         u = self.pid.update(err)

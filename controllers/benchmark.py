@@ -1,325 +1,505 @@
-"""The controller benchmark: every registered controller on one fixed task suite.
+"""The controller benchmark: every registered controller × plant set × task, seeds paired.
 
-Tasks (:func:`task_suite`): a small, medium and large move — 50 nm, 2 µm and 50 µm at
-the table radius (Eq. 4.2: θ = x/R_table; 5 µrad, 200 µrad, 5 mrad) — about each of
-the axes A, B and C, direction alternating. Targets lie inside the detector's linear
-range (a seeded draw within ±½θ_lin); the start is the target less the move, so the
-large moves start far beyond the detector (its reading saturates) and the controller
-knows the start only as the commanded move (the reset info's ``angle_rad``).
+Tasks (:mod:`controllers.tasks`): point-to-point moves that need stepping (2 µm, 50 µm and
+200 µm, the last two from beyond the detector with a ±30 % dead-reckoned start; 5 µm to
+the detector's edge), tracking (a constant-velocity scan, waypoints, back and forth) and
+a knock. Plant sets (:mod:`controllers.plant_sets`): ``nominal``, ``randomized`` (the RL
+training distribution), ``held_out`` (outside the training ranges, one catalogue effect
+each), ``calibrated`` and ``full_3d``.
 
-Plants (:data:`CONDITIONS`): ``nominal`` (Table D.1 with the repository's unlisted
-values; detector noise 1 mV, the environment's level) and ``randomized`` (per episode:
-friction coefficients ×U(0.7, 1.3), preload ×U(0.7, 1.3), amplifier slew and current
-limit ×U(0.8, 1.2), detector noise at its nominal level), ``seeds`` plants per task.
-Seeds are fixed, so every controller meets the same plants.
+How a cell (plant set × task) runs: one :class:`~turntable_env.envs.core.TurntableTask`
+holds every controller × seed as a row, so the plants advance in one compiled batched call
+per control interval (prange over the rows). Seed s is the same episode (start, reference,
+knock, dead-reckoned start), the same plant draw and the same detector noise sequence for
+every controller (common random numbers), so the differences between controllers are
+paired per seed. A controller receives only the observation and its
+:class:`~controllers.lab.LabBrief`; the true angle, the plant and its draw stay with the
+runner for the metrics (:mod:`controllers.metrics`).
 
-Each episode runs the registered ``PiezoTurntable-v0`` for ``horizon`` control intervals
-(2 s) with ``terminate_on_success=False``: a controller must also hold the target.
-Metrics per episode (:meth:`~controllers.episode.EpisodeResult.metrics`): final error
-[nm at R_table], time to settle inside ±10 nm (the time after which the error stays
-inside to the end; never → ∞), stick–slip steps, overshoot [nm], electrical energy
-[J], success (final error within ±10 nm).
-
-Outputs of :func:`write_outputs`: ``episodes.csv`` (one row per episode),
-``summary.csv`` and ``summary.md`` (per controller, plant and move size),
-``summary.json`` and trajectory plots ``trajectories_<controller>.png``.
+Output (:class:`BenchmarkResult`): per episode the metrics and the plant draw
+(``episodes.csv``); per controller × plant set × task each metric's mean with a 95 %
+bootstrap interval, and the paired differences between controllers with theirs
+(``benchmark.json``, versioned); a leaderboard (``leaderboard.md``/``.html``) and
+trajectory plots per plant set.
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
+import itertools
 import json
 import math
+import os
+import tempfile
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
-from turntable_env.detector import Detector
-from turntable_env.params import real_parameters
+from turntable_env.envs.config import OBS, EnvConfig
+from turntable_env.envs.core import TurntableTask
 
-from .episode import EpisodeResult, run_episode
+from .base import ControllerContext
+from .metrics import BAND, HOLD, METRICS, episode_metrics, mean_ci, paired_difference
+from .plant_sets import PLANT_SETS, PlantSet
 from .registry import available, load_plugins, make
+from .tasks import TASKS, EpisodeSpec, Task
 
 __all__ = [
-    "CONDITIONS",
-    "MOVES",
+    "BENCHMARK_VERSION",
+    "DEFAULT_PLANT_SETS",
+    "PRIMARY",
+    "QUICK",
     "BenchmarkResult",
-    "Task",
     "run_benchmark",
-    "task_suite",
     "write_outputs",
 ]
 
-MOVES = {"small": 50e-9, "medium": 2e-6, "large": 50e-6}  # m at the table radius
-CONDITIONS: dict[str, dict[str, Any]] = {
-    "nominal": {"randomize": False},
-    "randomized": {
-        "randomize": {
-            "friction": (0.7, 1.3),
-            "preload": (0.7, 1.3),
-            "amplifier": (0.8, 1.2),
-            "sensor_noise": (1.0, 1.0),
-        }
-    },
-}
-BAND = 10e-9  # m, settling band at the table radius
+BENCHMARK_VERSION = "2.0"  # tasks, plant sets and metrics of this protocol; bump on change
 SUITE_SEED = 2026
+DEFAULT_PLANT_SETS = ("nominal", "randomized", "held_out", "calibrated", "full_3d")
+# the 3-D model runs at ≈ 0.1–0.3× real time (turntable bench): one short task there
+FULL_3D_TASKS = {"point_2um": 40}  # task → horizon [intervals]
+PRIMARY = {"point": "settle_time_s", "tracking": "tracking_rms_nm", "disturbance": "settle_time_s"}
+QUICK: dict[str, Any] = {
+    "seeds": 4,
+    "plant_sets": ("nominal", "held_out"),
+    "tasks": ("point_2um", "scan_ramp", "knock"),
+}
 
 
 @dataclass(frozen=True)
-class Task:
-    """One move: axis, size name, move at the table radius [m] (signed), start and
-    target angles [rad]."""
+class Cell:
+    """One controller on one plant set × task: per-seed metrics (name → (seeds,)), the
+    episodes' records (time (K,), angle/measured/reference (seeds, K), evaluation only)."""
 
-    axis: str
-    size: str
-    move_m: float
-    start_rad: float
-    target_rad: float
-
-
-def task_suite(detector: Detector | None = None, seed: int = SUITE_SEED) -> list[Task]:
-    """The nine tasks (module docstring) for a detector (default: the real set's), whose
-    table radius [m] converts the moves and whose linear range [rad] bounds the targets."""
-    det = detector if detector is not None else real_parameters().detector
-    table_radius, angle_range = det.table_radius, det.angle_range
-    rng = np.random.default_rng(seed)
-    tasks = []
-    for i, axis in enumerate("ABC"):
-        for j, (size, x) in enumerate(MOVES.items()):
-            sign = 1.0 if (i + j) % 2 == 0 else -1.0
-            move = sign * x / table_radius  # rad
-            # target inside ±½θ_lin, on the side that keeps a medium move's start in range
-            target = -sign * rng.uniform(0.0, 0.5) * angle_range
-            tasks.append(Task(axis, size, sign * x, target - move, target))
-    return tasks
+    controller: str
+    plant_set: str
+    task: str
+    metrics: dict[str, np.ndarray]
+    time: np.ndarray
+    angle: np.ndarray
+    measured: np.ndarray
+    reference: np.ndarray
+    radius: float
 
 
 @dataclass
 class BenchmarkResult:
-    """Per-episode rows and the summaries (see :func:`run_benchmark`)."""
+    """Every cell, the per-seed plant draws and the settings (see the module docstring)."""
 
-    rows: list[dict[str, Any]]
-    episodes: dict[tuple[str, str, str], EpisodeResult]  # first seed's trajectory per task
+    cells: list[Cell]
+    draws: dict[str, list[dict[str, Any]]]
     settings: dict[str, Any]
+    _summary: dict[str, Any] | None = field(default=None, repr=False)
 
-    def summary(self) -> dict[str, Any]:
-        """Per controller: ``success_rate``, ``median_final_error_nm``,
-        ``median_settle_time_s`` over all episodes (failures settle at ∞; JSON null when
-        the median is not finite), and the same per plant condition and per move size."""
-        out: dict[str, Any] = {}
-        for ctl in dict.fromkeys(r["controller"] for r in self.rows):
-            rows = [r for r in self.rows if r["controller"] == ctl]
-            entry = _aggregate(rows)
-            entry["conditions"] = {}
-            for cond in dict.fromkeys(r["condition"] for r in rows):
-                sub = [r for r in rows if r["condition"] == cond]
-                entry["conditions"][cond] = _aggregate(sub)
-                entry["conditions"][cond]["sizes"] = {
-                    size: _aggregate([r for r in sub if r["size"] == size])
-                    for size in dict.fromkeys(r["size"] for r in sub)
-                }
-            out[ctl] = entry
+    def cell(self, plant_set: str, task: str, controller: str) -> Cell:
+        for c in self.cells:
+            if (c.plant_set, c.task, c.controller) == (plant_set, task, controller):
+                return c
+        raise ValueError(f"no cell {plant_set}/{task}/{controller}")
+
+    @property
+    def controllers(self) -> list[str]:
+        return list(dict.fromkeys(c.controller for c in self.cells))
+
+    def groups(self) -> dict[tuple[str, str], list[Cell]]:
+        """(plant set, task) → its cells, one per controller."""
+        out: dict[tuple[str, str], list[Cell]] = {}
+        for c in self.cells:
+            out.setdefault((c.plant_set, c.task), []).append(c)
         return out
 
-    def markdown(self) -> str:
-        """Table: controller × plant × move size (medians over episodes)."""
-        head = (
-            "| controller | plant | move | success | final error [nm] | settle [s] | "
-            "steps | overshoot [nm] | energy [mJ] |\n|---|---|---|---:|---:|---:|---:|---:|---:|"
+    def summary(self) -> dict[str, Any]:
+        """plant set → task → {"controllers": {name: {metric: {mean, ci_low, ci_high}}},
+        "paired": {"a - b": {metric: {mean, ci_low, ci_high, separated}}}}."""
+        if self._summary is not None:
+            return self._summary
+        out: dict[str, Any] = {}
+        for (ps, task), cells in self.groups().items():
+            entry: dict[str, Any] = {"controllers": {}, "paired": {}}
+            for c in cells:
+                entry["controllers"][c.controller] = {
+                    m: mean_ci(v, seed=i) for i, (m, v) in enumerate(c.metrics.items())
+                }
+            for a, b in itertools.combinations(cells, 2):
+                entry["paired"][f"{a.controller} - {b.controller}"] = {
+                    m: paired_difference(a.metrics[m], b.metrics[m], seed=i)
+                    for i, m in enumerate(a.metrics)
+                }
+            out.setdefault(ps, {})[task] = entry
+        self._summary = out
+        return out
+
+    def separations(self) -> dict[str, dict[str, int]]:
+        """Pair → metric → number of (plant set, task) cells whose paired 95 % interval
+        excludes 0 (the benchmark tells the two apart there)."""
+        out: dict[str, dict[str, int]] = {}
+        for tasks in self.summary().values():
+            for entry in tasks.values():
+                for pair, metrics in entry["paired"].items():
+                    d = out.setdefault(pair, {m: 0 for m in metrics})
+                    for m, v in metrics.items():
+                        d[m] += int(v["separated"])
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        """The benchmark.json document (non-finite numbers as null)."""
+        return _jsonable({
+            "version": BENCHMARK_VERSION,
+            "settings": self.settings,
+            "metrics": {m.name: {"unit": m.unit, "lower_is_better": m.lower_is_better,
+                                 "meaning": m.meaning} for m in METRICS.values()},
+            "results": self.summary(),
+            "separations": self.separations(),
+            "plant_draws": self.draws,
+        })  # fmt: skip
+
+    def to_pandas(self) -> Any:
+        """One row per episode: controller, plant_set, task, seed and every metric."""
+        import pandas as pd
+
+        rows = []
+        for c in self.cells:
+            n = next(iter(c.metrics.values())).size
+            for s in range(n):
+                row = {"controller": c.controller, "plant_set": c.plant_set, "task": c.task}
+                row["seed"] = s
+                row.update({m: float(v[s]) for m, v in c.metrics.items()})
+                rows.append(row)
+        return pd.DataFrame(rows)
+
+    def leaderboard(self, fmt: str = "markdown") -> str:
+        """Per plant set: controllers × tasks, each cell the success rate and the task's
+        primary metric (:data:`PRIMARY`) as mean [95 % interval]; best mean in bold."""
+        summ = self.summary()
+        blocks = []
+        for ps, tasks in summ.items():
+            names = list(next(iter(tasks.values()))["controllers"])
+            header = ["controller"] + [f"{t} ({_short(PRIMARY[TASKS[t].kind])})" for t in tasks]
+            body = []
+            for name in names:
+                row = [name]
+                for t, entry in tasks.items():
+                    metric = PRIMARY[TASKS[t].kind]
+                    v = entry["controllers"][name][metric]
+                    best = min(e[metric]["mean"] for e in entry["controllers"].values())
+                    succ = entry["controllers"][name]["success"]["mean"]
+                    txt = f"{_g(v['mean'])} [{_g(v['ci_low'])}, {_g(v['ci_high'])}]"
+                    if v["mean"] == best:
+                        txt = f"**{txt}**" if fmt == "markdown" else f"<b>{txt}</b>"
+                    row.append(f"{succ:.0%} · {txt}")
+                body.append(row)
+            blocks.append((ps, header, body))
+        if fmt == "html":
+            return _html(blocks, self.settings)
+        out = []
+        for ps, header, body in blocks:
+            out.append(f"### {ps}\n")
+            out.append("| " + " | ".join(header) + " |")
+            out.append("|" + "---|" * len(header))
+            out.extend("| " + " | ".join(r) + " |" for r in body)
+            out.append("")
+        return "\n".join(out)
+
+    def plot(self, plant_set: str, ax: Any = None) -> Any:
+        """Error (θ − r)·R [nm] vs time of the first seed, every task and controller."""
+        import matplotlib.pyplot as plt
+
+        groups = {k[1]: v for k, v in self.groups().items() if k[0] == plant_set}
+        if ax is None:
+            n = len(groups)
+            cols = min(4, n)
+            _fig, axes = plt.subplots(
+                math.ceil(n / cols), cols, figsize=(4.2 * cols, 3.2 * math.ceil(n / cols)),
+                squeeze=False,
+            )  # fmt: skip
+            ax = axes.ravel()
+        for a, (task, cells) in zip(ax, groups.items(), strict=False):
+            for c in cells:
+                err = (c.angle[0] - c.reference[0]) * c.radius * 1e9
+                a.plot(c.time, err, label=c.controller, lw=1.0)
+            a.set_yscale("symlog", linthresh=10.0)
+            a.axhspan(-BAND * 1e9, BAND * 1e9, color="0.9")
+            a.set_title(f"{task} ({plant_set})", fontsize=9)
+            a.set_xlabel("time [s]")
+            a.set_ylabel("(θ − r)·R [nm]")
+        ax[0].legend(fontsize=7)
+        return ax
+
+
+def _short(metric: str) -> str:
+    return {"settle_time_s": "settle s", "tracking_rms_nm": "RMS nm"}.get(metric, metric)
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}" if math.isfinite(x) else "∞"
+
+
+def _html(blocks: list[tuple[str, list[str], list[list[str]]]], settings: dict) -> str:
+    import html
+
+    parts = [
+        "<!doctype html><meta charset='utf-8'><title>turntable benchmark</title>",
+        "<style>table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 6px}"
+        "</style>",
+        f"<h1>turntable benchmark {BENCHMARK_VERSION}</h1>",
+        f"<p>{html.escape(json.dumps({k: settings[k] for k in ('seeds', 'band_m', 'hold_s')}))}"
+        " — cells: success rate · primary metric mean [95 % bootstrap interval]</p>",
+    ]
+    for ps, header, body in blocks:
+        parts.append(f"<h2>{html.escape(ps)}</h2><table><tr>")
+        parts.extend(f"<th>{html.escape(h)}</th>" for h in header)
+        parts.append("</tr>")
+        for row in body:
+            cells = "".join(f"<td>{x if '<b>' in x else html.escape(x)}</td>" for x in row)
+            parts.append(f"<tr>{cells}</tr>")
+        parts.append("</table>")
+    return "\n".join(parts)
+
+
+# --- running -----------------------------------------------------------------------------
+def _task(plant_set: str, name: str) -> Task:
+    """The task as run on a plant set (shorter on the 3-D model: :data:`FULL_3D_TASKS`)."""
+    task = TASKS[name]
+    if plant_set == "full_3d":
+        return dataclasses.replace(task, horizon=FULL_3D_TASKS[name])
+    return task
+
+
+def _noise_floor(plant_noise: float, cfg: EnvConfig) -> float:
+    """Detector angle noise at the table radius [m] for a voltage noise [V] (Eq. 4.1)."""
+    det = cfg.parameter_set.detector
+    return abs(det.angle(plant_noise) - det.angle(0.0)) * det.table_radius
+
+
+def _run_cell(
+    names: Sequence[str],
+    pset: PlantSet,
+    task: Task,
+    seeds: int,
+    axis: str,
+    suite_seed: int,
+    bar: Any,
+) -> tuple[list[Cell], list[dict[str, Any]]]:
+    """Every controller on one plant set × task (module docstring)."""
+    cfg = EnvConfig(plant=pset.base, axis=axis, terminate_on_success=False)
+    if not math.isclose(cfg.control_interval, 0.01):
+        raise ValueError("the task suite is written for a 0.01 s control interval")
+    ctx = ControllerContext.from_config(cfg)
+    det = cfg.parameter_set.detector
+    specs: list[EpisodeSpec] = [task.episode(s, det, suite_seed) for s in range(seeds)]
+    plants = [pset.plant(s, suite_seed) for s in range(seeds)]
+    n_ctl = len(names)
+    sim = TurntableTask(cfg, n_ctl * seeds)
+    ctls = [[make(name, ctx) for _ in range(seeds)] for name in names]
+    for ci in range(n_ctl):
+        for s in range(seeds):
+            b = ci * seeds + s
+            rng = np.random.default_rng([suite_seed, s, 1])  # the reset reading's noise
+            sim.reset_row(b, rng, specs[s].options(), plant=plants[s][0])
+    obs = sim.observation()
+    for ci in range(n_ctl):
+        for s in range(seeds):
+            ctls[ci][s].reset(obs[ci * seeds + s], specs[s].brief)
+    k_total = task.horizon + 1
+    n = n_ctl * seeds
+    angle, meas, ref = np.empty((n, k_total)), np.empty((n, k_total)), np.empty((n, k_total))
+    steps, energy = np.zeros((n, k_total)), np.zeros((n, k_total))
+    angle[:, 0], meas[:, 0], ref[:, 0] = sim.angle, obs[:, OBS.measured_angle_rad], sim.target
+    noise = np.random.default_rng([suite_seed, 2]).standard_normal((task.horizon, seeds))
+    dummy = np.random.default_rng(0)  # unused: the noise comes from `normals`
+    for k in range(task.horizon):
+        actions = np.concatenate(
+            [
+                type(ctls[ci][0]).act_many(ctls[ci], obs[ci * seeds : (ci + 1) * seeds])
+                for ci in range(n_ctl)
+            ]
         )
-        lines = [head]
-        for ctl, entry in self.summary().items():
-            for cond, ce in entry["conditions"].items():
-                for size, se in ce["sizes"].items():
-                    lines.append(
-                        f"| {ctl} | {cond} | {size} | {se['success_rate']:.0%} | "
-                        f"{_fmt(se['median_final_error_nm'])} | "
-                        f"{_fmt(se['median_settle_time_s'])} | {se['median_steps']:.0f} | "
-                        f"{_fmt(se['median_overshoot_nm'])} | "
-                        f"{se['median_energy_J'] * 1e3:.3g} |"
-                    )
-        return "\n".join(lines)
-
-
-def _fmt(x: float | None) -> str:
-    if x is None or not math.isfinite(x):
-        return "∞"
-    return f"{x:.3g}"
-
-
-def _median(values: Sequence[float]) -> float | None:
-    m = float(np.median(np.asarray(values, dtype=float)))
-    return m if math.isfinite(m) else None
-
-
-def _aggregate(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    settle = [r["settle_time_s"] if math.isfinite(r["settle_time_s"]) else math.inf for r in rows]
-    return {
-        "episodes": len(rows),
-        "success_rate": float(np.mean([r["success"] for r in rows])),
-        "median_final_error_nm": _median([r["final_error_nm"] for r in rows]),
-        "median_settle_time_s": _median(settle),
-        "median_steps": float(np.median([r["steps"] for r in rows])),
-        "median_overshoot_nm": _median([r["overshoot_nm"] for r in rows]),
-        "median_energy_J": float(np.median([r["energy_J"] for r in rows])),
-    }
+        res = sim.step(actions, dummy, normals=np.tile(noise[k], n_ctl))
+        obs = res.obs
+        angle[:, k + 1] = res.info["angle_rad"]
+        ref[:, k + 1] = res.info["target_rad"]
+        meas[:, k + 1] = obs[:, OBS.measured_angle_rad]
+        steps[:, k + 1] = res.info["steps"]
+        energy[:, k + 1] = res.info["energy_J"]
+        if bar is not None:
+            bar.update(1)
+    t = np.arange(k_total) * cfg.control_interval
+    floor = np.array([_noise_floor(p.sensor_noise, cfg) for p, _d in plants])
+    radius = det.table_radius
+    cells = []
+    for ci, name in enumerate(names):
+        rows = slice(ci * seeds, (ci + 1) * seeds)
+        metrics = episode_metrics(
+            t,
+            angle[rows],
+            ref[rows],
+            steps[rows],
+            energy[rows],
+            radius=radius,
+            noise_floor=floor,
+            event=specs[0].event,
+        )
+        cells.append(Cell(name, pset.name, task.name, metrics, t, angle[rows], meas[rows],
+                          ref[rows], radius))  # fmt: skip
+    return cells, [d for _p, d in plants]
 
 
 def run_benchmark(
     controllers: Sequence[str] | None = None,
     *,
+    plant_sets: Sequence[str] = DEFAULT_PLANT_SETS,
+    tasks: Sequence[str] | None = None,
     seeds: int = 20,
-    horizon: int = 200,
-    conditions: Sequence[str] = tuple(CONDITIONS),
-    axes: Sequence[str] = ("A", "B", "C"),
-    sizes: Sequence[str] = tuple(MOVES),
+    axis: str = "B",
+    suite_seed: int = SUITE_SEED,
     progress: bool = False,
 ) -> BenchmarkResult:
-    """Run the suite (module docstring).
+    """Run the benchmark (module docstring).
 
     Args:
         controllers: registered names (default: all, after :func:`load_plugins`).
-        seeds: randomised plants per task (the nominal plant runs once per task).
-        horizon: control intervals per episode.
-        conditions, axes, sizes: subsets of the suite.
+        plant_sets: names from :data:`~controllers.plant_sets.PLANT_SETS`; ``full_3d`` runs
+            only :data:`FULL_3D_TASKS`.
+        tasks: names from :data:`~controllers.tasks.TASKS` (default: all).
+        seeds: episodes per cell (paired across controllers).
+        progress: a tqdm bar over the cells' control intervals.
     """
     load_plugins()
     names = list(controllers) if controllers is not None else available()
-    for c in conditions:
-        if c not in CONDITIONS:
-            raise ValueError(f"conditions: {c!r} unknown (choose from {', '.join(CONDITIONS)})")
-    if seeds < 1 or horizon < 1:
-        raise ValueError(f"seeds={seeds!r}, horizon={horizon!r}: must be >= 1")
-    import turntable_env  # noqa: F401  (registers the env)
-
-    rows: list[dict[str, Any]] = []
-    episodes: dict[tuple[str, str, str], EpisodeResult] = {}
-    jobs = []
-    run_tasks: dict[str, Task] = {}
-    for cond in conditions:
-        for axis in axes:
-            env = gym.make(
-                "PiezoTurntable-v0",
-                axis=axis,
-                terminate_on_success=False,
-                max_episode_steps=horizon,
-                **CONDITIONS[cond],
-            )
-            cfg = env.unwrapped.config
-            det = cfg.parameter_set.detector
-            tasks = [t for t in task_suite(det) if t.axis == axis and t.size in sizes]
-            run_tasks.update({f"{t.axis}-{t.size}": t for t in tasks})
-            n_seeds = 1 if cond == "nominal" else seeds
-            jobs.append((cond, axis, env, tasks, n_seeds))
-    total = len(names) * sum(len(j[3]) * j[4] for j in jobs)
+    known = available()
+    for n in names:
+        if n not in known:
+            raise ValueError(f"controllers: {n!r} not registered (available: {', '.join(known)})")
+    for p in plant_sets:
+        if p not in PLANT_SETS:
+            raise ValueError(f"plant_sets: {p!r} unknown (choose from {', '.join(PLANT_SETS)})")
+    task_list = list(tasks) if tasks is not None else list(TASKS)
+    for t in task_list:
+        if t not in TASKS:
+            raise ValueError(f"tasks: {t!r} unknown (choose from {', '.join(TASKS)})")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 2:
+        raise ValueError(f"seeds={seeds!r}: must be an integer >= 2 (intervals need pairs)")
+    if not names or not plant_sets or not task_list:
+        raise ValueError("controllers, plant_sets and tasks must not be empty")
+    jobs = [(p, t) for p in plant_sets for t in task_list if p != "full_3d" or t in FULL_3D_TASKS]
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=total, desc="benchmark", unit="episode")
+        bar = tqdm(total=sum(_task(p, t).horizon for p, t in jobs), unit="interval")
     t0 = time.perf_counter()
-    for name in names:
-        for cond, axis, env, tasks, n_seeds in jobs:
-            ctl = make(name, env)
-            for task in tasks:
-                for s in range(n_seeds):
-                    seed = 1000 * s + 17
-                    res = run_episode(
-                        env,
-                        ctl,
-                        seed=seed,
-                        options={"start_angle": task.start_rad, "target_angle": task.target_rad},
-                    )
-                    m = res.metrics(BAND)
-                    rows.append(
-                        {
-                            "controller": name,
-                            "condition": cond,
-                            "axis": axis,
-                            "size": task.size,
-                            "move_nm": task.move_m * 1e9,
-                            "seed": seed,
-                            **m,
-                        }
-                    )
-                    if s == 0:
-                        episodes[(name, cond, f"{axis}-{task.size}")] = res
-                    if bar is not None:
-                        bar.update()
+    cells: list[Cell] = []
+    draws: dict[str, list[dict[str, Any]]] = {}
+    cell_wall: dict[str, float] = {}
+    for p, t in jobs:
+        if bar is not None:
+            bar.set_description(f"{p}/{t}")
+        tc = time.perf_counter()
+        new, d = _run_cell(names, PLANT_SETS[p](), _task(p, t), seeds, axis, suite_seed, bar)
+        cell_wall[f"{p}/{t}"] = time.perf_counter() - tc
+        cells.extend(new)
+        draws.setdefault(p, d)
     if bar is not None:
         bar.close()
-    for _c, _a, env, _t, _n in jobs:
-        env.close()
     settings = {
+        "version": BENCHMARK_VERSION,
         "controllers": names,
+        "plant_sets": list(plant_sets),
+        "tasks": {
+            t: {
+                "kind": TASKS[t].kind,
+                "horizon_s": TASKS[t].horizon * 0.01,
+                "description": TASKS[t].description,
+            }
+            for t in task_list
+        },
+        "full_3d_tasks": dict(FULL_3D_TASKS),
         "seeds": seeds,
-        "horizon": horizon,
-        "conditions": {c: CONDITIONS[c] for c in conditions},
+        "axis": axis,
+        "suite_seed": suite_seed,
         "band_m": BAND,
-        "tasks": [asdict(t) for t in run_tasks.values()],
+        "hold_s": HOLD,
+        "primary_metric": PRIMARY,
         "wall_s": time.perf_counter() - t0,
+        "cell_wall_s": cell_wall,
+        "cpu_count": os.cpu_count(),
     }
-    return BenchmarkResult(rows, episodes, settings)
+    return BenchmarkResult(cells, draws, settings)
+
+
+# --- outputs -----------------------------------------------------------------------------
+def _write_atomic(path: Path, text: str) -> None:
+    """Write text to ``path`` through a temporary file in its directory (never half-written)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def write_outputs(result: BenchmarkResult, out: str | Path) -> dict[str, Path]:
-    """Write episodes.csv, summary.csv, summary.md, summary.json and trajectory plots."""
+    """Write benchmark.json, episodes.csv, leaderboard.md/.html and trajectory plots."""
+    import io
+
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
-    paths = {}
+    paths: dict[str, Path] = {}
+    p = d / "benchmark.json"
+    _write_atomic(p, json.dumps(result.to_json(), indent=1))
+    paths["json"] = p
+    df = result.to_pandas()
+    buf = io.StringIO()
+    df.to_csv(buf, index=False, quoting=csv.QUOTE_MINIMAL)
     p = d / "episodes.csv"
-    with p.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(result.rows[0]))
-        w.writeheader()
-        w.writerows(result.rows)
+    _write_atomic(p, buf.getvalue())
     paths["episodes"] = p
-    summ = result.summary()
-    p = d / "summary.csv"
-    with p.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        keys = [k for k in _aggregate(result.rows[:1])]
-        w.writerow(["controller", "condition", "size", *keys])
-        for ctl, entry in summ.items():
-            for cond, ce in entry["conditions"].items():
-                for size, se in ce["sizes"].items():
-                    w.writerow([ctl, cond, size, *(se[k] for k in keys)])
-    paths["summary_csv"] = p
-    p = d / "summary.md"
-    p.write_text(result.markdown() + "\n", encoding="utf-8")
-    paths["summary_md"] = p
-    p = d / "summary.json"
-    p.write_text(json.dumps({"controllers": summ, "settings": result.settings}, indent=2))
-    paths["summary_json"] = p
+    p = d / "leaderboard.md"
+    _write_atomic(p, result.leaderboard("markdown") + "\n")
+    paths["leaderboard_md"] = p
+    p = d / "leaderboard.html"
+    _write_atomic(p, result.leaderboard("html") + "\n")
+    paths["leaderboard_html"] = p
     paths.update(plot_trajectories(result, d))
     return paths
 
 
 def plot_trajectories(result: BenchmarkResult, out: Path) -> dict[str, Path]:
-    """One figure per controller: error vs time of each task (first seed), per plant."""
+    """One figure per plant set: every task's first-seed error trajectories."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     paths = {}
-    for ctl in dict.fromkeys(k[0] for k in result.episodes):
-        conds = list(dict.fromkeys(k[1] for k in result.episodes if k[0] == ctl))
-        fig, axes = plt.subplots(1, len(conds), figsize=(6 * len(conds), 4), squeeze=False)
-        for ax, cond in zip(axes[0], conds, strict=True):
-            for (c, cd, task), ep in result.episodes.items():
-                if c == ctl and cd == cond:
-                    ep.plot(ax=ax, label=task)
-            ax.set_title(f"{ctl}, {cond} plant")
-            ax.legend(fontsize=7, ncol=3)
+    for ps in dict.fromkeys(c.plant_set for c in result.cells):
+        ax = result.plot(ps)
+        fig = ax[0].figure
         fig.tight_layout()
-        p = out / f"trajectories_{ctl}.png"
-        fig.savefig(p, dpi=90)
+        p = Path(out) / f"trajectories_{ps}.png"
+        tmp = p.with_name(f".{p.name}.tmp.png")
+        fig.savefig(tmp, dpi=80)
+        os.replace(tmp, p)
         plt.close(fig)
-        paths[f"trajectories_{ctl}"] = p
+        paths[f"trajectories_{ps}"] = p
     return paths
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x

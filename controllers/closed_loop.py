@@ -23,6 +23,7 @@ import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
 from .feedforward import MapPlanner
+from .lab import LabBrief
 from .step_map import StepMap
 
 __all__ = ["ClosedLoopStepController"]
@@ -52,8 +53,8 @@ class ClosedLoopStepController(StepScanController):
         self.learning_rate = learning_rate
         self.min_learn = min_learn
 
-    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        super().reset(obs, info)
+    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
+        super().reset(obs, brief)
         self.gain = {1: 1.0, -1: 1.0}
         self._map_move = 0.0  # rad, the map's displacement of the last move (γ = 1)
         self._offset_before = 0.0

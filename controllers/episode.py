@@ -16,6 +16,7 @@ import numpy as np
 from turntable_env.envs.config import OBS
 
 from .base import Controller
+from .lab import LabBrief
 
 __all__ = ["EpisodeResult", "run_episode"]
 
@@ -112,10 +113,18 @@ def run_episode(
     *,
     seed: int | None = None,
     options: dict[str, Any] | None = None,
+    brief: LabBrief | None = None,
 ) -> EpisodeResult:
-    """Reset ``env`` (seed, options), run ``controller`` until the episode ends."""
+    """Reset ``env`` (seed, options), run ``controller`` until the episode ends.
+
+    The controller gets the observations and ``brief`` (default: the reset target and, for
+    a ``reference`` option, the reference; no start estimate) — never the env's info, whose
+    ground truth this runner keeps for the result."""
     obs, info = env.reset(seed=seed, options=options)
-    controller.reset(obs, info)
+    if brief is None:
+        ref = (options or {}).get("reference")
+        brief = LabBrief(float(obs[OBS.target_angle_rad]), reference_rad=ref)
+    controller.reset(obs, brief)
     time, angle, measured = [0.0], [float(info["angle_rad"])], [float(obs[OBS.measured_angle_rad])]
     actions, energy, steps = [np.zeros(5)], [0.0], [0]
     done = False

@@ -10,11 +10,11 @@ largest move that does not pass the target (and among moves within 10 % of that,
 one with the least C·V² energy, ∝ m·A²) until the residual is inside ½ of the scan
 range; the number of intervals and the amplitudes follow.
 
-:class:`FeedForwardController` plans from the known start angle (the reset info's
-``angle_rad``: the commanded move) with the nominal map and ignores the detector while
-stepping; the scan PID then finishes on the detector. Should the residual still exceed
-the scan range (a plant that differs from the model), it re-plans from the reading, at
-most ``max_replans`` times.
+:class:`FeedForwardController` plans from the start it believes — the reading, or beyond
+the detector the lab's dead-reckoned start (:class:`~controllers.lab.LabBrief`) — with
+the nominal map and ignores the detector while stepping; the scan PID then finishes on
+the detector. Should the residual still exceed the scan range (a plant that differs
+from the model), it re-plans from the reading, at most ``max_replans`` times.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
+from .lab import LabBrief
 from .step_map import StepMap
 
 __all__ = ["FeedForwardController", "MapPlanner"]
@@ -119,8 +120,8 @@ class FeedForwardController(StepScanController):
         self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx)
         self.max_replans = max_replans
 
-    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        super().reset(obs, info)
+    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
+        super().reset(obs, brief)
         self.plans = 0  # stepping sequences started (the first plan + re-plans)
 
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:

@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
+from .lab import LabBrief
 
 __all__ = ["FuzzyStepController", "control_surface", "fuzzy_system"]
 
@@ -152,8 +153,8 @@ class FuzzyStepController(StepScanController):
         self.changes = np.linspace(-DE_MAX, DE_MAX, grid)
         self.surface = _surface(max_steps, grid)
 
-    def reset(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        super().reset(obs, info)
+    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
+        super().reset(obs, brief)
         self.last_error: float | None = None
 
     def steps(self, error: float, change: float) -> float:

@@ -16,6 +16,7 @@ class ScanOnlyController(StepScanController):
     """The scan PID of :mod:`controllers.scan_pid` without any stepping."""
 
     name = "scan_pid"
+    steps = False
 
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
         return None

@@ -1,22 +1,90 @@
-"""The controller benchmark (issue 6): every registered controller on the fixed suite.
+"""The controller benchmark (issue 21): every registered controller × plant set × task.
 
-Same run as ``turntable benchmark``: 50 nm / 2 µm / 50 µm moves about A, B and C on the
-nominal plant and on 20 randomised plants per task; writes episodes.csv, summary.csv,
-summary.md, summary.json and trajectory plots to ``--out`` (default
-experiments/results/benchmark) and prints the markdown table and the JSON summary.
+Same run as ``turntable benchmark --out experiments/results/benchmark``: point moves that
+need stepping, tracking tasks and a knock on the nominal, randomized, held_out,
+calibrated and full_3d plant sets, 20 paired seeds per cell; writes benchmark.json,
+episodes.csv, leaderboard.md/.html and trajectory plots, then prints the summary.
 
-    python experiments/controller_benchmark.py [--seeds 20] [--out DIR]   (about 30 s)
+    python experiments/controller_benchmark.py [--seeds 20] [--out DIR]   (about 9 min)
+    python experiments/controller_benchmark.py --summarize [--out DIR]    (from the files)
+
+The summary: the leaderboard, the mean success over each plant set's tasks, the pairs
+the benchmark tells apart, the paired differences the README quotes, each plant set's
+scan range and detector noise floor, and the held-out episodes a controller fails with
+their plant draws.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 from pathlib import Path
 
-from controllers.benchmark import run_benchmark, write_outputs
-
 DEFAULT_OUT = Path(__file__).parent / "results" / "benchmark"
+QUOTED = [  # (plant set, task, pair, metric): the paired differences the README quotes
+    ("nominal", "point_2um", "closed_loop - sac", "settle_time_s"),
+    ("nominal", "point_50um", "feedforward - closed_loop", "settle_time_s"),
+    ("nominal", "point_50um", "fuzzy - closed_loop", "settle_time_s"),
+    ("nominal", "point_200um", "fuzzy - closed_loop", "settle_time_s"),
+    ("nominal", "point_200um", "fuzzy - closed_loop", "energy_per_um_mJ"),
+    ("nominal", "back_forth", "feedforward - closed_loop", "tracking_rms_nm"),
+    ("nominal", "knock", "fuzzy - closed_loop", "settle_time_s"),
+    ("randomized", "scan_ramp", "closed_loop - sac", "success"),
+    ("held_out", "scan_ramp", "closed_loop - sac", "success"),
+    ("held_out", "edge_5um", "fuzzy - closed_loop", "success"),
+]
+
+
+def summarize(out: Path) -> None:
+    """Print the summary of a benchmark directory (module docstring)."""
+    from controllers.base import ControllerContext
+    from controllers.plant_sets import PLANT_SETS
+    from turntable_env.envs.config import EnvConfig
+
+    doc = json.loads((out / "benchmark.json").read_text(encoding="utf-8"))
+    res = doc["results"]
+    print((out / "leaderboard.md").read_text(encoding="utf-8"))
+    st = doc["settings"]
+    slow = {k: round(v) for k, v in st["cell_wall_s"].items() if v > 60}
+    print(f"benchmark {doc['version']}: {st['seeds']} seeds per cell, {st['wall_s']:.0f} s "
+          f"wall on {st['cpu_count']} cores (cells over a minute: {slow})")  # fmt: skip
+    print("\nmean success over each plant set's tasks:")
+    for ps, tasks in res.items():
+        names = list(next(iter(tasks.values()))["controllers"])
+        row = {c: sum(t["controllers"][c]["success"]["mean"] for t in tasks.values()) / len(tasks)
+               for c in names}  # fmt: skip
+        print(f"  {ps:<11} " + "  ".join(f"{c} {v:.2f}" for c, v in row.items()))
+    print("\ncells (plant set × task) where a pair's paired 95 % interval excludes 0:")
+    for pair, metrics in doc["separations"].items():
+        print(f"  {pair}: " + ", ".join(f"{m} {n}" for m, n in metrics.items()))
+    print("\nquoted paired differences, mean [95 % interval]:")
+    for ps, task, pair, metric in QUOTED:
+        v = res[ps][task]["paired"][pair][metric]
+        print(f"  {ps}/{task} {pair} {metric}: {v['mean']:+.3g} "
+              f"[{v['ci_low']:+.3g}, {v['ci_high']:+.3g}]")  # fmt: skip
+    print("\nplant sets: scan range K·u_max and detector noise floor at R_table")
+    for ps in res:
+        cfg = EnvConfig(plant=PLANT_SETS[ps]().base)
+        ctx = ControllerContext.from_config(cfg)
+        det = cfg.parameter_set.detector
+        floor = abs(det.angle(cfg.plant.sensor_noise) - det.angle(0.0)) * det.table_radius
+        print(f"  {ps:<11} scan range {ctx.scan_range * det.table_radius * 1e6:.2f} µm, "
+              f"detector ±{det.angle_range * det.table_radius * 1e6:.2f} µm, "
+              f"noise floor {floor * 1e9:.2f} nm")  # fmt: skip
+    print("\nheld-out episodes failed (hold RMS, plant draw):")
+    with (out / "episodes.csv").open(encoding="utf-8") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["plant_set"] == "held_out"]
+    draws = doc["plant_draws"]["held_out"]
+    for r in rows:
+        if r["task"] == "point_50um" and r["controller"] == "closed_loop" and r["success"] == "0.0":
+            d = draws[int(r["seed"])]
+            keys = ("friction", "preload", "amplifier", "effect")
+            print(f"  closed_loop point_50um seed {r['seed']}: hold RMS "
+                  f"{float(r['hold_rms_nm']) / 1e3:.3g} µm; "
+                  + ", ".join(f"{k} {d[k] if isinstance(d[k], str) else round(d[k], 2)}"
+                              for k in keys)
+                  + "".join(f", {k} {v:.3g}" for k, v in d.items() if "." in k))  # fmt: skip
 
 
 def main() -> None:
@@ -24,22 +92,16 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--controllers", default=None, help="comma-separated (default: all)")
     ap.add_argument("--out", default=str(DEFAULT_OUT))
+    ap.add_argument("--summarize", action="store_true", help="only print the summary of --out")
     args = ap.parse_args()
-    names = args.controllers.split(",") if args.controllers else None
-    res = run_benchmark(names, seeds=args.seeds, progress=True)
-    paths = write_outputs(res, args.out)
-    print(res.markdown())
-    print(json.dumps({k: {m: v[m] for m in ("success_rate", "median_final_error_nm",
-          "median_settle_time_s")} for k, v in res.summary().items()}, indent=2))  # fmt: skip
-    print("randomised plants: success rate, median settle time [s] (∞: most never settle)")
-    for name, entry in res.summary().items():
-        r = entry["conditions"].get("randomized")
-        if r is not None:
-            settle = r["median_settle_time_s"]
-            settle_s = "∞" if settle is None else f"{settle:.3g}"
-            print(f"  {name:<12} {r['success_rate']:.3f}  {settle_s}")
-    print(f"{len(res.rows)} episodes in {res.settings['wall_s']:.1f} s; files in "
-          f"{paths['summary_md'].parent}")  # fmt: skip
+    out = Path(args.out)
+    if not args.summarize:
+        from controllers.benchmark import run_benchmark, write_outputs
+
+        names = args.controllers.split(",") if args.controllers else None
+        res = run_benchmark(names, seeds=args.seeds, progress=True)
+        write_outputs(res, out)
+    summarize(out)
 
 
 if __name__ == "__main__":

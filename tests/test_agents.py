@@ -12,6 +12,7 @@ from agents import AgentWrapper, InterfaceConfig, load_agent, pretrained
 from agents.train import load_hyperparams, train
 from agents.vec_env import NativeVecEnv
 from controllers import make
+from controllers.lab import LabBrief
 
 FIXED_OBS = np.random.default_rng(7).uniform(-2.0, 2.0, size=(16, 8)).astype(np.float32)
 
@@ -61,7 +62,9 @@ def test_shipped_agents_load_and_act():
         assert size < 5e6, f"{name}: {size} bytes"
         ctl = make(name, env)
         obs, info = env.reset(seed=0)
-        ctl.reset(obs, info)
+        with pytest.raises(ValueError, match="LabBrief"):  # ground truth is refused
+            ctl.reset(obs, info)
+        ctl.reset(obs, LabBrief(float(info["target_rad"])))
         for _ in range(3):
             action = ctl.act(obs)
             assert env.action_space.contains(action)

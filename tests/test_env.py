@@ -20,6 +20,7 @@ from turntable_env.envs import (
     PiezoTurntableEnv,
     PiezoTurntableVectorEnv,
 )
+from turntable_env.envs.config import OBS
 from turntable_env.plant import reduced_model
 
 ENV_ID = "PiezoTurntable-v0"
@@ -238,6 +239,51 @@ def test_native_vector_env_time_limit_and_autoreset():
 
 
 # --- the task's physics and reward ---------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"reference": [0.0, 1.0]}, r"reference'\]\[1\]"),  # beyond the detector
+        ({"reference": [0.0, float("nan")]}, r"reference'\]\[1\]"),
+        ({"reference": []}, "reference"),
+        ({"reference": [0.0], "target_angle": 0.0}, "not both"),
+        ({"knock": (0.0, 1e-5)}, "knock"),
+        ({"knock": (0.1, 1.0)}, "knock"),
+        ({"knock": "soon"}, "knock"),
+    ],
+)
+def test_reference_and_knock_options_validated(options, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make(ENV_ID).reset(options=options)
+
+
+def test_reference_sets_the_target_of_each_interval():
+    env = _quiet_env(terminate_on_success=False)
+    ref = [1e-4, 2e-4, 3e-4]
+    obs, _ = env.reset(seed=0, options={"reference": ref})
+    assert obs[OBS.target_angle_rad] == pytest.approx(1e-4)
+    targets = []
+    for _ in range(4):
+        obs, _r, _t, _tr, info = env.step(np.zeros(5))
+        targets.append(info["target_rad"])
+        assert obs[OBS.target_angle_rad] == pytest.approx(info["target_rad"])
+        # the reward's distance is to the target of the moment
+        assert info["distance_rad"] == pytest.approx(abs(info["target_rad"] - info["angle_rad"]))
+    np.testing.assert_allclose(targets, [2e-4, 3e-4, 3e-4, 3e-4])
+
+
+def test_knock_displaces_the_table_once_and_it_stays_there():
+    """Generator idle, no offset: the table rests; the knock moves it by exactly dθ at the
+    end of its interval and every contact sticks again (it does not move on)."""
+    env = _quiet_env(terminate_on_success=False)
+    d = 2e-4
+    env.reset(seed=0, options={**HOME, "knock": (0.03, d)})
+    angles = [env.step(np.zeros(5))[-1]["angle_rad"] for _ in range(5)]
+    assert angles[1] == pytest.approx(angles[0], abs=1e-12)
+    assert angles[2] - angles[1] == pytest.approx(d, rel=1e-9)
+    assert angles[4] == pytest.approx(angles[2], abs=1e-12)
+    np.testing.assert_array_equal(env.task.stepper.snapshot(0)["stick_fraction"], [1.0, 1.0])
+
+
 def test_scan_mode_bends_tubes_without_slip():
     """Amplitude 0 with a scan level u_0: the table follows the tubes, θ = G·g·u_0/ρ
     (g the free contact displacement per channel volt), and every element sticks."""

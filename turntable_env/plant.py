@@ -567,6 +567,13 @@ class _ReducedBackend:
     def reset(self, b: int, angle: float, time: float, voltage: float) -> None:
         self.batch.set_state(b, self.batch.models[b].rest_state(angle, voltage), time)
 
+    def displace(self, b: int, delta: float) -> None:
+        st = self.batch.state
+        rest = self.batch.models[b].rest_state(
+            float(self.batch.angle[b]) + delta, float(st.volt[b])
+        )
+        st.y[b], st.f[b], st.st[b] = rest["y"], rest["f"], rest["st"]  # amplifier state kept
+
     def grid_time(self) -> np.ndarray:
         return self.batch.state.n
 
@@ -632,6 +639,10 @@ class _FullBackend:
         st.rot[:] = exp_so3(angle * self.unit)
         self.states[b] = st
         self.n[b] = round(time / self.grid)
+
+    def displace(self, b: int, delta: float) -> None:
+        volt = float(self.states[b].vch[self.c])
+        self.reset(b, self.angle(b) + delta, self.n[b] * self.grid, volt)
 
     def grid_time(self) -> np.ndarray:
         return self.n
@@ -796,6 +807,13 @@ class PlantStepper:
         self._direction[b] = 0.0
         self._travel[b] = 0.0
 
+    def displace(self, b: int, delta: float) -> None:
+        """A knock: turntable b's table jumps by ``delta`` [rad] now and every contact sticks
+        again at the new angle; the tubes keep the bend of the present amplifier voltage, the
+        generator, the amplifier and the effects' states run on (a disturbance for the
+        controller benchmark)."""
+        self._physics.displace(b, check_finite("delta", delta))
+
     # --- stepping --------------------------------------------------------------------------
     @property
     def time(self) -> np.ndarray:
@@ -910,11 +928,15 @@ class PlantStepper:
 
     # --- detector ----------------------------------------------------------------------------
     def observe(
-        self, rng: np.random.Generator | None = None, rows: np.ndarray | None = None
+        self,
+        rng: np.random.Generator | None = None,
+        rows: np.ndarray | None = None,
+        normals: np.ndarray | None = None,
     ) -> np.ndarray:
         """Detector x voltage [V] of turntables ``rows`` (default all) now: the output-stage
         effects (time since the last reset), then noise (one standard normal draw per row,
-        times the plant's ``sensor_noise``) and saturation (Eq. 4.1, §4.1.3)."""
+        times the plant's ``sensor_noise``; ``normals`` gives the draws instead of ``rng``,
+        for common random numbers across runs) and saturation (Eq. 4.1, §4.1.3)."""
         r = np.arange(len(self)) if rows is None else np.asarray(rows)
         th = np.clip(self.angle[r], -ANGLE_SAFE, ANGLE_SAFE)
         det = self._detector
@@ -925,7 +947,12 @@ class PlantStepper:
             x = det.unclipped_voltage(th)
         vs = det.saturation_voltage
         x = np.clip(x, -vs, vs)  # the photodiode saturates, its electronics add the noise
-        if rng is not None:
+        if normals is not None:
+            z = np.asarray(normals, dtype=float)
+            if z.shape != (r.size,) or not np.isfinite(z).all():
+                raise ValueError(f"normals: shape {z.shape}, expected ({r.size},), finite")
+            x = np.clip(x + z * self._noise_std[r], -vs, vs)
+        elif rng is not None:
             x = np.clip(x + rng.normal(0.0, 1.0, size=r.size) * self._noise_std[r], -vs, vs)
         return x
 

@@ -29,10 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from ..plant import IntervalResult, PlantStepper, load_capacitance
+from ..plant import IntervalResult, Plant, PlantStepper, load_capacitance
 from .config import OBS, OBSERVATION_NAMES, EnvConfig, check_action
 
-__all__ = ["StepResult", "TurntableTask"]
+__all__ = ["RESET_OPTIONS", "StepResult", "TurntableTask"]
+
+RESET_OPTIONS = ("start_angle", "target_angle", "reference", "knock")
+
 
 @dataclass
 class StepResult:
@@ -90,6 +93,8 @@ class TurntableTask:
         self.measured = np.zeros(num)  # rad
         self.detector_v = np.zeros(num)  # V
         self.angle = np.zeros(num)  # rad
+        self.reference: list[np.ndarray | None] = [None] * num  # rad per interval, or None
+        self.knock: list[tuple[int, float] | None] = [None] * num  # (interval, Δθ [rad])
 
     # ------------------------------------------------------------------------------
     @property
@@ -98,15 +103,32 @@ class TurntableTask:
         return self.step_index * self.config.control_interval
 
     def reset_row(
-        self, b: int, rng: np.random.Generator, options: dict[str, Any] | None = None
+        self,
+        b: int,
+        rng: np.random.Generator,
+        options: dict[str, Any] | None = None,
+        *,
+        plant: Plant | None = None,
     ) -> None:
-        """New episode for turntable b: its plant (randomised), start and target angles."""
+        """New episode for turntable b: its plant (randomised, or ``plant`` when given — the
+        controller benchmark's held-out plants), start and target angles, reference and knock
+        (:data:`RESET_OPTIONS`)."""
         cfg = self.config
         opts = dict(options or {})
-        unknown = set(opts) - {"start_angle", "target_angle"}
+        unknown = set(opts) - set(RESET_OPTIONS)
         if unknown:
-            raise ValueError(f"options: unknown keys {sorted(unknown)}")
-        if cfg.randomized:
+            raise ValueError(f"options: unknown keys {sorted(unknown)} (known: {RESET_OPTIONS})")
+        if "reference" in opts and "target_angle" in opts:
+            raise ValueError("options: give 'reference' or 'target_angle', not both")
+        reference = _option_reference(opts.get("reference"), self.angle_range)
+        knock = _option_knock(opts.get("knock"), cfg.control_interval, cfg.angle_limit)
+        if plant is not None:
+            if not isinstance(plant, Plant) or plant.fidelity != self.plant.fidelity:
+                raise ValueError(
+                    f"plant={plant!r}: must be a Plant of fidelity {self.plant.fidelity!r}"
+                )
+            draw: dict[str, float] = {}
+        elif cfg.randomized:
             plant, draw = self.plant.sample(rng, ranges=cfg.ranges or None)
         else:
             plant, draw = self.plant, {}
@@ -125,6 +147,10 @@ class TurntableTask:
             start = _option_angle("start_angle", opts["start_angle"], cfg.angle_limit)
         if "target_angle" in opts:
             target = _option_angle("target_angle", opts["target_angle"], lim)
+        if reference is not None:
+            target = float(reference[0])
+        self.reference[b] = reference
+        self.knock[b] = knock
         self.start[b] = start
         self.target[b] = target
         self.step_index[b] = 0
@@ -144,11 +170,18 @@ class TurntableTask:
         return obs.astype(np.float32)
 
     # --- step: simulate, observe, reward, terminated, truncated, info --------------------
-    def step(self, actions: np.ndarray, rng: np.random.Generator) -> StepResult:
-        """Advance every turntable one control interval under its action (N, 5)."""
+    def step(
+        self,
+        actions: np.ndarray,
+        rng: np.random.Generator,
+        normals: np.ndarray | None = None,
+    ) -> StepResult:
+        """Advance every turntable one control interval under its action (N, 5); the
+        detector noise from ``rng``, or from ``normals`` (N,) standard normal draws when
+        given (common random numbers: the controller benchmark)."""
         acts = check_action(actions, (self.num, 5))
         interval = self._simulate(acts)
-        self._observe(np.arange(self.num), rng)
+        self._observe(np.arange(self.num), rng, normals)
         dist, r_dist, r_energy, success = self._reward(interval.energy)
         terminated = self._terminated(success)
         truncated = self._truncated(terminated)
@@ -161,12 +194,20 @@ class TurntableTask:
         self.phase[:] = result.phase
         self.step_index += 1
         self.last_action[:] = acts
-        self.angle[:] = result.angle
+        for b in range(self.num):  # the reference's target and a knock at this interval's end
+            ref, knock = self.reference[b], self.knock[b]
+            if ref is not None:
+                self.target[b] = ref[min(int(self.step_index[b]), ref.size - 1)]
+            if knock is not None and knock[0] == self.step_index[b]:
+                self.stepper.displace(b, knock[1])
+        self.angle[:] = self.stepper.angle
         return result
 
-    def _observe(self, rows: np.ndarray, rng: np.random.Generator) -> None:
+    def _observe(
+        self, rows: np.ndarray, rng: np.random.Generator, normals: np.ndarray | None = None
+    ) -> None:
         """The detector's reading (Eq. 4.1 with effects, noise, saturation) and its angle."""
-        v = self.stepper.observe(rng, rows)
+        v = self.stepper.observe(rng, rows, normals)
         self.detector_v[rows] = v
         self.measured[rows] = self.detector.angle(v)
 
@@ -211,6 +252,41 @@ class TurntableTask:
             "out_of_workspace": np.abs(self.angle) > self.config.angle_limit,
             "time_s": self.time.astype(float),
         }
+
+
+def _option_reference(value: Any, limit: float) -> np.ndarray | None:
+    """A reference trajectory option: finite angles [rad] within ±``limit``, one per interval."""
+    if value is None:
+        return None
+    try:
+        ref = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"options['reference']: {value!r} is not a sequence of angles") from None
+    if ref.ndim != 1 or ref.size == 0:
+        raise ValueError(f"options['reference']: shape {ref.shape}, expected (n,) with n >= 1")
+    bad = np.flatnonzero(~np.isfinite(ref) | (np.abs(ref) > limit))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(
+            f"options['reference'][{i}]={ref[i]!r}: must be finite with |angle| <= {limit:.4g} rad"
+        )
+    ref.setflags(write=False)
+    return ref
+
+
+def _option_knock(value: Any, interval: float, limit: float) -> tuple[int, float] | None:
+    """A knock option (time [s], Δθ [rad]) → (interval index at whose end it acts, Δθ)."""
+    if value is None:
+        return None
+    try:
+        t, d = (float(x) for x in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"options['knock']={value!r}: must be (time_s, angle_rad)") from None
+    if not (math.isfinite(t) and t > 0.0):
+        raise ValueError(f"options['knock']={value!r}: time must be finite and > 0 s")
+    if not (math.isfinite(d) and abs(d) <= limit):
+        raise ValueError(f"options['knock']={value!r}: |angle| must be <= {limit:.4g} rad")
+    return max(round(t / interval), 1), d
 
 
 def _option_angle(name: str, value: Any, limit: float) -> float:

@@ -112,7 +112,12 @@ class PiezoTurntableEnv(gym.Env):
     at a start angle drawn uniformly in ±0.8·θ_lin, target uniformly in ±0.8·θ_lin, the
     generator idle, tubes unbent. ``reset(options={"start_angle": ..., "target_angle":
     ...})`` sets them [rad] (start within ±``angle_limit``, target within ±θ_lin);
-    ``move_range`` draws the start as the target less a log-uniform move instead. With
+    ``move_range`` draws the start as the target less a log-uniform move instead.
+    ``options={"reference": r}`` commands a trajectory instead of a fixed target: r[k] [rad]
+    is the target at time k·Δt (the last value held after the end; observation and reward
+    use the target of the moment); ``options={"knock": (t, dθ)}`` displaces the table by
+    dθ [rad] at the end of the interval ending at t [s] (every contact re-sticks at the new
+    angle; a disturbance, :meth:`~turntable_env.plant.PlantStepper.displace`). With
     ``randomize``, the friction coefficients, preload, amplifier slew and sensor noise
     are redrawn each episode (ranges: :data:`~turntable_env.envs.config.DEFAULT_RANDOMIZATION`).
 
@@ -159,7 +164,8 @@ class PiezoTurntableEnv(gym.Env):
     * v0: initial version (reduced per-axis model, real parameters). Later additions that
       keep v0's behaviour: ``info["steps"]``, ``terminate_on_success``, ``move_range``,
       ``reward="log"``, ``success_bonus``, ``plant`` (the plant layer: calibrated plants
-      with effects) and the registered variants.
+      with effects), the registered variants, and the ``reference`` and ``knock`` reset
+      options (tracking and disturbance tasks).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}

@@ -1,0 +1,220 @@
+"""The controller benchmark: information boundary, metrics, intervals, tasks, plant sets."""
+
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import turntable_env  # noqa: F401  (registers the env)
+from controllers import available, make
+from controllers.benchmark import QUICK, run_benchmark, write_outputs
+from controllers.lab import LabBrief
+from controllers.metrics import BAND, episode_metrics, mean_ci, paired_difference
+from controllers.plant_sets import HELD_OUT_RANGES, PLANT_SETS, TRAIN_RANGES
+from controllers.registry import load_plugins
+from controllers.tasks import TASKS
+from turntable_env.envs.config import OBS
+from turntable_env.params import real_parameters
+
+DET = real_parameters().detector
+R = DET.table_radius
+
+
+def _controllers():
+    load_plugins()
+    return available()
+
+
+# --- the information boundary -------------------------------------------------------------
+@pytest.mark.parametrize("name", _controllers())
+def test_true_start_and_plant_draw_do_not_reach_the_controller(name):
+    """Two episodes that differ only in evaluation-only values — the true start 2 mrad
+    apart, both beyond the detector, and the randomisation draw — with the same lab brief:
+    the controller acts identically as long as its observations agree."""
+    actions = []
+    observations = []
+    for start, rnd in ((-3e-3, {"friction": (1.0, 1.0)}), (-5e-3, {"friction": (1.2, 1.2)})):
+        env = gym.make("PiezoTurntable-v0", noise=False, randomize=rnd, max_episode_steps=20)
+        ctl = make(name, env)
+        obs, _info = env.reset(seed=0, options={"start_angle": start, "target_angle": 1e-4})
+        ctl.reset(obs, LabBrief(1e-4, start_estimate_rad=-4e-3, start_error=0.3))
+        acts, seen = [], []
+        for _ in range(20):
+            seen.append(obs.copy())
+            a = ctl.act(obs)
+            acts.append(a)
+            obs, *_ = env.step(a)
+        actions.append(np.array(acts))
+        observations.append(np.array(seen))
+    same = np.all(observations[0] == observations[1], axis=1)
+    n = int(np.argmin(same)) if not same.all() else same.size
+    assert n >= 1  # the readings agree at least at the start (both saturated)
+    assert observations[0][0, OBS.measured_angle_rad] <= -0.99 * DET.angle_range
+    np.testing.assert_array_equal(actions[0][:n], actions[1][:n])
+
+
+def test_a_controller_refuses_the_env_info():
+    env = gym.make("PiezoTurntable-v0")
+    obs, info = env.reset(seed=0)
+    for name in ("feedforward", "fuzzy", "closed_loop", "scan_pid"):
+        with pytest.raises(ValueError, match="LabBrief"):
+            make(name, env).reset(obs, info)
+
+
+def test_cell_results_do_not_depend_on_the_other_controllers():
+    """Common random numbers: scan_pid's per-seed metrics are the same run alone or beside
+    another controller (same plants, episodes and noise per seed, whatever the row)."""
+    kw = {"plant_sets": ["held_out"], "tasks": ["knock"], "seeds": 3}
+    alone = run_benchmark(["scan_pid"], **kw).cell("held_out", "knock", "scan_pid")
+    beside = run_benchmark(["fuzzy", "scan_pid"], **kw).cell("held_out", "knock", "scan_pid")
+    for m, v in alone.metrics.items():
+        np.testing.assert_array_equal(v, beside.metrics[m], err_msg=m)
+
+
+# --- metrics ------------------------------------------------------------------------------
+def test_metric_definitions_on_a_hand_made_episode():
+    t = np.arange(8) * 0.1
+    # errors at R [nm]: 1000, 400, 20, -50, 10, 5, 0, 0 (target 0, approach from above)
+    err_nm = np.array([1000.0, 400.0, 20.0, -50.0, 10.0, 5.0, 0.0, 0.0])
+    angle = (err_nm * 1e-9 / R)[None, :]
+    ref = np.zeros_like(angle)
+    steps = np.array([[0, 3, 1, 0, 0, 0, 0, 0]])
+    energy = np.array([[0.0, 2e-3, 1e-3, 0, 0, 0, 0, 0]])
+    m = episode_metrics(
+        t, angle, ref, steps, energy, radius=R, noise_floor=np.array([2e-9]), hold=0.25
+    )
+    assert m["time_to_band_s"][0] == pytest.approx(0.2)  # 20 nm ≤ 30 nm band at sample 2
+    assert m["settle_time_s"][0] == pytest.approx(0.4)  # −50 nm at 0.3 s, inside after
+    # the approach is downwards: 50 nm below the target is the overshoot
+    assert m["overshoot_nm"][0] == pytest.approx(50.0)
+    assert m["success"][0] == 1.0
+    hold = np.sqrt(np.mean(np.array([5.0, 0.0, 0.0]) ** 2))  # last 0.25 s: samples 5–7
+    assert m["hold_rms_nm"][0] == pytest.approx(hold)
+    assert m["hold_rms_rel"][0] == pytest.approx(hold / 2.0)
+    assert m["slips_per_um"][0] == pytest.approx(4 / 1.0)  # 4 periods over 1 µm
+    assert m["energy_per_um_mJ"][0] == pytest.approx(3.0)
+    # never inside: both times censored at the window, no success
+    far = episode_metrics(t, angle + 1e-5, ref, steps, energy, radius=R,
+                          noise_floor=np.array([2e-9]))  # fmt: skip
+    assert far["time_to_band_s"][0] == far["settle_time_s"][0] == pytest.approx(0.7)
+    assert far["success"][0] == 0.0
+
+
+def test_times_count_from_the_event():
+    t = np.arange(6) * 0.1
+    err = np.array([0.0, 0.0, 500.0, 100.0, 0.0, 0.0]) * 1e-9 / R  # a knock at sample 2
+    m = episode_metrics(t, err[None], np.zeros((1, 6)), np.zeros((1, 6)), np.zeros((1, 6)),
+                        radius=R, noise_floor=np.ones(1) * 1e-9, event=2)  # fmt: skip
+    assert m["time_to_band_s"][0] == pytest.approx(0.2)  # inside again at sample 4
+    assert m["settle_time_s"][0] == pytest.approx(0.2)
+
+
+def test_paired_difference_and_interval_contracts():
+    a = np.linspace(0.0, 1.0, 20)
+    d = paired_difference(a, a + 1.0)  # every pair differs by exactly −1
+    assert d["mean"] == pytest.approx(-1.0) and d["ci_low"] == d["ci_high"] == pytest.approx(-1.0)
+    assert d["separated"]
+    assert not paired_difference(a, a[::-1])["separated"]  # symmetric: mean 0
+
+
+def test_bootstrap_interval_covers_the_mean_about_95_percent_of_the_time():
+    rng = np.random.default_rng(1)
+    hits = 0
+    n = 200
+    for i in range(n):
+        ci = mean_ci(rng.normal(3.0, 2.0, size=20), seed=i)
+        hits += ci["ci_low"] <= 3.0 <= ci["ci_high"]
+    assert 0.86 <= hits / n <= 0.99  # BCa at n = 20 under-covers slightly
+
+
+# --- tasks and plant sets -----------------------------------------------------------------
+@pytest.mark.parametrize("name", list(TASKS))
+def test_every_task_needs_stepping_and_stays_in_the_workspace(name):
+    task = TASKS[name]
+    scan_range_m = 1.47e-6  # K·u_max at R for the real turntable (test_controllers)
+    for seed in range(6):
+        spec = task.episode(seed, DET, 2026)
+        ref = spec.reference
+        assert ref.size == task.horizon + 1
+        assert np.abs(ref).max() <= DET.angle_range  # commanded targets are readable
+        travel = abs(ref[0] - spec.start) + np.abs(np.diff(ref)).sum()
+        knock = abs(spec.knock[1]) if spec.knock else 0.0
+        assert max(travel, knock) * R > scan_range_m  # beyond the scan: needs steps
+        if spec.brief.start_estimate_rad is not None:  # dead reckoning within ±30 %
+            move, est = (
+                spec.brief.target_rad - spec.start,
+                spec.brief.target_rad - spec.brief.start_estimate_rad,
+            )
+            assert abs(est / move - 1.0) <= 0.3 + 1e-12
+        same = task.episode(seed, DET, 2026)  # the same episode for every controller
+        np.testing.assert_array_equal(same.reference, ref)
+
+
+def test_held_out_plants_lie_outside_the_training_ranges_and_carry_an_effect():
+    for key in ("sac", "ppo"):
+        hp = yaml.safe_load(open(f"agents/hyperparams/{key}.yml", encoding="utf-8"))
+        rnd = hp["PiezoTurntable-v0"]["env_kwargs"]["randomize"]
+        assert {k: tuple(v) for k, v in rnd.items() if k in TRAIN_RANGES} == TRAIN_RANGES
+    ps = PLANT_SETS["held_out"]()
+    effects = set()
+    for seed in range(16):
+        plant, draw = ps.plant(seed, 2026)
+        for key, (lo, hi) in TRAIN_RANGES.items():
+            assert not lo <= draw[key] <= hi, (key, draw[key])
+            bands = HELD_OUT_RANGES[key]
+            assert any(b[0] <= draw[key] <= b[1] for b in bands)
+        assert len(plant.effects) == 1
+        effects |= set(plant.effects)
+    assert len(effects) == 8
+
+
+# --- the whole run --------------------------------------------------------------------------
+def test_quick_benchmark_output_holds_intervals_tracking_and_held_out(tmp_path):
+    res = run_benchmark(["closed_loop", "scan_pid"], **QUICK)
+    paths = write_outputs(res, tmp_path)
+    doc = json.loads(paths["json"].read_text())
+    assert doc["version"] and doc["settings"]["seeds"] == QUICK["seeds"]
+    assert {"nominal", "held_out"} <= set(doc["results"])
+    kinds = {doc["settings"]["tasks"][t]["kind"] for t in doc["results"]["held_out"]}
+    assert {"point", "tracking", "disturbance"} <= kinds
+    entry = doc["results"]["held_out"]["scan_ramp"]
+    for name in ("closed_loop", "scan_pid"):
+        v = entry["controllers"][name]["tracking_rms_nm"]
+        assert v["ci_low"] <= v["mean"] <= v["ci_high"]
+    # the scan PID alone cannot follow an 8 µm scan (its range is ±1.47 µm): stepping can
+    diff = entry["paired"]["closed_loop - scan_pid"]["tracking_rms_nm"]
+    assert diff["ci_high"] < 0.0 and diff["separated"]
+    assert doc["settings"]["band_m"] == BAND
+    for key in ("episodes", "leaderboard_md", "leaderboard_html", "trajectories_held_out"):
+        assert paths[key].stat().st_size > 0
+    assert "<table>" in paths["leaderboard_html"].read_text()
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"plant_sets": ["lunar"]}, "plant_sets"),
+        ({"tasks": ["moonwalk"]}, "tasks"),
+        ({"seeds": 1}, "seeds"),
+        ({"controllers": ["pid9000"]}, "controllers"),
+    ],
+)
+def test_bad_arguments_are_refused_before_any_work(kw, match):
+    names = kw.pop("controllers", ["scan_pid"])
+    with pytest.raises(ValueError, match=match):
+        run_benchmark(names, **kw)
+
+
+@pytest.mark.slow
+def test_full_benchmark_separates_the_controllers_tied_before():
+    """fuzzy, closed_loop and feedforward all scored 100 % in the old benchmark; on the
+    nominal and held-out plants with 20 paired seeds each pair differs somewhere."""
+    res = run_benchmark(["feedforward", "fuzzy", "closed_loop"],
+                        plant_sets=["nominal", "held_out"], seeds=20)  # fmt: skip
+    sep = res.separations()
+    for pair in ("feedforward - fuzzy", "feedforward - closed_loop", "fuzzy - closed_loop"):
+        assert sum(sep[pair].values()) > 0, pair
+    assert math.isfinite(res.settings["wall_s"])
