@@ -11,7 +11,10 @@ fuzzy controller. Registered here (:mod:`controllers.registry`):
   (:mod:`.closed_loop`);
 * ``scan_pid`` — the python-control-designed scan PID alone (:mod:`.scan_pid`).
 
-``turntable benchmark`` (:mod:`.benchmark`) judges every registered controller.
+A controller sees only what a lab sees: its observations and, at reset, a
+:class:`~controllers.lab.LabBrief` (never the env's info). ``turntable benchmark``
+(:mod:`.benchmark`) judges every registered controller on the tasks of :mod:`.tasks` and
+the plant sets of :mod:`.plant_sets` with the metrics of :mod:`.metrics`.
 """
 
 from .base import Controller, ControllerContext, Move, StepScanController
@@ -19,6 +22,7 @@ from .closed_loop import ClosedLoopStepController
 from .episode import EpisodeResult, run_episode
 from .feedforward import FeedForwardController, MapPlanner
 from .fuzzy import FuzzyStepController
+from .lab import LabBrief
 from .registry import available, make, register
 from .scan_only import ScanOnlyController
 from .step_map import StepMap
@@ -30,6 +34,7 @@ __all__ = [
     "EpisodeResult",
     "FeedForwardController",
     "FuzzyStepController",
+    "LabBrief",
     "MapPlanner",
     "Move",
     "ScanOnlyController",
