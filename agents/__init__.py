@@ -5,18 +5,23 @@
 * :mod:`.train` — training from ``hyperparams/<algo>.yml`` (rl-baselines3-zoo layout);
 * :mod:`.controller` — a trained agent behind the common controller interface.
 
-Importing the package registers every shipped agent in ``agents/pretrained/<algo>/`` as
+Importing the package registers the env id ``PiezoTurntableAgent-v0`` (the env seen
+through :class:`AgentInterface`: 8 features, 3-D structured action; kwargs: the env's
+and ``interface``) and every shipped agent in ``agents/pretrained/<algo>/`` as
 a controller named after its algorithm, so ``turntable benchmark`` includes it.
 """
 
 from pathlib import Path
 
+import gymnasium as gym
+
 from controllers.registry import available, register
 
 from .controller import AgentController, load_agent
-from .interface import AgentInterface, AgentWrapper, InterfaceConfig
+from .interface import AGENT_ENV_ID, AgentInterface, AgentWrapper, InterfaceConfig
 
 __all__ = [
+    "AGENT_ENV_ID",
     "PRETRAINED_DIR",
     "AgentController",
     "AgentInterface",
@@ -43,6 +48,10 @@ def pretrained() -> dict[str, Path]:
 def _factory(run: Path, name: str):
     return lambda ctx: AgentController(ctx, run, name)
 
+
+if AGENT_ENV_ID not in gym.registry:  # the structured-action interface as its own env id
+    gym.register(AGENT_ENV_ID, entry_point="agents.interface:make_agent_env",
+                 max_episode_steps=100)  # fmt: skip
 
 for _name, _run in pretrained().items():
     if _name not in available():

@@ -20,10 +20,10 @@ import yaml
 from controllers.base import Controller, ControllerContext
 from controllers.lab import LabBrief
 
-from .interface import AgentInterface, InterfaceConfig
-from .train import ENV_ID, _algos
+from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig, make_interface
+from .train import _algos
 
-__all__ = ["AgentController", "load_agent"]
+__all__ = ["AgentController", "interface_of", "load_agent"]
 
 
 def load_agent(run: str | Path) -> tuple[Any, Any, dict[str, Any]]:
@@ -43,6 +43,20 @@ def load_agent(run: str | Path) -> tuple[Any, Any, dict[str, Any]]:
     return model, vecnorm, cfg
 
 
+def interface_of(cfg: dict[str, Any]) -> InterfaceConfig | str:
+    """The interface a run was trained through, from its config.yml: ``"raw"`` for
+    ``PiezoTurntable-v0``; the ``interface`` env kwarg for ``PiezoTurntableAgent-v0``; runs
+    made before the env ids (no ``run.env_id``) kept it at the entry's top level."""
+    env_id = cfg["run"].get("env_id")
+    if env_id is None:
+        return InterfaceConfig(**cfg[RAW_ENV_ID].get("interface", {}))
+    if env_id == RAW_ENV_ID:
+        return RAW
+    if env_id != AGENT_ENV_ID:
+        raise ValueError(f"config.yml: run.env_id={env_id!r} unknown")
+    return InterfaceConfig(**cfg[env_id]["env_kwargs"].get("interface", {}))
+
+
 class AgentController(Controller):
     """An SB3 agent as a controller (module docstring).
 
@@ -55,7 +69,7 @@ class AgentController(Controller):
     def __init__(self, ctx: ControllerContext, run: str | Path, name: str | None = None) -> None:
         self.model, self.vecnorm, cfg = load_agent(run)
         self.name = name or cfg["run"]["algo"]
-        self.interface = AgentInterface(ctx, InterfaceConfig(**cfg[ENV_ID].get("interface", {})))
+        self.interface = make_interface(ctx, interface_of(cfg))
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         pass  # the policy is memoryless: everything it uses is in the observation

@@ -40,7 +40,21 @@ import numpy as np
 from controllers.base import SATURATION_FRACTION, ControllerContext
 from turntable_env.envs.config import OBS
 
-__all__ = ["AgentInterface", "AgentWrapper", "InterfaceConfig"]
+__all__ = [
+    "AGENT_ENV_ID",
+    "RAW",
+    "RAW_ENV_ID",
+    "AgentInterface",
+    "AgentWrapper",
+    "InterfaceConfig",
+    "RawInterface",
+    "make_agent_env",
+    "make_interface",
+]
+
+AGENT_ENV_ID = "PiezoTurntableAgent-v0"  # the env seen through AgentInterface (registered)
+RAW_ENV_ID = "PiezoTurntable-v0"  # the env itself: 8-D observation, 5-D action
+RAW = "raw"  # the interface setting of agents trained on RAW_ENV_ID
 
 
 @dataclass(frozen=True)
@@ -123,6 +137,46 @@ class AgentInterface:
         return c.scaling.encode(
             amp, m / c.control_interval, cfg.ramp_ratio, cfg.slew_adaptation, offset
         )
+
+
+class RawInterface:
+    """The env's own observation and 5-D action, unchanged: the raw baseline's interface
+    (same methods as :class:`AgentInterface`)."""
+
+    action_space = gym.spaces.Box(-1.0, 1.0, (5,), np.float32)
+
+    def __init__(self, ctx: ControllerContext) -> None:
+        from turntable_env.envs.piezo_turntable import observation_space
+
+        self.ctx = ctx
+        self.observation_space = observation_space(ctx.angle_range)
+
+    def features(self, obs: np.ndarray) -> np.ndarray:
+        return np.asarray(obs, dtype=np.float32)
+
+    def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        return np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+
+
+def make_interface(
+    ctx: ControllerContext, config: InterfaceConfig | str | None = None
+) -> AgentInterface | RawInterface:
+    """:class:`RawInterface` for ``config == RAW``, else :class:`AgentInterface`."""
+    if isinstance(config, str):
+        if config != RAW:
+            raise ValueError(f"interface={config!r}: an InterfaceConfig, None or {RAW!r}")
+        return RawInterface(ctx)
+    return AgentInterface(ctx, config)
+
+
+def make_agent_env(interface: dict[str, Any] | None = None, **env_kwargs: Any) -> gym.Env:
+    """``PiezoTurntableAgent-v0``: ``PiezoTurntable-v0`` (``env_kwargs``) seen through
+    :class:`AgentInterface` with ``interface`` (:class:`InterfaceConfig` fields): the
+    8 features and the 3-D structured action the shipped agents use."""
+    from turntable_env.envs import PiezoTurntableEnv
+
+    cfg = InterfaceConfig(**(interface or {}))
+    return AgentWrapper(PiezoTurntableEnv(**env_kwargs), cfg)
 
 
 class AgentWrapper(gym.Wrapper):

@@ -1,6 +1,8 @@
 """Train a stable-baselines3 agent on ``PiezoTurntable-v0`` from a hyperparameter file.
 
-:func:`train` reads ``agents/hyperparams/<algo>.yml`` (rl-baselines3-zoo layout), builds
+:func:`train` reads the ``env_id`` entry of ``agents/hyperparams/<algo>.yml`` (rl-zoo3's
+layout: ``PiezoTurntableAgent-v0``, the structured interface, or ``PiezoTurntable-v0``, the
+env's own spaces) and the project's callback settings (``training.yml``), builds
 the native batched vector env (:class:`~agents.vec_env.NativeVecEnv`, domain
 randomisation on) under ``VecMonitor`` and ``VecNormalize``, seeds everything, and
 learns with an ``EvalCallback`` (a separate, differently seeded set of randomised
@@ -27,24 +29,29 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .interface import InterfaceConfig
+from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig
 
 __all__ = [
     "ALGOS",
+    "ENV_IDS",
     "HYPERPARAMS_DIR",
     "TrainedAgent",
     "load_hyperparams",
+    "load_training",
     "make_vec_env",
     "ship",
     "train",
 ]
 
 HYPERPARAMS_DIR = Path(__file__).parent / "hyperparams"
-ENV_ID = "PiezoTurntable-v0"
-PROJECT_KEYS = (
-    "n_envs", "n_timesteps", "policy", "normalize", "max_episode_steps", "env_kwargs",
-    "interface", "eval", "checkpoint_freq",
-)  # fmt: skip
+TRAINING_FILE = HYPERPARAMS_DIR / "training.yml"
+ENV_ID = AGENT_ENV_ID  # the default: the shipped agents' structured interface
+ENV_IDS = (AGENT_ENV_ID, RAW_ENV_ID)
+ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")  # not SB3 args
+DEFAULT_TRAINING: dict[str, Any] = {
+    "eval": {"freq": 10_000, "n_envs": 4, "episodes": 16},
+    "checkpoint_freq": 100_000,
+}
 
 
 @dataclass
@@ -65,35 +72,56 @@ def _algos() -> dict[str, Any]:
 ALGOS = ("ppo", "sac", "td3")
 
 
-def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The ``PiezoTurntable-v0`` entry of ``<algo>.yml`` (or of ``path``)."""
+def load_hyperparams(
+    algo: str, path: str | Path | None = None, env_id: str = ENV_ID
+) -> dict[str, Any]:
+    """The ``env_id`` entry of ``<algo>.yml`` (or of ``path``), rl-zoo3's layout."""
     if algo not in ALGOS:
         raise ValueError(f"algo={algo!r}: must be one of {', '.join(ALGOS)}")
+    if env_id not in ENV_IDS:
+        raise ValueError(f"env_id={env_id!r}: must be one of {', '.join(ENV_IDS)}")
     p = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.yml"
     if not p.is_file():
         raise ValueError(f"hyperparameters: {p} does not exist")
     data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    if not isinstance(data, dict) or ENV_ID not in data:
-        raise ValueError(f"{p}: no '{ENV_ID}' entry")
-    cfg = dict(data[ENV_ID])
-    for key in ("n_envs", "n_timesteps", "policy", "env_kwargs", "max_episode_steps"):
+    if not isinstance(data, dict) or env_id not in data:
+        raise ValueError(f"{p}: no '{env_id}' entry")
+    cfg = copy.deepcopy(dict(data[env_id]))
+    for key in ("n_envs", "n_timesteps", "policy", "env_kwargs"):
         if key not in cfg:
-            raise ValueError(f"{p}: '{ENV_ID}.{key}' missing")
+            raise ValueError(f"{p}: '{env_id}.{key}' missing")
+    if env_id == RAW_ENV_ID and "interface" in cfg["env_kwargs"]:
+        raise ValueError(f"{p}: '{env_id}.env_kwargs.interface': the raw env has none")
     return cfg
 
 
-def make_vec_env(cfg: dict[str, Any], n_envs: int, seed: int) -> Any:
-    """The monitored native vector env of a hyperparameter entry, seeded."""
+def load_training(algo: str, path: str | Path | None = None) -> dict[str, Any]:
+    """The project's settings for ``algo`` (evaluation, checkpoints) from training.yml."""
+    p = Path(path) if path is not None else TRAINING_FILE
+    if not p.is_file():
+        raise ValueError(f"training settings: {p} does not exist")
+    data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
+    out = copy.deepcopy(DEFAULT_TRAINING)
+    entry = data.get(algo, {})
+    unknown = set(entry) - set(out)
+    if unknown:
+        raise ValueError(f"{p}: '{algo}' has unknown keys {sorted(unknown)}")
+    out.update(entry)
+    return out
+
+
+def make_vec_env(cfg: dict[str, Any], n_envs: int, seed: int, env_id: str = ENV_ID) -> Any:
+    """The monitored native vector env of a hyperparameter entry, seeded: the structured
+    interface for ``PiezoTurntableAgent-v0``, the env's own spaces for ``PiezoTurntable-v0``."""
     from stable_baselines3.common.vec_env import VecMonitor
 
     from .vec_env import NativeVecEnv
 
-    env = NativeVecEnv(
-        n_envs,
-        int(cfg["max_episode_steps"]),
-        InterfaceConfig(**cfg.get("interface", {})),
-        **cfg["env_kwargs"],
-    )
+    kwargs = dict(cfg["env_kwargs"])
+    steps = int(kwargs.pop("max_episode_steps", 100))
+    iface = kwargs.pop("interface", None)
+    interface = RAW if env_id == RAW_ENV_ID else InterfaceConfig(**(iface or {}))
+    env = NativeVecEnv(n_envs, steps, interface, **kwargs)
     env.seed(seed)
     return VecMonitor(env)
 
@@ -101,14 +129,17 @@ def make_vec_env(cfg: dict[str, Any], n_envs: int, seed: int) -> Any:
 def train(
     algo: str,
     *,
+    env_id: str = ENV_ID,
     timesteps: int | None = None,
     seed: int = 0,
     out: str | Path = "runs/agent",
     hyperparams: str | Path | None = None,
+    training: str | Path | None = None,
     tensorboard: bool = False,
     progress: bool = True,
 ) -> TrainedAgent:
-    """Train ``algo`` (module docstring)."""
+    """Train ``algo`` on ``env_id`` (module docstring); ``hyperparams``/``training``
+    replace ``<algo>.yml``/``training.yml``."""
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
@@ -116,7 +147,8 @@ def train(
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecNormalize
 
-    cfg = load_hyperparams(algo, hyperparams)
+    cfg = load_hyperparams(algo, hyperparams, env_id)
+    proj = load_training(algo, training)
     n_steps = int(timesteps if timesteps is not None else cfg["n_timesteps"])
     if n_steps < 1:
         raise ValueError(f"timesteps={timesteps!r}: must be >= 1")
@@ -127,15 +159,15 @@ def train(
     n_envs = int(cfg["n_envs"])
     norm = dict(cfg.get("normalize", {"norm_obs": True, "norm_reward": False}))
     gamma = float(cfg.get("gamma", 0.99))
-    venv = VecNormalize(make_vec_env(cfg, n_envs, seed), gamma=gamma, **norm)
-    ev = dict(cfg.get("eval", {}))
+    venv = VecNormalize(make_vec_env(cfg, n_envs, seed, env_id), gamma=gamma, **norm)
+    ev = dict(proj["eval"])
     eval_env = VecNormalize(
-        make_vec_env(cfg, int(ev.get("n_envs", 4)), seed + 10_000),
+        make_vec_env(cfg, int(ev.get("n_envs", 4)), seed + 10_000, env_id),
         training=False,
         norm_obs=norm.get("norm_obs", True),
         norm_reward=False,
     )
-    hyper = {k: v for k, v in cfg.items() if k not in PROJECT_KEYS}
+    hyper = {k: v for k, v in cfg.items() if k not in ZOO_KEYS}
     model = _algos()[algo](cfg["policy"], venv, seed=seed, verbose=0, **copy.deepcopy(hyper))
     formats = ["csv"] + (["tensorboard"] if tensorboard else [])
     model.set_logger(configure(str(out / "logs"), formats))
@@ -149,7 +181,7 @@ def train(
             verbose=0,
         ),
         CheckpointCallback(
-            save_freq=max(int(cfg.get("checkpoint_freq", 100_000)) // n_envs, 1),
+            save_freq=max(int(proj["checkpoint_freq"]) // n_envs, 1),
             save_path=str(out / "checkpoints"),
             name_prefix=algo,
             save_vecnormalize=True,
@@ -161,9 +193,11 @@ def train(
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
     effective = {
-        ENV_ID: cfg,
+        env_id: cfg,
+        "training": proj,
         "run": {
             "algo": algo,
+            "env_id": env_id,
             "seed": seed,
             "timesteps": n_steps,
             "wall_s": round(wall, 1),

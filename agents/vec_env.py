@@ -19,7 +19,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from controllers.base import ControllerContext
 from turntable_env.envs import PiezoTurntableVectorEnv
 
-from .interface import AgentInterface, InterfaceConfig
+from .interface import InterfaceConfig, make_interface
 
 __all__ = ["NativeVecEnv"]
 
@@ -28,7 +28,9 @@ class NativeVecEnv(VecEnv):
     """N turntables for SB3 (module docstring).
 
     Args:
-        num_envs: N; max_episode_steps: time limit; interface: action-map parameters;
+        num_envs: N; max_episode_steps: time limit; interface: action-map parameters
+        (:class:`~agents.interface.InterfaceConfig`), or ``"raw"``: the env's own
+        observation and 5-D action;
         **env_kwargs: :class:`~turntable_env.envs.config.EnvConfig` arguments.
     """
 
@@ -36,15 +38,16 @@ class NativeVecEnv(VecEnv):
         self,
         num_envs: int,
         max_episode_steps: int = 100,
-        interface: InterfaceConfig | None = None,
+        interface: InterfaceConfig | str | None = None,
         **env_kwargs: Any,
     ) -> None:
         self.venv = PiezoTurntableVectorEnv(num_envs, max_episode_steps, **env_kwargs)
-        self.interface = AgentInterface(ControllerContext.from_config(self.venv.config), interface)
+        ctx = ControllerContext.from_config(self.venv.config)
+        self.interface = make_interface(ctx, interface)
         super().__init__(num_envs, self.interface.observation_space, self.interface.action_space)
         self._seed: int | None = None
         self._raw = np.zeros((num_envs, 8), dtype=np.float32)
-        self._actions = np.zeros((num_envs, 3))
+        self._actions = np.zeros((num_envs, self.interface.action_space.shape[0]))
 
     def _features(self, raw: np.ndarray) -> np.ndarray:
         return np.stack([self.interface.features(o) for o in raw])

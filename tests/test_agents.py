@@ -9,6 +9,8 @@ import yaml
 
 import turntable_env  # noqa: F401
 from agents import AgentWrapper, InterfaceConfig, load_agent, pretrained
+from agents.controller import interface_of
+from agents.interface import AGENT_ENV_ID, RAW, RAW_ENV_ID
 from agents.train import load_hyperparams, train
 from agents.vec_env import NativeVecEnv
 from controllers import make
@@ -17,24 +19,30 @@ from controllers.lab import LabBrief
 FIXED_OBS = np.random.default_rng(7).uniform(-2.0, 2.0, size=(16, 8)).astype(np.float32)
 
 
-def _smoke_hyperparams(algo, tmp_path):
-    cfg = load_hyperparams(algo)
-    cfg.update(n_envs=2, max_episode_steps=20, checkpoint_freq=200)
-    cfg["eval"] = {"freq": 200, "n_envs": 2, "episodes": 2}
+def _smoke_hyperparams(algo, tmp_path, env_id=AGENT_ENV_ID):
+    cfg = load_hyperparams(algo, env_id=env_id)
+    cfg.update(n_envs=2)
+    cfg["env_kwargs"]["max_episode_steps"] = 20
     if algo == "ppo":
         cfg.update(n_steps=64, batch_size=64, n_epochs=2)
     else:
         cfg.update(learning_starts=50, batch_size=32, buffer_size=1000)
     p = tmp_path / f"{algo}.yml"
-    p.write_text(yaml.safe_dump({"PiezoTurntable-v0": cfg}))
-    return p
+    p.write_text(yaml.safe_dump({env_id: cfg}))
+    t = tmp_path / "training.yml"
+    t.write_text(yaml.safe_dump({algo: {"eval": {"freq": 200, "n_envs": 2, "episodes": 2},
+                                        "checkpoint_freq": 200}}))  # fmt: skip
+    return p, t
 
 
-@pytest.mark.parametrize("algo", ["ppo", "sac"])
-def test_train_save_reload_gives_identical_actions(algo, tmp_path):
+@pytest.mark.parametrize(
+    ("algo", "env_id"), [("ppo", AGENT_ENV_ID), ("sac", AGENT_ENV_ID), ("sac", RAW_ENV_ID)]
+)
+def test_train_save_reload_gives_identical_actions(algo, env_id, tmp_path):
+    hp, tr = _smoke_hyperparams(algo, tmp_path, env_id)
     res = train(
-        algo, timesteps=300, seed=1, out=tmp_path / "run",
-        hyperparams=_smoke_hyperparams(algo, tmp_path), progress=False,
+        algo, env_id=env_id, timesteps=300, seed=1, out=tmp_path / "run",
+        hyperparams=hp, training=tr, progress=False,
     )  # fmt: skip
     for name in ("model.zip", "vecnormalize.pkl", "config.yml", "learning_curve.png"):
         assert (res.run / name).stat().st_size > 0
@@ -43,6 +51,10 @@ def test_train_save_reload_gives_identical_actions(algo, tmp_path):
     assert any((res.run / "checkpoints").iterdir())
     model, vecnorm, cfg = load_agent(res.run)
     assert cfg["run"]["seed"] == 1 and cfg["run"]["timesteps"] == 300
+    assert cfg["run"]["env_id"] == env_id
+    # the interface the run records is the one it was trained through
+    assert model.action_space.shape == ((5,) if env_id == RAW_ENV_ID else (3,))
+    assert (interface_of(cfg) == RAW) == (env_id == RAW_ENV_ID)
     obs_a = res.vecnormalize.normalize_obs(FIXED_OBS)
     obs_b = vecnorm.normalize_obs(FIXED_OBS)
     np.testing.assert_array_equal(obs_a, obs_b)

@@ -22,9 +22,10 @@ def action_space() -> spaces.Box:
     return spaces.Box(-1.0, 1.0, shape=(len(ACTION_NAMES),), dtype=np.float32)
 
 
-def observation_space(task: TurntableTask) -> spaces.Box:
-    """Box of (measured angle, target, phase, last action) with the detector's bounds."""
-    lim = task.angle_range
+def observation_space(task: TurntableTask | float) -> spaces.Box:
+    """Box of (measured angle, target, phase, last action) with the detector's bounds (a
+    task's, or the linear range θ_lin [rad] itself)."""
+    lim = float(task) if isinstance(task, int | float) else task.angle_range
     low = np.array([-lim, -lim, 0.0, -1, -1, -1, -1, -1], dtype=np.float32)
     high = np.array([lim, lim, 1.0, 1, 1, 1, 1, 1], dtype=np.float32)
     return spaces.Box(low, high, dtype=np.float32)

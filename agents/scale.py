@@ -1,0 +1,157 @@
+"""Several training runs at once: Ray tasks when Ray is installed, local processes otherwise.
+
+:func:`train_seeds` trains one run per seed (the same algorithm, env id and budget) and
+returns their run directories. With Ray (``pip install -e ".[scale]"``) every run is a
+Ray task of one CPU: ``ray.init()`` starts a local cluster on this machine by default, and
+``address`` joins an existing one (``"auto"`` on a cluster node, ``"ray://head:10001"``
+from outside). Without Ray — or with ``backend="processes"`` — the runs go to a
+``concurrent.futures.ProcessPoolExecutor`` of ``workers`` processes. Either way each run
+is :func:`agents.train.train` in its own process, seeded, writing its own directory
+``<out>/<algo>[_raw]_seed<S>``.
+
+:func:`seed_curves` reads the runs' evaluations and gives the learning curve across seeds
+(mean and 95 % interval at each evaluation step, the runs' own evaluation means as the
+samples); :func:`plot_seed_curves` draws it.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .interface import RAW_ENV_ID
+from .train import ENV_ID
+
+__all__ = ["BACKENDS", "plot_seed_curves", "run_name", "seed_curves", "train_seeds"]
+
+BACKENDS = ("auto", "ray", "processes")
+
+
+def run_name(algo: str, env_id: str, seed: int) -> str:
+    """The run directory's name: ``<algo>[_raw]_seed<S>``."""
+    return f"{algo}{'_raw' if env_id == RAW_ENV_ID else ''}_seed{seed}"
+
+
+def _train_one(kwargs: dict[str, Any]) -> str:
+    import torch
+
+    from .train import train
+
+    torch.set_num_threads(1)
+    return str(train(**kwargs, progress=False).run)
+
+
+def train_seeds(
+    algo: str,
+    seeds: Sequence[int],
+    *,
+    env_id: str = ENV_ID,
+    timesteps: int | None = None,
+    out: str | Path = "runs",
+    hyperparams: str | Path | None = None,
+    training: str | Path | None = None,
+    backend: str = "auto",
+    address: str | None = None,
+    workers: int | None = None,
+) -> list[Path]:
+    """Train ``algo`` once per seed (module docstring); the run directories, in seed order.
+
+    Args:
+        backend: ``"auto"`` (Ray if installed), ``"ray"`` or ``"processes"``.
+        address: a Ray cluster to join (None: a local one).
+        workers: parallel runs for the process backend (default: the number of seeds).
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r}: must be one of {', '.join(BACKENDS)}")
+    seeds = [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ValueError(f"seeds={seeds!r}: need distinct seeds")
+    has_ray = importlib.util.find_spec("ray") is not None
+    if backend == "ray" and not has_ray:
+        raise ValueError('backend="ray": Ray is not installed (pip install -e ".[scale]")')
+    if address is not None and not has_ray:
+        raise ValueError(f"address={address!r}: joining a cluster needs Ray (the scale extra)")
+    root = Path(out)
+    jobs = [
+        {
+            "algo": algo, "env_id": env_id, "timesteps": timesteps, "seed": s,
+            "out": str(root / run_name(algo, env_id, s)), "hyperparams": hyperparams,
+            "training": training,
+        }
+        for s in seeds
+    ]  # fmt: skip
+    if has_ray and backend != "processes":
+        return [Path(p) for p in _with_ray(jobs, address)]
+    with ProcessPoolExecutor(max_workers=workers or len(jobs)) as pool:
+        return [Path(p) for p in pool.map(_train_one, jobs)]
+
+
+def _with_ray(jobs: list[dict[str, Any]], address: str | None) -> list[str]:
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    try:
+        task = ray.remote(num_cpus=1)(_train_one)
+        return ray.get([task.remote(j) for j in jobs])
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def seed_curves(runs: Sequence[str | Path]) -> dict[str, np.ndarray]:
+    """Learning curve across runs: ``timesteps`` (the evaluation steps all runs share),
+    ``mean``, ``ci_low``, ``ci_high`` (95 % bootstrap interval of the mean over runs) and
+    ``per_run`` (runs × steps) of the runs' mean evaluation returns."""
+    from controllers.metrics import mean_ci
+
+    data = []
+    for r in runs:
+        p = Path(r) / "eval" / "evaluations.npz"
+        if not p.is_file():
+            raise ValueError(f"run {r}: {p.name} missing")
+        d = np.load(p)
+        data.append((d["timesteps"], d["results"].mean(axis=1)))
+    if len(data) < 2:
+        raise ValueError(f"runs: need at least 2 for an interval, got {len(data)}")
+    common = sorted(set.intersection(*(set(t.tolist()) for t, _ in data)))
+    if not common:
+        raise ValueError("runs: no evaluation step in common")
+    per_run = np.array([[m[list(t).index(s)] for s in common] for t, m in data])
+    cis = [mean_ci(per_run[:, j], seed=j) for j in range(len(common))]
+    return {
+        "timesteps": np.array(common),
+        "mean": np.array([c["mean"] for c in cis]),
+        "ci_low": np.array([c["ci_low"] for c in cis]),
+        "ci_high": np.array([c["ci_high"] for c in cis]),
+        "per_run": per_run,
+    }
+
+
+def plot_seed_curves(curves: dict[str, dict[str, np.ndarray]], path: str | Path) -> Path:
+    """One figure: each label's mean evaluation return with its 95 % band, vs timesteps."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for label, c in curves.items():
+        n = c["per_run"].shape[0]
+        ax.plot(c["timesteps"], c["mean"], "o-", ms=3, label=f"{label} ({n} seeds)")
+        ax.fill_between(c["timesteps"], c["ci_low"], c["ci_high"], alpha=0.25)
+    ax.set_xlabel("timesteps")
+    ax.set_ylabel("evaluation return (deterministic)")
+    ax.set_title("mean over seeds, 95 % bootstrap interval")
+    ax.legend()
+    fig.tight_layout()
+    p = Path(path)
+    fig.savefig(p, dpi=90)
+    plt.close(fig)
+    return p
