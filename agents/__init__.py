@@ -29,6 +29,7 @@ __all__ = [
     "InterfaceConfig",
     "load_agent",
     "pretrained",
+    "register_run",
 ]
 
 PRETRAINED_DIR = Path(__file__).parent / "pretrained"
@@ -47,6 +48,14 @@ def pretrained() -> dict[str, Path]:
 
 def _factory(run: Path, name: str):
     return lambda ctx: AgentController(ctx, run, name)
+
+
+def register_run(name: str, run: str | Path) -> None:
+    """Register the agent of a run directory (``python experiments/train_rl.py``) as the
+    controller ``name``, e.g. every seed of a multi-seed run for ``turntable benchmark
+    --agent``; ValueError if the directory lacks the agent's files."""
+    load_agent(run)  # validates: model.zip, vecnormalize.pkl, config.yml
+    register(name, _factory(Path(run), name), f"stable-baselines3 agent ({run})")
 
 
 if AGENT_ENV_ID not in gym.registry:  # the structured-action interface as its own env id

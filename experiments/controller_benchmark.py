@@ -33,6 +33,11 @@ QUOTED = [  # (plant set, task, pair, metric): the paired differences the README
     ("randomized", "scan_ramp", "closed_loop - sac", "success"),
     ("held_out", "scan_ramp", "closed_loop - sac", "success"),
     ("held_out", "edge_5um", "fuzzy - closed_loop", "success"),
+    ("nominal", "scan_ramp", "closed_loop - ppo", "tracking_rms_nm"),
+    ("nominal", "point_50um", "ppo - sac", "settle_time_s"),
+    ("randomized", "scan_ramp", "ppo - sac", "success"),
+    ("randomized", "edge_5um", "ppo - sac", "success"),
+    ("calibrated", "point_50um", "ppo - sac", "success"),
 ]
 
 

@@ -156,8 +156,9 @@ def test_every_task_needs_stepping_and_stays_in_the_workspace(name):
 def test_held_out_plants_lie_outside_the_training_ranges_and_carry_an_effect():
     for key in ("sac", "ppo"):
         hp = yaml.safe_load(open(f"agents/hyperparams/{key}.yml", encoding="utf-8"))
-        rnd = hp["PiezoTurntable-v0"]["env_kwargs"]["randomize"]
-        assert {k: tuple(v) for k, v in rnd.items() if k in TRAIN_RANGES} == TRAIN_RANGES
+        for entry in hp.values():  # every env id the agents train on
+            rnd = entry["env_kwargs"]["randomize"]
+            assert {k: tuple(v) for k, v in rnd.items() if k in TRAIN_RANGES} == TRAIN_RANGES
     ps = PLANT_SETS["held_out"]()
     effects = set()
     for seed in range(16):

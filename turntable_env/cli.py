@@ -157,7 +157,18 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
         kw["plant_sets"] = split(args.plant_sets)
     if args.tasks:
         kw["tasks"] = split(args.tasks)
-    res = run_benchmark(split(args.controllers), progress=not args.json, **kw)
+    names = split(args.controllers)
+    if args.agent:
+        from agents import register_run
+
+        for spec in args.agent:
+            name, sep, run = spec.partition("=")
+            if not sep or not name or not run:
+                raise ValueError(f"--agent {spec!r}: must be NAME=RUN_DIR")
+            register_run(name, run)
+        if names is not None:
+            names += [s.partition("=")[0] for s in args.agent]
+    res = run_benchmark(names, progress=not args.json, **kw)
     paths = write_outputs(res, args.out)
     if args.json:
         print(json.dumps(res.to_json(), indent=1))
@@ -310,6 +321,13 @@ def build_parser() -> argparse.ArgumentParser:
     pk.add_argument("--quick", action="store_true", help="4 seeds, 2 plant sets, 3 tasks")
     pk.add_argument("--out", default="benchmark_results", help="output directory")
     pk.add_argument("--json", action="store_true", help="print benchmark.json")
+    pk.add_argument(
+        "--agent",
+        action="append",
+        default=[],
+        metavar="NAME=RUN_DIR",
+        help="also run the agent of a training run directory as controller NAME (repeatable)",
+    )
     pk.set_defaults(func=_cmd_benchmark)
 
     pv = sub.add_parser(
