@@ -44,7 +44,15 @@ from turntable_env.envs.config import OBS, EnvConfig
 from turntable_env.envs.core import TurntableTask
 
 from .base import ControllerContext
-from .metrics import BAND, HOLD, METRICS, episode_metrics, mean_ci, paired_difference
+from .metrics import (
+    BAND,
+    HOLD,
+    METRICS,
+    episode_metrics,
+    mean_ci,
+    noise_floor,
+    paired_difference,
+)
 from .plant_sets import PLANT_SETS, PlantSet
 from .registry import available, load_plugins, make
 from .tasks import TASKS, EpisodeSpec, Task
@@ -271,12 +279,6 @@ def _task(plant_set: str, name: str) -> Task:
     return task
 
 
-def _noise_floor(plant_noise: float, cfg: EnvConfig) -> float:
-    """Detector angle noise at the table radius [m] for a voltage noise [V] (Eq. 4.1)."""
-    det = cfg.parameter_set.detector
-    return abs(det.angle(plant_noise) - det.angle(0.0)) * det.table_radius
-
-
 def _run_cell(
     names: Sequence[str],
     pset: PlantSet,
@@ -330,7 +332,7 @@ def _run_cell(
         if bar is not None:
             bar.update(1)
     t = np.arange(k_total) * cfg.control_interval
-    floor = np.array([_noise_floor(p.sensor_noise, cfg) for p, _d in plants])
+    floor = np.array([noise_floor(p.sensor_noise, det) for p, _d in plants])
     radius = det.table_radius
     cells = []
     for ci, name in enumerate(names):

@@ -25,7 +25,16 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-__all__ = ["BAND", "HOLD", "METRICS", "Metric", "episode_metrics", "mean_ci", "paired_difference"]
+__all__ = [
+    "BAND",
+    "HOLD",
+    "METRICS",
+    "Metric",
+    "episode_metrics",
+    "mean_ci",
+    "noise_floor",
+    "paired_difference",
+]
 
 BAND = 30e-9  # m at R_table: settling band, ≈ 10× the nominal detector noise floor (2.8 nm)
 HOLD = 0.2  # s, the hold window at the end of every episode (tracking: 0.1 s to settle)
@@ -124,16 +133,14 @@ def episode_metrics(
     # first entry
     first = np.where(after.any(axis=1), after.argmax(axis=1), -1)
     t_enter = np.where(first >= 0, t[event + np.maximum(first, 0)] - t[event], window)
-    # settling: the sample after the last one outside, if the end is inside
-    outside_rev = ~after[:, ::-1]
-    last_out = after.shape[1] - 1 - outside_rev.argmax(axis=1)
-    never_out = ~outside_rev.any(axis=1)
-    settle_idx = np.where(never_out, 0, last_out + 1)
-    settled = after[:, -1]
-    t_settle = np.where(
-        settled, t[event + np.minimum(settle_idx, after.shape[1] - 1)] - t[event], window
+    # settling: the sample after the last one outside (0 if never outside; the window if
+    # the end is outside)
+    outside = ~after
+    last_out = np.where(
+        outside.any(axis=1), after.shape[1] - 1 - outside[:, ::-1].argmax(axis=1), -1
     )
-    t_settle = np.where(never_out, 0.0, t_settle)
+    settle_at = np.minimum(event + last_out + 1, k - 1)  # (only used where the end is inside)
+    t_settle = np.where(after[:, -1], t[settle_at] - t[event], window)
     hold_mask = t >= t[-1] - hold - 1e-12
     hold_err = err[:, hold_mask]
     hold_rms = np.sqrt(np.mean(hold_err**2, axis=1))
@@ -142,10 +149,8 @@ def episode_metrics(
     final = ref[:, -1]
     last_change = np.array([_last_approach(th[i], ref[i]) for i in range(n)])
     past = (th - final[:, None]) * last_change[:, None] * radius
-    entered = np.zeros_like(inside)
-    if k:
-        first_all = np.where(inside.any(axis=1), inside.argmax(axis=1), k)
-        entered = np.arange(k)[None, :] >= first_all[:, None]
+    first_all = np.where(inside.any(axis=1), inside.argmax(axis=1), k)  # first entry
+    entered = np.arange(k)[None, :] >= first_all[:, None]
     overshoot = np.where(entered, past, 0.0).max(axis=1, initial=0.0)
     travel = np.abs(ref[:, 0] - th[:, 0]) + np.abs(np.diff(ref, axis=1)).sum(axis=1)
     travel_um = np.maximum(travel * radius * 1e6, 1e-3)  # µm (a floor for hold-only tasks)
@@ -160,6 +165,11 @@ def episode_metrics(
         "slips_per_um": steps.sum(axis=1) / travel_um,
         "energy_per_um_mJ": energy.sum(axis=1) * 1e3 / travel_um,
     }
+
+
+def noise_floor(sensor_noise: float, detector: Any) -> float:
+    """Detector angle noise at the table radius [m] for a voltage noise [V] (Eq. 4.1–4.2)."""
+    return abs(detector.angle(sensor_noise) - detector.angle(0.0)) * detector.table_radius
 
 
 def _last_approach(angle: np.ndarray, ref: np.ndarray) -> float:

@@ -101,10 +101,10 @@ def _point(move_m: float, *, from_outside: bool, edge: bool = False) -> Callable
         move = sign * move_m / r  # rad
         if edge:  # outwards to the edge on the move's side
             target = sign * 0.93 * lim
-        else:  # inside ±½θ_lin, on the side that keeps a read start inside the detector
-            target = -sign * float(rng.uniform(0.0, 0.5)) * lim if not from_outside else (
-                float(rng.uniform(-0.5, 0.5)) * lim
-            )  # fmt: skip
+        elif from_outside:  # anywhere inside ±½θ_lin: the start is beyond the detector
+            target = float(rng.uniform(-0.5, 0.5)) * lim
+        else:  # inside ±½θ_lin, on the side that keeps the start inside the detector
+            target = -sign * float(rng.uniform(0.0, 0.5)) * lim
         start = target - move
         est = dead_reckoned_start(start, target, DEAD_RECKONING, rng) if from_outside else None
         ref = np.full(horizon + 1, target)

@@ -44,6 +44,7 @@ QUOTED = [  # (plant set, task, pair, metric): the paired differences the README
 def summarize(out: Path) -> None:
     """Print the summary of a benchmark directory (module docstring)."""
     from controllers.base import ControllerContext
+    from controllers.metrics import noise_floor
     from controllers.plant_sets import PLANT_SETS
     from turntable_env.envs.config import EnvConfig
 
@@ -73,7 +74,7 @@ def summarize(out: Path) -> None:
         cfg = EnvConfig(plant=PLANT_SETS[ps]().base)
         ctx = ControllerContext.from_config(cfg)
         det = cfg.parameter_set.detector
-        floor = abs(det.angle(cfg.plant.sensor_noise) - det.angle(0.0)) * det.table_radius
+        floor = noise_floor(cfg.plant.sensor_noise, det)
         print(f"  {ps:<11} scan range {ctx.scan_range * det.table_radius * 1e6:.2f} µm, "
               f"detector ±{det.angle_range * det.table_radius * 1e6:.2f} µm, "
               f"noise floor {floor * 1e9:.2f} nm")  # fmt: skip

@@ -9,6 +9,7 @@ import pytest
 import yaml
 
 import turntable_env  # noqa: F401  (registers the env)
+from agents.train import HYPERPARAMS_DIR
 from controllers import available, make
 from controllers.benchmark import QUICK, run_benchmark, write_outputs
 from controllers.lab import LabBrief
@@ -155,7 +156,7 @@ def test_every_task_needs_stepping_and_stays_in_the_workspace(name):
 
 def test_held_out_plants_lie_outside_the_training_ranges_and_carry_an_effect():
     for key in ("sac", "ppo"):
-        hp = yaml.safe_load(open(f"agents/hyperparams/{key}.yml", encoding="utf-8"))
+        hp = yaml.safe_load((HYPERPARAMS_DIR / f"{key}.yml").read_text(encoding="utf-8"))
         for entry in hp.values():  # every env id the agents train on
             rnd = entry["env_kwargs"]["randomize"]
             assert {k: tuple(v) for k, v in rnd.items() if k in TRAIN_RANGES} == TRAIN_RANGES
