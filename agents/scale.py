@@ -1,10 +1,10 @@
 """Several training runs at once: Ray tasks when Ray is installed, local processes otherwise.
 
 :func:`train_seeds` trains one run per seed (the same algorithm, env id and budget) and
-returns their run directories. With Ray (``pip install -e ".[scale]"``) every run is a
-Ray task of one CPU: ``ray.init()`` starts a local cluster on this machine by default, and
-``address`` joins an existing one (``"auto"`` on a cluster node, ``"ray://head:10001"``
-from outside). Without Ray — or with ``backend="processes"`` — the runs go to a
+returns their run directories, through :func:`turntable_env.scale.map_tasks`: with Ray
+(``pip install -e ".[scale]"``) every run is a Ray task of one CPU on a local instance by
+default or on the cluster ``address`` names (``"auto"`` on a cluster node,
+``"ray://head:10001"`` from outside); without Ray — or with ``backend="processes"`` — a
 ``concurrent.futures.ProcessPoolExecutor`` of ``workers`` processes. Either way each run
 is :func:`agents.train.train` in its own process, seeded, writing its own directory
 ``<out>/<algo>[_raw]_seed<S>``.
@@ -16,20 +16,18 @@ samples); :func:`plot_seed_curves` draws it.
 
 from __future__ import annotations
 
-import importlib.util
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from turntable_env.scale import BACKENDS, map_tasks, resolve_backend
+
 from .interface import RAW_ENV_ID
 from .train import ENV_ID
 
 __all__ = ["BACKENDS", "plot_seed_curves", "run_name", "seed_curves", "train_seeds"]
-
-BACKENDS = ("auto", "ray", "processes")
 
 
 def run_name(algo: str, env_id: str, seed: int) -> str:
@@ -64,18 +62,12 @@ def train_seeds(
     Args:
         backend: ``"auto"`` (Ray if installed), ``"ray"`` or ``"processes"``.
         address: a Ray cluster to join (None: a local one).
-        workers: parallel runs for the process backend (default: the number of seeds).
+        workers: parallel runs for the process backend (default: the CPUs this process may use).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend={backend!r}: must be one of {', '.join(BACKENDS)}")
+    resolve_backend(backend, address)
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"seeds={seeds!r}: need distinct seeds")
-    has_ray = importlib.util.find_spec("ray") is not None
-    if backend == "ray" and not has_ray:
-        raise ValueError('backend="ray": Ray is not installed (pip install -e ".[scale]")')
-    if address is not None and not has_ray:
-        raise ValueError(f"address={address!r}: joining a cluster needs Ray (the scale extra)")
     root = Path(out)
     jobs = [
         {
@@ -85,24 +77,8 @@ def train_seeds(
         }
         for s in seeds
     ]  # fmt: skip
-    if has_ray and backend != "processes":
-        return [Path(p) for p in _with_ray(jobs, address)]
-    with ProcessPoolExecutor(max_workers=workers or len(jobs)) as pool:
-        return [Path(p) for p in pool.map(_train_one, jobs)]
-
-
-def _with_ray(jobs: list[dict[str, Any]], address: str | None) -> list[str]:
-    import ray
-
-    started = not ray.is_initialized()
-    if started:
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
-    try:
-        task = ray.remote(num_cpus=1)(_train_one)
-        return ray.get([task.remote(j) for j in jobs])
-    finally:
-        if started:
-            ray.shutdown()
+    runs = map_tasks(_train_one, jobs, backend=backend, address=address, workers=workers)
+    return [Path(p) for p in runs]
 
 
 def seed_curves(runs: Sequence[str | Path]) -> dict[str, np.ndarray]:

@@ -36,9 +36,11 @@ __all__ = [
     "ENV_IDS",
     "HYPERPARAMS_DIR",
     "TrainedAgent",
+    "apply_overrides",
     "load_hyperparams",
     "load_training",
     "make_vec_env",
+    "parse_policy_kwargs",
     "ship",
     "train",
 ]
@@ -95,6 +97,90 @@ def load_hyperparams(
     return cfg
 
 
+ACTIVATIONS = ("Tanh", "ReLU", "ELU", "LeakyReLU", "GELU", "SiLU")  # torch.nn classes
+
+
+def parse_policy_kwargs(value: Any) -> dict[str, Any]:
+    """``policy_kwargs`` as SB3 takes them, from a hyperparameter entry: a mapping, or
+    rl-zoo3's string form ``"dict(net_arch=[64, 64], activation_fn=nn.Tanh)"`` — read
+    without ``eval``: literals, nested ``dict(...)`` and ``nn.<activation>`` only."""
+    import ast
+
+    if isinstance(value, dict):
+        out = dict(value)
+        act = out.get("activation_fn")
+        if isinstance(act, str):  # "nn.Tanh" or "Tanh" in a YAML mapping
+            out["activation_fn"] = _activation(act.removeprefix("nn."), value)
+        return out
+    if not isinstance(value, str):
+        raise ValueError(
+            f"policy_kwargs={value!r}: must be a mapping or rl-zoo3's dict(...) string"
+        )
+
+    def conv(node: ast.AST) -> Any:
+        if (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Name)
+            and node.func.id == "dict"
+        ):
+            if node.args or any(k.arg is None for k in node.keywords):
+                raise ValueError(f"policy_kwargs={value!r}: dict(...) takes keywords only")
+            return {k.arg: conv(k.value) for k in node.keywords}
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
+            if node.value.id == "nn":
+                return _activation(node.attr, value)
+        try:
+            return ast.literal_eval(node)
+        except ValueError:
+            raise ValueError(
+                f"policy_kwargs={value!r}: {ast.unparse(node)!r} is neither a literal nor "
+                f"nn.<{'|'.join(ACTIVATIONS)}>"
+            ) from None
+
+    try:
+        tree = ast.parse(value.strip(), mode="eval").body
+    except SyntaxError as e:
+        raise ValueError(f"policy_kwargs={value!r}: not a dict(...) expression ({e.msg})") from None
+    out = conv(tree)
+    if not isinstance(out, dict):
+        raise ValueError(f"policy_kwargs={value!r}: must be dict(...)")
+    return out
+
+
+def _activation(name: str, value: Any) -> Any:
+    import torch
+
+    if name not in ACTIVATIONS:
+        raise ValueError(f"policy_kwargs={value!r}: activation {name!r} not in {ACTIVATIONS}")
+    return getattr(torch.nn, name)
+
+
+def zoo_policy_kwargs(kwargs: dict[str, Any]) -> dict[str, Any] | str:
+    """The inverse of :func:`parse_policy_kwargs` for a YAML file: the mapping itself, or
+    rl-zoo3's ``dict(...)`` string when it holds an activation class."""
+    if not any(isinstance(v, type) for v in kwargs.values()):
+        return kwargs
+    parts = [
+        f"{k}=nn.{v.__name__}" if isinstance(v, type) else f"{k}={v!r}" for k, v in kwargs.items()
+    ]
+    return f"dict({', '.join(parts)})"
+
+
+def apply_overrides(cfg: dict[str, Any], overrides: dict[str, Any] | None) -> dict[str, Any]:
+    """A hyperparameter entry with SB3 arguments replaced (``policy_kwargs`` merged key by
+    key, so a sampled ``net_arch`` keeps the entry's ``log_std_init``); YAML-safe."""
+    out = copy.deepcopy(cfg)
+    for key, value in (overrides or {}).items():
+        if key in ZOO_KEYS:
+            raise ValueError(f"overrides: {key!r} is an rl-zoo3 key, not an SB3 argument")
+        if key == "policy_kwargs":
+            merged = parse_policy_kwargs(out.get("policy_kwargs", {}))
+            merged.update(parse_policy_kwargs(value))
+            value = zoo_policy_kwargs(merged)
+        out[key] = value
+    return out
+
+
 def load_training(algo: str, path: str | Path | None = None) -> dict[str, Any]:
     """The project's settings for ``algo`` (evaluation, checkpoints) from training.yml."""
     p = Path(path) if path is not None else TRAINING_FILE
@@ -137,9 +223,11 @@ def train(
     training: str | Path | None = None,
     tensorboard: bool = False,
     progress: bool = True,
+    overrides: dict[str, Any] | None = None,
 ) -> TrainedAgent:
     """Train ``algo`` on ``env_id`` (module docstring); ``hyperparams``/``training``
-    replace ``<algo>.yml``/``training.yml``."""
+    replace ``<algo>.yml``/``training.yml``, ``overrides`` replaces SB3 arguments of the
+    entry (:func:`apply_overrides`; how :mod:`agents.tune` tries a trial)."""
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
@@ -147,7 +235,7 @@ def train(
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecNormalize
 
-    cfg = load_hyperparams(algo, hyperparams, env_id)
+    cfg = apply_overrides(load_hyperparams(algo, hyperparams, env_id), overrides)
     proj = load_training(algo, training)
     n_steps = int(timesteps if timesteps is not None else cfg["n_timesteps"])
     if n_steps < 1:
@@ -168,6 +256,8 @@ def train(
         norm_reward=False,
     )
     hyper = {k: v for k, v in cfg.items() if k not in ZOO_KEYS}
+    if "policy_kwargs" in hyper:
+        hyper["policy_kwargs"] = parse_policy_kwargs(hyper["policy_kwargs"])
     model = _algos()[algo](cfg["policy"], venv, seed=seed, verbose=0, **copy.deepcopy(hyper))
     formats = ["csv"] + (["tensorboard"] if tensorboard else [])
     model.set_logger(configure(str(out / "logs"), formats))

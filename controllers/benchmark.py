@@ -31,7 +31,6 @@ import itertools
 import json
 import math
 import os
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -42,6 +41,8 @@ import numpy as np
 
 from turntable_env.envs.config import OBS, EnvConfig
 from turntable_env.envs.core import TurntableTask
+from turntable_env.files import output_directory, write_atomic
+from turntable_env.scale import map_tasks, resolve_backend
 
 from .base import ControllerContext
 from .metrics import (
@@ -54,7 +55,7 @@ from .metrics import (
     paired_difference,
 )
 from .plant_sets import PLANT_SETS, PlantSet
-from .registry import available, load_plugins, make
+from .registry import available, load_plugins, make, register, spec
 from .tasks import TASKS, EpisodeSpec, Task
 
 __all__ = [
@@ -361,6 +362,9 @@ def run_benchmark(
     axis: str = "B",
     suite_seed: int = SUITE_SEED,
     progress: bool = False,
+    backend: str | None = None,
+    address: str | None = None,
+    workers: int | None = None,
 ) -> BenchmarkResult:
     """Run the benchmark (module docstring).
 
@@ -370,7 +374,12 @@ def run_benchmark(
             only :data:`FULL_3D_TASKS`.
         tasks: names from :data:`~controllers.tasks.TASKS` (default: all).
         seeds: episodes per cell (paired across controllers).
-        progress: a tqdm bar over the cells' control intervals.
+        progress: a tqdm bar over the cells' control intervals (in this process).
+        backend: None runs the cells here, one after the other; ``"auto"``, ``"ray"`` or
+            ``"processes"`` runs every cell as a Ray task or a process
+            (:func:`turntable_env.scale.map_tasks`; ``address`` joins a Ray cluster,
+            ``workers`` bounds the processes). The results equal the serial run's: a
+            cell's seeds and noise depend only on the suite seed and the cell.
     """
     load_plugins()
     names = list(controllers) if controllers is not None else available()
@@ -390,25 +399,66 @@ def run_benchmark(
     if not names or not plant_sets or not task_list:
         raise ValueError("controllers, plant_sets and tasks must not be empty")
     jobs = [(p, t) for p in plant_sets for t in task_list if p != "full_3d" or t in FULL_3D_TASKS]
+    if backend is not None:
+        resolve_backend(backend, address)
+    t0 = time.perf_counter()
+    if backend is not None:
+        import cloudpickle  # a dependency of gymnasium; carries runtime registrations (--agent)
+
+        factories = cloudpickle.dumps({n: spec(n).factory for n in names})
+        remote = [(factories, names, p, t, seeds, axis, suite_seed) for p, t in jobs]
+        done = map_tasks(_cell_job, remote, backend=backend, address=address, workers=workers)
+        return _result(names, plant_sets, task_list, seeds, axis, suite_seed, t0, jobs, done)
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=sum(_task(p, t).horizon for p, t in jobs), unit="interval")
-    t0 = time.perf_counter()
-    cells: list[Cell] = []
-    draws: dict[str, list[dict[str, Any]]] = {}
-    cell_wall: dict[str, float] = {}
+    done = []
     for p, t in jobs:
         if bar is not None:
             bar.set_description(f"{p}/{t}")
         tc = time.perf_counter()
         new, d = _run_cell(names, PLANT_SETS[p](), _task(p, t), seeds, axis, suite_seed, bar)
-        cell_wall[f"{p}/{t}"] = time.perf_counter() - tc
-        cells.extend(new)
-        draws.setdefault(p, d)
+        done.append((new, d, time.perf_counter() - tc))
     if bar is not None:
         bar.close()
+    return _result(names, plant_sets, task_list, seeds, axis, suite_seed, t0, jobs, done)
+
+
+def _cell_job(job: tuple) -> tuple[list[Cell], list[dict[str, Any]], float]:
+    """One cell in a Ray task or a worker process: register the controllers it runs (the
+    driver's factories, so runtime registrations travel too), run it, time it."""
+    import cloudpickle
+
+    blob, names, p, t, seeds, axis, suite_seed = job
+    load_plugins()
+    for name, factory in cloudpickle.loads(blob).items():
+        register(name, factory, "from the benchmark's driver", overwrite=True)
+    tc = time.perf_counter()
+    new, d = _run_cell(names, PLANT_SETS[p](), _task(p, t), seeds, axis, suite_seed, None)
+    return new, d, time.perf_counter() - tc
+
+
+def _result(
+    names: list[str],
+    plant_sets: Sequence[str],
+    task_list: list[str],
+    seeds: int,
+    axis: str,
+    suite_seed: int,
+    t0: float,
+    jobs: list[tuple[str, str]],
+    done: list[tuple[list[Cell], list[dict[str, Any]], float]],
+) -> BenchmarkResult:
+    """The result of the cells ``done`` (in ``jobs``' order) with the run's settings."""
+    cells: list[Cell] = []
+    draws: dict[str, list[dict[str, Any]]] = {}
+    cell_wall: dict[str, float] = {}
+    for (p, t), (new, d, wall) in zip(jobs, done, strict=True):
+        cell_wall[f"{p}/{t}"] = wall
+        cells.extend(new)
+        draws.setdefault(p, d)
     settings = {
         "version": BENCHMARK_VERSION,
         "controllers": names,
@@ -436,39 +486,33 @@ def run_benchmark(
 
 
 # --- outputs -----------------------------------------------------------------------------
-def _write_atomic(path: Path, text: str) -> None:
-    """Write text to ``path`` through a temporary file in its directory (never half-written)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_outputs(result: BenchmarkResult, out: str | Path) -> dict[str, Path]:
-    """Write benchmark.json, episodes.csv, leaderboard.md/.html and trajectory plots."""
+    """Write benchmark.json, episodes.csv, leaderboard.md/.html and trajectory plots; the
+    directory is complete or untouched (:func:`~turntable_env.files.output_directory`)."""
+    final = Path(out)
+    with output_directory(final) as d:
+        paths = _write_files(result, d)
+    return {k: final / p.name for k, p in paths.items()}
+
+
+def _write_files(result: BenchmarkResult, d: Path) -> dict[str, Path]:
     import io
 
-    d = Path(out)
-    d.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
     p = d / "benchmark.json"
-    _write_atomic(p, json.dumps(result.to_json(), indent=1))
+    write_atomic(p, json.dumps(result.to_json(), indent=1))
     paths["json"] = p
     df = result.to_pandas()
     buf = io.StringIO()
     df.to_csv(buf, index=False, quoting=csv.QUOTE_MINIMAL)
     p = d / "episodes.csv"
-    _write_atomic(p, buf.getvalue())
+    write_atomic(p, buf.getvalue())
     paths["episodes"] = p
     p = d / "leaderboard.md"
-    _write_atomic(p, result.leaderboard("markdown") + "\n")
+    write_atomic(p, result.leaderboard("markdown") + "\n")
     paths["leaderboard_md"] = p
     p = d / "leaderboard.html"
-    _write_atomic(p, result.leaderboard("html") + "\n")
+    write_atomic(p, result.leaderboard("html") + "\n")
     paths["leaderboard_html"] = p
     paths.update(plot_trajectories(result, d))
     return paths
@@ -487,9 +531,7 @@ def plot_trajectories(result: BenchmarkResult, out: Path) -> dict[str, Path]:
         fig = ax[0].figure
         fig.tight_layout()
         p = Path(out) / f"trajectories_{ps}.png"
-        tmp = p.with_name(f".{p.name}.tmp.png")
-        fig.savefig(tmp, dpi=80)
-        os.replace(tmp, p)
+        fig.savefig(p, dpi=80)
         plt.close(fig)
         paths[f"trajectories_{ps}"] = p
     return paths

@@ -21,6 +21,8 @@ __all__ = [
     "load_plugins",
     "make",
     "register",
+    "spec",
+    "unregister",
 ]
 
 PLUGIN_MODULES = ("agents",)  # imported by load_plugins() when present
@@ -51,6 +53,12 @@ def register(
     if name in _REGISTRY and not overwrite:
         raise ValueError(f"name={name!r}: already registered")
     _REGISTRY[name] = ControllerSpec(name, factory, description)
+
+
+def unregister(name: str) -> None:
+    """Remove ``name`` (ValueError if not registered)."""
+    spec(name)
+    del _REGISTRY[name]
 
 
 def available() -> list[str]:

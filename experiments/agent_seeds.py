@@ -2,6 +2,7 @@
 
     python experiments/agent_seeds.py --runs ppo=DIR,DIR,DIR --runs sac=DIR,DIR,DIR \
         [--plant-sets randomized,held_out] [--out experiments/results/agent_seeds]
+        [--backend auto|ray|processes [--address auto]]
 
 Each run directory becomes a controller ``<label>_s<seed>`` (``turntable benchmark
 --agent``); the benchmark runs them on the plant sets (20 paired seeds per cell, every
@@ -23,6 +24,7 @@ import yaml
 
 from agents import register_run
 from controllers.benchmark import run_benchmark, write_outputs
+from turntable_env.scale import BACKENDS
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "agent_seeds"
 
@@ -46,6 +48,9 @@ def main() -> None:
     ap.add_argument("--plant-sets", default="randomized,held_out")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--out", default=str(DEFAULT_OUT))
+    ap.add_argument("--backend", choices=BACKENDS, default=None,
+                    help="the benchmark's cells as Ray tasks (auto: when installed) or processes")
+    ap.add_argument("--address", default=None, help="Ray cluster to join (default: local)")
     args = ap.parse_args()
     groups: dict[str, list[str]] = {}
     for spec in args.runs:
@@ -57,7 +62,8 @@ def main() -> None:
             groups.setdefault(label, []).append(name)
     names = [n for v in groups.values() for n in v]
     sets = [p for p in args.plant_sets.split(",") if p]
-    res = run_benchmark(names, plant_sets=sets, seeds=args.seeds, progress=True)
+    res = run_benchmark(names, plant_sets=sets, seeds=args.seeds, progress=args.backend is None,
+                        backend=args.backend, address=args.address)  # fmt: skip
     write_outputs(res, args.out)
     summ = res.summary()
     out: dict[str, dict] = {}

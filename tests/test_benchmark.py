@@ -1,5 +1,6 @@
 """The controller benchmark: information boundary, metrics, intervals, tasks, plant sets."""
 
+import functools
 import json
 import math
 
@@ -15,7 +16,7 @@ from controllers.benchmark import QUICK, run_benchmark, write_outputs
 from controllers.lab import LabBrief
 from controllers.metrics import BAND, episode_metrics, mean_ci, paired_difference
 from controllers.plant_sets import HELD_OUT_RANGES, PLANT_SETS, TRAIN_RANGES
-from controllers.registry import load_plugins
+from controllers.registry import load_plugins, register, unregister
 from controllers.tasks import TASKS
 from turntable_env.envs.config import OBS
 from turntable_env.params import real_parameters
@@ -73,6 +74,30 @@ def test_cell_results_do_not_depend_on_the_other_controllers():
     beside = run_benchmark(["fuzzy", "scan_pid"], **kw).cell("held_out", "knock", "scan_pid")
     for m, v in alone.metrics.items():
         np.testing.assert_array_equal(v, beside.metrics[m], err_msg=m)
+
+
+@pytest.mark.parametrize("backend", ["processes", pytest.param("ray", marks=pytest.mark.slow)])
+def test_cells_as_tasks_equal_the_serial_run(backend):
+    """The sweep over cells as processes (or Ray tasks) gives the serial run's episodes,
+    run-time registrations included: a cell depends only on the suite seed and the cell."""
+    if backend == "ray":
+        pytest.importorskip("ray")
+    # registered at run time (as --agent does), not by a plugin
+    register("scan_pid_again", functools.partial(make, "scan_pid"), "test", overwrite=True)
+    kw = {"plant_sets": ["nominal", "held_out"], "tasks": ["knock"], "seeds": 2}
+    names = ["feedforward", "scan_pid_again"]
+    try:
+        serial = run_benchmark(names, **kw)
+        tasks = run_benchmark(names, backend=backend, workers=2, **kw)
+    finally:
+        unregister("scan_pid_again")
+    assert [(c.plant_set, c.task, c.controller) for c in tasks.cells] == [
+        (c.plant_set, c.task, c.controller) for c in serial.cells
+    ]
+    for a, b in zip(serial.cells, tasks.cells, strict=True):
+        for m, v in a.metrics.items():
+            np.testing.assert_array_equal(v, b.metrics[m], err_msg=m)
+    assert set(tasks.settings["cell_wall_s"]) == {"nominal/knock", "held_out/knock"}
 
 
 # --- metrics ------------------------------------------------------------------------------
@@ -202,6 +227,9 @@ def test_quick_benchmark_output_holds_intervals_tracking_and_held_out(tmp_path):
         ({"tasks": ["moonwalk"]}, "tasks"),
         ({"seeds": 1}, "seeds"),
         ({"controllers": ["pid9000"]}, "controllers"),
+        ({"backend": "slurm"}, "backend"),
+        ({"backend": "processes", "address": "auto"}, "address"),
+        ({"backend": "processes", "workers": 0}, "workers"),
     ],
 )
 def test_bad_arguments_are_refused_before_any_work(kw, match):

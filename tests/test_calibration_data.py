@@ -9,6 +9,7 @@ from turntable_env.calibration import (
     thesis_detector,
     thesis_targets,
 )
+from turntable_env.calibration.measurement import MIN_SAMPLES
 from turntable_env.detector import Detector
 from turntable_env.params import real_parameters
 
@@ -23,7 +24,19 @@ t_s,drive_B_V,detector_V,detector_y_V
 0.001,0.5,0.012,0.001
 0.002,1.0,0.015,0.002
 0.003,-2.0,0.020,0.002
-"""
+0.004,0.0,0.020,0.002
+0.005,0.0,0.020,0.002
+0.006,0.0,0.020,0.002
+0.007,0.0,0.020,0.002
+0.008,0.0,0.020,0.002
+0.009,0.0,0.020,0.002
+0.010,0.0,0.020,0.002
+0.011,0.0,0.020,0.002
+0.012,0.0,0.020,0.002
+0.013,0.0,0.020,0.002
+0.014,0.0,0.020,0.002
+0.015,0.0,0.020,0.002
+"""  # 16 samples: MIN_SAMPLES
 
 
 def _write(tmp_path, text, name="m.csv"):
@@ -36,9 +49,10 @@ def test_loads_every_field(tmp_path):
     m = load_measurement(_write(tmp_path, GOOD))
     assert m.axis == "B" and m.amplifier_gain == 45.0
     assert m.detector.sensitivity == 9.9e-5 and m.detector.table_radius == 0.01
-    np.testing.assert_array_equal(m.time, [0.0, 0.001, 0.002, 0.003])
-    np.testing.assert_array_equal(m.drives["B"], [0.0, 0.5, 1.0, -2.0])
-    np.testing.assert_array_equal(m.detector_y_v, [0.001, 0.001, 0.002, 0.002])
+    np.testing.assert_array_equal(m.time[:4], [0.0, 0.001, 0.002, 0.003])
+    np.testing.assert_array_equal(m.drives["B"][:4], [0.0, 0.5, 1.0, -2.0])
+    np.testing.assert_array_equal(m.detector_y_v[:4], [0.001, 0.001, 0.002, 0.002])
+    assert m.time.size == MIN_SAMPLES
     assert m.meta == {"operator": "lab notebook 12"}
     # Eq. 4.1: θ = ½·arctan(V·S/L)
     assert m.angle()[2] == pytest.approx(0.5 * np.arctan(0.015 * 9.9e-5 / 0.175), rel=1e-12)
@@ -103,7 +117,7 @@ def test_unreadable_or_empty_files(tmp_path):
     with pytest.raises(ValueError, match="not UTF-8"):
         load_measurement(p)
     header_only = GOOD.split("0.0,0.0")[0]
-    with pytest.raises(ValueError, match="at least 2 samples"):
+    with pytest.raises(ValueError, match=f"at least {MIN_SAMPLES} samples"):
         load_measurement(_write(tmp_path, header_only, "h.csv"))
 
 

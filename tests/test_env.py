@@ -238,6 +238,87 @@ def test_native_vector_env_time_limit_and_autoreset():
     np.testing.assert_array_equal(obs[:, 1], vec.task.target.astype(np.float32))
 
 
+@pytest.mark.parametrize("seed", [7, [3, 11, 5]])
+def test_vector_rows_are_single_envs_with_their_seeds_noise_and_autoreset(seed):
+    """Noise and randomisation on: row i of the native vector env is, step for step, the
+    single env seeded ``seed + i`` (or ``seed[i]``) and reset when its episode ends — the
+    observations, rewards and infos, including the autoreset step's info, which describes
+    the new episode as the single env's reset info does."""
+    n, limit = 3, 3
+    kw = {"randomize": True, "target_range": 0.5}
+    vec = PiezoTurntableVectorEnv(num_envs=n, max_episode_steps=limit, **kw)
+    seeds = [seed + i for i in range(n)] if isinstance(seed, int) else seed
+    acts = np.random.default_rng(1).uniform(-1, 1, size=(8, n, 5)).astype(np.float32)
+    v_obs, _ = vec.reset(seed=seed)
+    v_steps = [vec.step(a) for a in acts]
+    for b in range(n):
+        env = gym.make(ENV_ID, **kw).unwrapped
+        obs, _ = env.reset(seed=seeds[b])
+        np.testing.assert_array_equal(obs, v_obs[b])
+        k, done = 0, False
+        for i in range(len(acts)):
+            vo, vr, _vt, vtr, vinfo = v_steps[i]
+            if done:  # the vector env's NEXT_STEP autoreset is the single env's reset
+                obs, info = env.reset()
+                r, k, done = 0.0, 0, False
+                for key in ("angle_rad", "target_rad", "detector_V"):
+                    assert vinfo[key][b] == info[key], key
+                assert vinfo["time_s"][b] == 0.0 and vinfo["steps"][b] == 0
+            else:
+                obs, r, term, _trunc, info = env.step(acts[i, b])
+                k += 1
+                done = term or k >= limit
+                assert vinfo["angle_rad"][b] == info["angle_rad"]
+                assert bool(vtr[b]) == (k >= limit and not term)
+            np.testing.assert_array_equal(obs, vo[b])
+            assert vr[b] == np.float32(r) or vr[b] == r
+
+
+def test_vector_seeds_are_per_env():
+    vec = PiezoTurntableVectorEnv(num_envs=3, target_range=0.5)
+    a = vec.reset(seed=[0, 1, 2])[0]
+    b = vec.reset(seed=[0, 9, 9])[0]
+    np.testing.assert_array_equal(a[0], b[0])
+    assert not np.array_equal(a[1], b[1]) and np.array_equal(b[1], b[2])
+    with pytest.raises(ValueError, match="2 seeds for 3 envs"):
+        vec.reset(seed=[0, 1])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"control_interval": 1e-12}, "control_interval"),
+        ({"control_interval": True}, "control_interval"),
+        ({"control_interval": "0.01"}, "control_interval"),
+        ({"control_interval": 1e3}, "control_interval"),
+        ({"move_range": (1e-6, 2e-6, 3e-6)}, "move_range"),
+        ({"move_range": "ab"}, "move_range"),
+        ({"randomize": {"friction": (1.0,)}}, "randomize"),
+        ({"max_episode_steps": 1.5}, "max_episode_steps"),
+    ],
+)
+def test_constructor_refuses_malformed_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        PiezoTurntableVectorEnv(num_envs=1, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "action",
+    [np.array([1j, 0, 0, 0, 0]), {"a": 1}, [10**400, 0, 0, 0, 0], "00000", [[0.0] * 5],
+     [None] * 5],
+)  # fmt: skip
+def test_step_refuses_what_is_not_five_real_numbers(action):
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(action)
+
+
+def test_reset_refuses_options_that_are_not_a_dict():
+    with pytest.raises(ValueError, match="options='x'"):
+        gym.make(ENV_ID).unwrapped.reset(options="x")
+
+
 # --- the task's physics and reward ---------------------------------------------------------------
 @pytest.mark.parametrize(
     ("options", "match"),

@@ -4,7 +4,10 @@ defining file's stamp, so a cached kernel could run a changed helper of another 
 from __future__ import annotations
 
 import shutil
+import tempfile
 from pathlib import Path
+
+import pytest
 
 import turntable_env
 from turntable_env.generator import generate_interval
@@ -30,3 +33,54 @@ def test_a_change_to_a_callee_module_changes_the_key(tmp_path):
     h = kernel_source_hash(root)
     docs_only.write_text(docs_only.read_text() + "\n# comment\n")
     assert kernel_source_hash(root) == h
+
+
+def test_an_unwritable_cache_falls_back_to_the_next_place_with_one_warning(tmp_path):
+    import warnings
+
+    from numba.core import config
+
+    from turntable_env.kernel_cache import configure_kernel_cache
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")  # nothing can be created below a regular file, root or not
+    before = config.CACHE_DIR
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            path = configure_kernel_cache([str(blocker / "x"), str(tmp_path / "fallback")])
+        assert path == str(tmp_path / "fallback" / kernel_source_hash())
+        assert [str(w.message).split(";")[0] for w in caught] == [
+            f"numba kernel cache: {blocker / 'x'} cannot be written"
+        ]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert configure_kernel_cache([str(blocker / "x"), str(blocker / "y")]) is None
+        assert len(caught) == 1 and "compile in memory" in str(caught[0].message)
+    finally:
+        config.CACHE_DIR = before
+
+
+@pytest.mark.slow
+def test_a_read_only_install_runs_the_env(tmp_path):
+    """HOME and NUMBA_CACHE_DIR unwritable: gym.make, reset and step run, caching in the
+    temporary directory, with one warning and no traceback."""
+    import os
+    import subprocess
+    import sys
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    env = {**os.environ, "HOME": str(blocker), "NUMBA_CACHE_DIR": str(blocker / "numba")}
+    code = (
+        "import warnings, gymnasium as gym, numpy as np, turntable_env\n"
+        "env = gym.make('PiezoTurntable-v0'); env.reset(seed=0)\n"
+        "obs = env.step(np.zeros(5, np.float32))[0]\n"
+        "assert np.isfinite(obs).all()\n"
+        "print(turntable_env.KERNEL_CACHE)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       timeout=900, cwd=str(tmp_path))  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "Traceback" not in r.stderr and r.stderr.count("RuntimeWarning") == 1
+    assert r.stdout.strip().startswith(tempfile.gettempdir())

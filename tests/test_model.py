@@ -250,8 +250,9 @@ def test_cli_simulate_json(capsys):
 
 
 def test_cli_rejects_bad_amplitude(capsys):
-    rc = main(["simulate", "--amplitude", "nan"])
-    assert rc == 2
+    with pytest.raises(SystemExit) as e:  # refused by the parser, before any work
+        main(["simulate", "--amplitude", "nan"])
+    assert e.value.code == 2
     assert "amplitude" in capsys.readouterr().err
 
 

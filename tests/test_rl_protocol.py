@@ -130,3 +130,108 @@ def test_two_seeds_train_in_parallel_and_differ(backend, tmp_path):
     assert [c["run"]["seed"] for c in cfgs] == [0, 1]
     c = seed_curves(runs)
     assert c["per_run"].shape[0] == 2 and not np.array_equal(*c["per_run"])
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        ("dict(net_arch=[64, 64], activation_fn=nn.Tanh)", {"net_arch": [64, 64], "act": "Tanh"}),
+        ("dict(net_arch=dict(pi=[32], vf=[32]), log_std_init=-2)",
+         {"net_arch": {"pi": [32], "vf": [32]}, "log_std_init": -2}),
+        ({"net_arch": [8], "activation_fn": "nn.ReLU"}, {"net_arch": [8], "act": "ReLU"}),
+    ],
+)  # fmt: skip
+def test_policy_kwargs_read_as_rl_zoo3_writes_them_and_round_trip(value, expected):
+    from agents.train import parse_policy_kwargs, zoo_policy_kwargs
+
+    got = parse_policy_kwargs(value)
+    act = expected.pop("act", None)
+    assert (got.pop("activation_fn").__name__ if act else None) == act
+    assert got == expected
+    full = parse_policy_kwargs(value)
+    assert parse_policy_kwargs(zoo_policy_kwargs(full)) == full
+
+
+@pytest.mark.parametrize(
+    "value",
+    [
+        "__import__('os').system('true')",
+        "dict(activation_fn=nn.Softmax)",
+        "dict(net_arch=os.environ)",
+        "dict(**x)",
+        "[64, 64]",
+        "dict(net_arch=[64",
+        3,
+    ],
+)
+def test_policy_kwargs_strings_are_parsed_not_evaluated(value):
+    from agents.train import parse_policy_kwargs
+
+    with pytest.raises(ValueError, match="policy_kwargs"):
+        parse_policy_kwargs(value)
+
+
+def test_overrides_replace_sb3_arguments_and_merge_policy_kwargs():
+    from agents.train import apply_overrides, load_hyperparams, parse_policy_kwargs
+
+    base = load_hyperparams("ppo")
+    got = apply_overrides(base, {"learning_rate": 1e-4,
+                                 "policy_kwargs": "dict(net_arch=[16], activation_fn=nn.ReLU)"})
+    pk = parse_policy_kwargs(got["policy_kwargs"])
+    assert got["learning_rate"] == 1e-4 and pk["net_arch"] == [16]
+    assert pk["log_std_init"] == base["policy_kwargs"]["log_std_init"]  # gSDE's start kept
+    assert yaml.safe_load(yaml.safe_dump(got)) == got  # YAML-safe
+    with pytest.raises(ValueError, match="n_envs"):
+        apply_overrides(base, {"n_envs": 4})
+
+
+def test_map_tasks_keeps_the_jobs_order_in_processes():
+    import math
+
+    from turntable_env.scale import map_tasks
+
+    jobs = [7, 3, 5, 1]
+    assert map_tasks(math.factorial, jobs, backend="processes", workers=2) == [5040, 6, 120, 1]
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"algo": "td3"}, "algo"),
+        ({"trials": 0}, "trials"),
+        ({"parallel": True}, "parallel"),
+        ({"timesteps": 2.5}, "timesteps"),
+        ({"backend": "slurm"}, "backend"),
+        ({"backend": "processes", "address": "auto"}, "address"),
+        ({"seed": -1}, "seed"),
+    ],
+)
+def test_search_refuses_bad_arguments_before_any_work(kw, match, tmp_path):
+    from agents.tune import search
+
+    args = {"algo": "sac", "trials": 2, **kw}
+    out = tmp_path / "study"
+    with pytest.raises(ValueError, match=match):
+        search(args.pop("algo"), args.pop("trials"), out=out, **args)
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_hyperparameter_search_runs_trials_as_ray_tasks_and_resumes(tmp_path):
+    """2 trials × 300 steps as Ray tasks on a local instance, then one more on the same
+    journal: the study holds all three, the best is the highest return, and best.yml is
+    the base entry with the best trial's sampled arguments (readable by the trainer)."""
+    pytest.importorskip("ray")
+    from agents.train import apply_overrides, load_hyperparams
+    from agents.tune import search
+
+    hp, _ = _tiny(tmp_path)
+    kw = {"timesteps": 300, "eval_episodes": 2, "out": tmp_path / "study", "hyperparams": hp}
+    first = search("sac", 2, parallel=2, backend="ray", **kw)
+    res = search("sac", 1, parallel=1, backend="ray", **kw)
+    df = res.to_pandas()
+    assert len(df) == 3 and first.journal == res.journal
+    done = df[df["state"] == "COMPLETE"]
+    assert res.best_value == pytest.approx(done["value"].max())
+    entry = load_hyperparams("sac", res.best_file)
+    assert entry == apply_overrides(load_hyperparams("sac", hp), res.best_overrides)

@@ -9,9 +9,7 @@ environment ``PiezoTurntable-v0`` (registered on import) in :mod:`.envs`.
 
 __version__ = "0.1.0"
 
-from .kernel_cache import configure_kernel_cache
-
-KERNEL_CACHE = configure_kernel_cache()  # before any kernel module is imported
+from .kernel_cache import CACHE_DIR as KERNEL_CACHE  # noqa: F401  (before any kernel module)
 
 ENV_ID = "PiezoTurntable-v0"
 MAX_EPISODE_STEPS = 200  # 2 s at the default 10 ms control interval

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from .kernel_cache import CACHE
 from .quantities import Quantity
 from .validation import (
     check_array_finite,
@@ -66,7 +67,7 @@ __all__ = [
 LN9 = math.log(9.0)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def slew_step(v, target, dt, tau, rate):
     """Exact step of dV/dt = clip((target − V)/τ, ±rate) over dt [s] for a constant target [V]."""
     e = target - v
@@ -80,7 +81,7 @@ def slew_step(v, target, dt, tau, rate):
     return target - e * math.exp(-dt / tau)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def ramp_step(v0, u0, u1, h, gain, tau, rate):
     """Output of the slew-limited first-order stage after h [s] for a target input ramping
     u0 → u1 [V] (§4.1.2 stage).
@@ -96,7 +97,7 @@ def ramp_step(v0, u0, u1, h, gain, tau, rate):
     return slew_step(v0, gain * 0.5 * (u0 + u1), h, tau, rate)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
     """(output, slow path, fast path) [V] after h [s] of an input ramping u0 → u1 [V] for the
     amplifier ``row`` (:meth:`Amplifier.kernel_row`; module docstring). Without a fast path
@@ -114,7 +115,7 @@ def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
     return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def amplifier_hold_step(v0, vs0, vf0, u, dt, gain, tau, rate, a, tf):
     """The amplifier after dt [s] under a constant input u [V] (zero-order hold): the
     compiled 3-D integrator's and :meth:`Amplifier.simulate`'s update."""
@@ -127,7 +128,7 @@ def amplifier_hold_step(v0, vs0, vf0, u, dt, gain, tau, rate, a, tf):
     return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0):
     """Time [s] the Fig. 4.3 adapted input stays past the end value (see
     :meth:`Amplifier.adapted_hold_time`, which validates the arguments): the output of the
@@ -151,7 +152,7 @@ def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0):
     return tau * math.log(e0 / (e0 - dist))
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf):
     """Time [s] until the output, settled at G·v_start, reaches G·v_end under the constant
     input u_over (linear interpolation at the crossing; inf if it never does)."""
@@ -171,7 +172,7 @@ def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf):
     return math.inf
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _first_order_slew(t, u, v0, row):
     """Response of the amplifier ``row`` to a zero-order-hold input u [V] from the settled
     output v0 [V] (exact for the first-order stage; :func:`amplifier_hold_step`)."""

@@ -33,6 +33,7 @@ import numpy as np
 from .baseline import simulate_scipy
 from .reduced import ReducedModel, simulate_batch
 from .simulation import simulate, stepping_drive
+from .validation import check_int, check_positive
 
 __all__ = ["STANDARD", "SWEEP", "accuracy_sweep", "converge", "env_throughput", "run_bench"]
 
@@ -140,6 +141,9 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     """Run every path on the standard scenario; returns the figures (see module docstring).
 
     ``quick`` shortens the runs (for tests of the command, not for reported figures)."""
+    if check_positive("duration", duration) > 60.0:
+        raise ValueError(f"duration={duration!r}: must be <= 60 s")
+    check_int("batch", batch, 1, 4096)
     periods = max(round(duration * STANDARD["frequency"]), 1)
     ref_periods = 2 if quick else REF_PERIODS
     drive, ps = stepping_drive("real", periods=periods, **STANDARD)  # type: ignore[arg-type]
@@ -260,6 +264,8 @@ def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> di
     from .envs import ActionScaling, PiezoTurntableVectorEnv
 
     nominal = ActionScaling().encode(2.0, 100.0, 0.95, 1.0)
+    check_int("n_steps", n_steps, 1)
+    check_int("num_envs", num_envs, 1, 4096)
     out: dict[str, Any] = {"env_num_envs": num_envs}
     for stream in ("random", "nominal"):
         env = gym.make("PiezoTurntable-v0")

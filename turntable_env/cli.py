@@ -16,10 +16,57 @@ import json
 import math
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
+from . import __version__
+from .files import check_writable, write_atomic
 from .params import PARAMETER_SETS, get_parameter_set
 
 __all__ = ["main"]
+
+MAX_SAMPLES = 20_000_000  # samples a simulate run may record (≈ 1 GB of response arrays)
+MAX_DURATION = 1000.0  # s of turntable time one simulate run may cover
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one line on stderr and exit code 2 for a bad command line."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _real(lo: float | None = None, hi: float | None = None, *, open_lo: bool = False):
+    """argparse type: a finite decimal number in [lo, hi] (lo excluded with ``open_lo``)."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{text!r}: must be finite")
+        if lo is not None and (v < lo or (open_lo and v == lo)):
+            raise argparse.ArgumentTypeError(f"{text!r}: must be {'>' if open_lo else '>='} {lo:g}")
+        if hi is not None and v > hi:
+            raise argparse.ArgumentTypeError(f"{text!r}: must be <= {hi:g}")
+        return v
+
+    return parse
+
+
+def _int(lo: int, hi: int):
+    """argparse type: an integer in [lo, hi]."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{text!r}: must lie in {lo}…{hi}")
+        return v
+
+    return parse
 
 
 def _fmt(value: object) -> str:
@@ -47,6 +94,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from .model import SimulationError
     from .simulation import simulate, stepping_drive
 
+    if args.out:
+        check_writable("--out", args.out)
     drive, ps = stepping_drive(
         args.params,
         amplitude=args.amplitude,
@@ -58,7 +107,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         cycles=args.cycles,
     )
     settle = args.settle if args.settle is not None else 0.0
-    output_dt = args.output_dt if args.output_dt else min(1e-5, 0.01 / drive.frequency)
+    output_dt = args.output_dt if args.output_dt is not None else min(1e-5, 0.01 / drive.frequency)
+    duration = drive.duration + settle  # s simulated
+    if duration > MAX_DURATION:
+        raise ValueError(
+            f"--periods/--cycles/--frequency/--settle: {duration:.6g} s to simulate, more than "
+            f"{MAX_DURATION:g} s"
+        )
+    if duration / output_dt > MAX_SAMPLES:
+        raise ValueError(
+            f"--output-dt={output_dt:g} s over {duration:g} s (drive and --settle) would record "
+            f"{duration / output_dt:.3g} samples, more than {MAX_SAMPLES:g}: raise --output-dt"
+        )
     try:
         if args.model == "reduced":
             from .reduced import simulate_reduced
@@ -117,17 +177,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         measured = thesis_step_sizes()["one_directional" if not two else "two_directional"]
         out["measured_step_um"] = measured * 1e6
-    if args.out:
-        r.to_pandas().to_csv(args.out)
     if args.json:
         print(json.dumps(out, indent=2, default=float))
-        return 0
-    for k, v in out.items():
-        if k == "steps_um":
-            v = "[" + ", ".join(f"{x:.4f}" for x in v) + "]"
-        elif isinstance(v, float) and math.isfinite(v):
-            v = f"{v:.6g}"
-        print(f"  {k:<32} {v}")
+    else:
+        for k, v in out.items():
+            if k == "steps_um":
+                v = "[" + ", ".join(f"{x:.4f}" for x in v) + "]"
+            elif isinstance(v, float) and math.isfinite(v):
+                v = f"{v:.6g}"
+            print(f"  {k:<32} {v}")
+    if args.out:  # after the summary: a failing write does not lose it
+        write_atomic(args.out, r.to_pandas().to_csv())
     return 0
 
 
@@ -150,6 +210,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     def split(x: str | None) -> list[str] | None:
         return [v for v in x.split(",") if v] if x else None
 
+    check_writable("--out", args.out, directory=True)
     kw: dict[str, object] = dict(QUICK) if args.quick else {}
     if args.seeds is not None:
         kw["seeds"] = args.seeds
@@ -168,7 +229,11 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
             register_run(name, run)
         if names is not None:
             names += [s.partition("=")[0] for s in args.agent]
-    res = run_benchmark(names, progress=not args.json, **kw)
+    if args.backend is not None:
+        kw.update(backend=args.backend, address=args.address, workers=args.workers)
+    elif args.address is not None or args.workers is not None:
+        raise ValueError("--address/--workers: need --backend (ray, processes or auto)")
+    res = run_benchmark(names, progress=not args.json and args.backend is None, **kw)
     paths = write_outputs(res, args.out)
     if args.json:
         print(json.dumps(res.to_json(), indent=1))
@@ -182,6 +247,7 @@ def _cmd_virtual_lab(args: argparse.Namespace) -> int:
     from .calibration.virtual_lab import run_virtual_lab
     from .effects import parse_effects
 
+    check_writable("--out", args.out)
     effects = parse_effects(args.effects or "")
     m = run_virtual_lab(
         args.protocol, effects, axis=args.axis, noise_std=args.noise, seed=args.seed, out=args.out
@@ -199,6 +265,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from .calibration.summary import calibrate_summary
     from .calibration.thesis_data import THESIS_DATA_FILE
 
+    check_writable("--report", args.report, directory=True)
     files = list(args.files) + ([str(THESIS_DATA_FILE)] if args.thesis else [])
     if not files:
         raise ValueError("files: give measurement files (CSV), a summary file (TOML) or --thesis")
@@ -226,6 +293,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report import build_report
 
+    check_writable("--out", args.out, directory=True)
     paths = build_report(args.out, quick=args.quick, progress=not args.no_progress)
     summary = json.loads(paths["json"].read_text())
     print(f"report: {paths['html']} ({summary['wall_s']:.0f} s); numbers: {paths['json']}")
@@ -233,7 +301,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="turntable", description="piezo stick-slip turntable tools")
+    p = _Parser(prog="turntable", description="piezo stick-slip turntable tools")
+    p.add_argument("--version", action="version", version=f"turntable {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     pp = sub.add_parser("params", help="print a parameter set with every given and derived value")
     pp.add_argument(
@@ -255,16 +324,25 @@ def build_parser() -> argparse.ArgumentParser:
     ps.add_argument("--params", choices=list(PARAMETER_SETS), default="real")
     ps.add_argument("--axis", choices=["A", "B", "C", "Z"], default="B")
     ps.add_argument("--signal", choices=["one", "two"], default="one")
-    ps.add_argument("--amplitude", type=float, default=2.0, help="amplifier input [V] (x45)")
     ps.add_argument(
-        "--frequency", type=float, default=None, help="[Hz] (default: the set's, 100 / 2)"
+        "--amplitude", type=_real(0.0, 10.0, open_lo=True), default=2.0,
+        help="amplifier input [V] (x45), 0 < A <= 10",
+    )  # fmt: skip
+    ps.add_argument(
+        "--frequency",
+        type=_real(0.0, 1e5, open_lo=True),
+        default=None,
+        help="[Hz] up to 100 kHz (default: the set's, 100 / 2)",
     )
-    ps.add_argument("--periods", type=int, default=10, help="periods (per direction)")
+    ps.add_argument("--periods", type=_int(1, 100_000), default=10, help="periods (per direction)")
     ps.add_argument(
-        "--cycles", type=int, default=None,
+        "--cycles", type=_int(1, 1000), default=None,
         help="forward-back cycles (--signal two; default 3: Fig. 4.6 is read on the last)",
     )  # fmt: skip
-    ps.add_argument("--a", type=float, default=None, help="ramp ratio (default: 0.95)")
+    ps.add_argument(
+        "--a", type=_real(0.0, 1.0, open_lo=True), default=None,
+        help="ramp ratio, 0 < a <= 1 (default: 0.95)",
+    )  # fmt: skip
     ps.add_argument(
         "--amplifier",
         choices=["adapted", "unadapted", "ideal"],
@@ -272,17 +350,25 @@ def build_parser() -> argparse.ArgumentParser:
         help="HVA 900 with the Fig. 4.3 input, without it, or an instant source "
         "(default: adapted for real, ideal for thesis)",
     )
-    ps.add_argument("--settle", type=float, default=None, help="time after the drive [s]")
+    ps.add_argument(
+        "--settle", type=_real(0.0, 100.0), default=None, help="time after the drive [s], <= 100"
+    )
     ps.add_argument(
         "--model", choices=["full", "reduced"], default="full",
         help="full 3-D model or the per-axis reduced model (axes A, B, C)",
     )  # fmt: skip
-    ps.add_argument("--dt-factor", type=float, default=0.05, help="step = factor/omega_max")
     ps.add_argument(
-        "--coarse-factor", type=float, default=0.5,
+        "--dt-factor", type=_real(0.0, 1.0, open_lo=True), default=0.05,
+        help="step = factor/omega_max",
+    )  # fmt: skip
+    ps.add_argument(
+        "--coarse-factor", type=_real(0.0, 10.0), default=0.5,
         help="adaptive full-model step while quiet = factor/omega_max (0: fixed step)",
     )  # fmt: skip
-    ps.add_argument("--output-dt", type=float, default=None, help="sample interval [s]")
+    ps.add_argument(
+        "--output-dt", type=_real(0.0, 1.0, open_lo=True), default=None,
+        help="sample interval [s] (default: min(10 µs, 1 %% of a period))",
+    )  # fmt: skip
     ps.add_argument("--out", default=None, help="write the response as CSV here")
     ps.add_argument("--json", action="store_true", help="print JSON")
     ps.set_defaults(func=_cmd_simulate)
@@ -294,8 +380,11 @@ def build_parser() -> argparse.ArgumentParser:
         "a = 0.95, adapted amplifier. Real-time factors, step errors against converged "
         "references, peak memory, compile time; PiezoTurntable-v0 env steps per second.",
     )
-    pb.add_argument("--duration", type=float, default=1.0, help="simulated time [s]")
-    pb.add_argument("--batch", type=int, default=64, help="turntables in the batched run")
+    pb.add_argument(
+        "--duration", type=_real(0.0, 60.0, open_lo=True), default=1.0,
+        help="simulated time [s], <= 60",
+    )  # fmt: skip
+    pb.add_argument("--batch", type=_int(1, 4096), default=64, help="turntables in the batched run")
     pb.add_argument("--quick", action="store_true", help="short references (smoke runs only)")
     pb.add_argument("--json", action="store_true", help="print JSON")
     pb.add_argument(
@@ -307,17 +396,19 @@ def build_parser() -> argparse.ArgumentParser:
         "benchmark",
         help="every registered controller × plant set × task, seeds paired, 95 %% intervals",
         description="Point-to-point moves that need stepping (2, 50, 200 µm; the long ones "
-        "from beyond the detector with a ±30 %% dead-reckoned start; to the detector's edge), "
+        "from beyond the detector with a ±30 % dead-reckoned start; to the detector's edge), "
         "tracking (constant-velocity scan, waypoints, back and forth) and a knock, on the "
         "nominal, randomized (RL training), held_out, calibrated and full_3d plant sets. "
         "Controllers see only observations and what a lab knows. Writes benchmark.json "
-        "(versioned; means with 95 %% bootstrap intervals and paired differences), "
+        "(versioned; means with 95 % bootstrap intervals and paired differences), "
         "episodes.csv, leaderboard.md/.html and trajectory plots.",
     )
     pk.add_argument("--controllers", default=None, help="comma-separated names (default: all)")
     pk.add_argument("--plant-sets", default=None, help="comma-separated (default: all five)")
     pk.add_argument("--tasks", default=None, help="comma-separated (default: all)")
-    pk.add_argument("--seeds", type=int, default=None, help="episodes per cell (default 20)")
+    pk.add_argument(
+        "--seeds", type=_int(2, 1000), default=None, help="episodes per cell (default 20)"
+    )
     pk.add_argument("--quick", action="store_true", help="4 seeds, 2 plant sets, 3 tasks")
     pk.add_argument("--out", default="benchmark_results", help="output directory")
     pk.add_argument("--json", action="store_true", help="print benchmark.json")
@@ -327,6 +418,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="NAME=RUN_DIR",
         help="also run the agent of a training run directory as controller NAME (repeatable)",
+    )
+    pk.add_argument(
+        "--backend",
+        choices=("auto", "ray", "processes"),
+        default=None,
+        help="run the cells in parallel: Ray tasks (auto: when installed) or processes",
+    )
+    pk.add_argument("--address", default=None, help="Ray cluster to join (default: local)")
+    pk.add_argument(
+        "--workers", type=_int(1, 1024), default=None, help="processes for --backend processes"
     )
     pk.set_defaults(func=_cmd_benchmark)
 
@@ -341,8 +442,10 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("--effects", default="", help="e.g. piezo_creep=0.02,sensor_drift.rate=0.1")
     pv.add_argument("--protocol", default="standard", choices=["standard", "long", "thesis"])
     pv.add_argument("--axis", default="B", choices=["A", "B", "C"])
-    pv.add_argument("--noise", type=float, default=1e-3, help="detector noise std [V]")
-    pv.add_argument("--seed", type=int, default=0)
+    pv.add_argument(
+        "--noise", type=_real(0.0, 15.0), default=1e-3, help="detector noise std [V], 0…15"
+    )
+    pv.add_argument("--seed", type=_int(0, 2**63 - 1), default=0)
     pv.add_argument("--out", required=True, help="measurement file to write")
     pv.set_defaults(func=_cmd_virtual_lab)
 
@@ -367,9 +470,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--base", default="real", choices=["real", "thesis", "calibrated"],
         help="parameter set the nominal factors scale (calibrated: the thesis rig's set)",
     )  # fmt: skip
-    pc.add_argument("--workers", type=int, default=None, help="processes of the global stage")
-    pc.add_argument("--global-points", type=int, default=64, help="Sobol points (global stage)")
-    pc.add_argument("--seed", type=int, default=0, help="scrambling seed of the Sobol design")
+    pc.add_argument(
+        "--workers", type=_int(1, 1024), default=None, help="processes of the global stage"
+    )
+    pc.add_argument(
+        "--global-points", type=_int(1, 100_000), default=64, help="Sobol points (global stage)"
+    )
+    pc.add_argument(
+        "--seed", type=_int(0, 2**63 - 1), default=0, help="scrambling seed of the Sobol design"
+    )
     pc.set_defaults(func=_cmd_calibrate)
     pr = sub.add_parser(
         "report",
@@ -386,12 +495,27 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run a subcommand. Exit codes: 0 done, 2 bad input (one line on stderr, before any
+    work where it can be known), 3 a simulation that failed, 1 an operating-system error
+    while working (one line), 130 interrupted."""
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
     except ValueError as exc:
         print(f"turntable: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `turntable params --json | head`: the reader has gone
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"turntable: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("turntable: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

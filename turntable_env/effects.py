@@ -63,7 +63,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from .kernel_cache import CACHE
 from .params import ParameterSet
+from .validation import check_finite
 
 __all__ = [
     "CATALOGUE",
@@ -127,10 +129,11 @@ class Effect:
             )
         out = {}
         for p in self.parameters:
-            v = float(values.get(p.name, p.typical))
+            v = check_finite(f"{self.name}.{p.name}", values.get(p.name, p.typical))
             if not (math.isfinite(v) and p.low <= v <= p.high):
+                unit = f" {p.unit}" if p.unit not in ("", "-") else ""
                 raise ValueError(
-                    f"{self.name}.{p.name}={v!r}: outside {p.low:g}…{p.high:g} {p.unit}"
+                    f"{self.name}.{p.name}={v!r}: outside {p.low:g}…{p.high:g}{unit}"
                 )
             out[p.name] = v
         return out
@@ -348,13 +351,13 @@ def apply_parameters(ps: ParameterSet, effects: Mapping[str, Mapping[str, float]
 
 
 # --- input stage (piezo: hysteresis, creep) --------------------------------------------------
-@njit(cache=True)
+@njit(cache=CACHE)
 def _clamp_plays(plays, widths, x):
     for j in range(plays.size):
         plays[j] = min(max(plays[j], x - widths[j]), x + widths[j])
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def input_stage_nb(t, u, n, seconds, row, plays, creep, ref, out_t, out_v):
     """Input-stage effects on the piecewise-linear input (t[:n], u[:n]) (module docstring).
 

@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from .amplifier import adapted_hold_core
+from .kernel_cache import CACHE
 
 __all__ = [
     "MODE_ADAPTED",
@@ -55,7 +56,7 @@ SETTING_FIELDS = ("amplitude", "frequency", "a", "k", "hold", "mode")
 TEMPLATE_POINTS = 6  # most breakpoints of one period
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def template_nb(s, out_t, out_v):
     """One period of setting row ``s`` (:data:`SETTING_FIELDS`) as breakpoints from 0 to
     T = 1/f [s] into out_t, out_v [V]; returns their count (module table)."""
@@ -96,7 +97,7 @@ def template_nb(s, out_t, out_v):
     return 5
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def adapted_hold(amp, amplitude, frequency, a, k):
     """(k, hold [s]) of the Fig. 4.3 adapted flyback of a sawtooth of ``amplitude`` [V input]:
     the overshoot k capped so that −k·A stays inside the input range, the time the amplifier
@@ -112,7 +113,7 @@ def adapted_hold(amp, amplitude, frequency, a, k):
     return k, min(hold, (1.0 - a) / frequency)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _interp(x, tp, vp, n):
     """np.interp(x, tp[:n], vp[:n]) for one x, right-continuous at repeated times."""
     if x <= tp[0]:
@@ -122,7 +123,7 @@ def _interp(x, tp, vp, n):
     return _interp_at(x, tp, vp, n)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _interp_at(x, tp, vp, n):
     j = 0
     lo = 0
@@ -140,7 +141,7 @@ def _interp_at(x, tp, vp, n):
     return slope * (x - tp[j]) + vp[j]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _window(tp, vp, n, lo, hi, out_t, out_v, m):
     """Append the breakpoints of (tp, vp)[:n] restricted to [lo, hi] to out at m: the value at
     ``lo`` is the right limit, at ``hi`` the left limit (windows join seamlessly)."""
@@ -170,7 +171,7 @@ def _window(tp, vp, n, lo, hi, out_t, out_v, m):
     return m + 1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _periods(s, t_start, n_per, buf_t, buf_v):
     """n_per consecutive periods of setting s from t_start into the buffers; returns count."""
     tpl_t = np.empty(TEMPLATE_POINTS)
@@ -187,7 +188,7 @@ def _periods(s, t_start, n_per, buf_t, buf_v):
     return m
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def segment_nb(t0, t1, phase, running, pending, out_t, out_v, buf_t, buf_v):
     """Generator output over [t0, t1] [s] as breakpoints (out_t, out_v [V]).
 
@@ -223,7 +224,7 @@ def segment_nb(t0, t1, phase, running, pending, out_t, out_v, buf_t, buf_v):
     return m, 0.0, True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def flybacks_nb(t0, t1, phase, running, pending):
     """Flybacks (stick–slip steps) the generator starts in [t0, t1), with the same
     latching as :func:`segment_nb`: a period's flyback starts at the fraction a."""
@@ -244,7 +245,7 @@ def flybacks_nb(t0, t1, phase, running, pending):
     return count
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def grid_points_nb(t, v, n, grid, out_g, out_v):
     """Breakpoints rounded to the integration grid [s] (grid units as floats), exact repeats
     dropped, at most two per grid time (the first and the last value there); returns count."""
@@ -262,7 +263,7 @@ def grid_points_nb(t, v, n, grid, out_g, out_v):
     return m
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def capacitive_energy_nb(v, n, gain, capacitance):
     """C∫|V dV| [J] along the piecewise-linear amplifier output G·v[:n] (capacitive load
     C [F]): C|V1² − V0²|/2 per segment without a sign change, C(V0² + V1²)/2 through zero."""
@@ -283,7 +284,7 @@ def interval_capacity(max_frequency: float, interval: float) -> int:
     return TEMPLATE_POINTS * (periods + 2) + 8
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def generate_interval(
     n0, n_steps, interval, grid, phase, running, pending, offset0, offset1, amp, c_load,
     wg, wv, wn, flybacks, energy,

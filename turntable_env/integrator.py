@@ -1,6 +1,6 @@
 """Compiled time integration of the assembled turntable (the full 3-D model).
 
-One ``numba.njit(cache=True)`` loop advances the table (rigid body, full SO(3)
+One ``numba.njit(cache=CACHE)`` loop advances the table (rigid body, full SO(3)
 orientation), the three tube tops (small displacement twists about their nominal
 pose), the 2-D GMS elements of the three contacts and the four amplifier
 channels. No Python runs per step.
@@ -39,6 +39,7 @@ from numba import njit
 from .amplifier import amplifier_hold_step
 from .friction.gms2d import gms2d_rates, gms2d_update
 from .friction.kernels import stribeck_magnitude
+from .kernel_cache import CACHE
 from .screw import log_so3_nb, rotate_left_inplace
 
 __all__ = ["STATUS_NAMES", "run_full_model"]
@@ -52,7 +53,7 @@ STATUS_NAMES = {0: "ok", 1: "non-finite", 2: "diverging", 3: "rim"}
 # energy accumulators acc: [W_elec, W_interface, D_tube, D_contact, gross |W_elec|]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def pwl_value(wt, wv, n, idx, t):
     """Piecewise-linear value at t (right-continuous); idx = last breakpoint index <= t."""
     if n == 1 or t <= wt[0]:
@@ -66,7 +67,7 @@ def pwl_value(wt, wv, n, idx, t):
     return wv[i] + (t - wt[i]) / span * (wv[i + 1] - wv[i])
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def advance_index(wt, n, idx, t):
     """Move idx forward to the last breakpoint with time <= t."""
     while idx + 1 < n and wt[idx + 1] <= t:
@@ -74,14 +75,14 @@ def advance_index(wt, n, idx, t):
     return idx
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def contact_kinematics(
     xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt, scr
 ):
@@ -155,7 +156,7 @@ def contact_kinematics(
         cinfo[k, 4] = rho_t
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _normal_force(table_p, overlap, rate):
     """(total, elastic, damping) normal force [N]; zero when separated, never pulling."""
     if overlap <= 0.0:
@@ -167,7 +168,7 @@ def _normal_force(table_p, overlap, rate):
     return fe + fd, fe, fd
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def contact_forces(
     xi,
     xid,
@@ -263,7 +264,7 @@ def contact_forces(
         tau_com[j] = tau_c[j] - tmp[j]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def quadrant_voltages(vch, qchan, qsign, vq):
     """Quadrant voltages [V] from the channel voltages (sign −1: the symmetric mode's
     opposite quadrant)."""
@@ -273,7 +274,7 @@ def quadrant_voltages(vch, qchan, qsign, vq):
             vq[k, q] = qsign[k, q] * vch[c] if c >= 0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _charges(xi, vq, bcoup, cs, out):
     """q = C_s V + Bᵀξ per quadrant [C]."""
     for k in range(3):
@@ -286,7 +287,7 @@ def _charges(xi, vq, bcoup, cs, out):
             out[k, q] = s
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _omega(rot, jinv, lam, out, scr):
     """ω = R J⁻¹ Rᵀ L (world); ``scr`` scratch rows 9–10."""
     lb = scr[9]
@@ -299,7 +300,7 @@ def _omega(rot, jinv, lam, out, scr):
         out[a] = rot[a, 0] * wb[0] + rot[a, 1] * wb[1] + rot[a, 2] * wb[2]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _table_centre(pc_disp, rot, c_body, out):
     """Table-centre displacement = CoM displacement + (I − R)c [m]."""
     for j in range(3):
@@ -308,7 +309,7 @@ def _table_centre(pc_disp, rot, c_body, out):
             out[j] -= rot[j, a] * c_body[a]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _kinematics(
     pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt, cinfo,
     cn, cx, cy, crc, crt, scr,
@@ -329,7 +330,7 @@ def _kinematics(
     )  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid):
     """Half kick over h [s]: table momentum and angular momentum, tube-top velocities."""
     for j in range(3):
@@ -343,7 +344,7 @@ def _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid):
             xid[k, a] += h * s
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _stored_energies(
     pc_disp,
     vc,
@@ -398,7 +399,7 @@ def _stored_energies(
     out[5] = pot
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _first_bad(pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, d_rim):
     """(status, variable index) of the first non-finite or out-of-bound state, or (0, -1).
 
@@ -446,7 +447,7 @@ def _first_bad(pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, 
     return 0, -1
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _is_quiet(
     t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst, gnu, gk, fn,
     cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load,
@@ -521,7 +522,7 @@ def _is_quiet(
     return True
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def run_full_model(state, model, drive, t0, t_end, step_p, recording):
     """Integrate from t0 to t_end [s] (see module docstring); records at recording.t_out.
 

@@ -78,6 +78,7 @@ from .generator import (
     grid_points_nb,
     interval_capacity,
 )
+from .kernel_cache import CACHE
 from .kernel_types import DriveArrays
 from .model import TurntableModel
 from .params import ParameterSet, RigParams, get_parameter_set
@@ -696,7 +697,7 @@ class _FullBackend:
         }
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _input_stage_batch(drive, rows, active, plays, creep, ref, grid, out, scr_t, scr_v):
     """The input stage on every active row of a grid-unit drive, re-gridded into ``out``."""
     for b in range(drive.count.shape[0]):

@@ -55,6 +55,7 @@ from .amplifier import amplifier_step
 from .friction.kernels import stribeck_magnitude
 from .integrator import advance_index as _advance
 from .integrator import pwl_value as _input_at
+from .kernel_cache import CACHE
 
 __all__ = ["N_REC", "REC_FIELDS", "run_reduced_batch", "run_reduced_serial"]
 
@@ -82,14 +83,14 @@ FAST_QUIET = 1e-3  # V: an amplifier fast-path transient above it keeps steps sh
 SAMPLE_FRACTION = 0.25
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _rel(y, mech, k):
     """Relative displacement and velocity (tube contact point − table point) of contact k."""
     rho = mech[2 + k]
     return y[2 + 2 * k] - rho * y[0], y[3 + 2 * k] - rho * y[1]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _amp_linear(v0, vs0, vf0, u0, slope, row, ideal):
     """True when the amplifier output [V] is linear in time (to FAST_QUIET) while its input
     ramps from u0 [V] at ``slope`` [V/s]: inside the slew limit and with the first-order
@@ -112,14 +113,14 @@ def _amp_linear(v0, vs0, vf0, u0, slope, row, ideal):
     return abs(vs0 + vf0 - v0) <= FAST_QUIET
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _modal_at(t, z0, lam, ez):
     """Modal amplitudes z_j e^{λ_j t} at t [s] from the segment start into ez."""
     for j in range(z0.shape[0]):
         ez[j] = z0[j] * cmath.exp(lam[j] * t)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _stick_check(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez, xs, vs):
     """Relative motion of both contacts at t [s] on the all-stick analytic solution
     (into xs [m], vs [m/s]) and the GMS breakaway test of the stuck elements there.
@@ -150,7 +151,7 @@ def _stick_check(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez, xs, vs
     return event, g
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _certified(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez):
     """(horizon [s], sampling ω [rad/s], drift time [s]) from t on the all-stick solution.
 
@@ -224,7 +225,7 @@ def _certified(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez):
     return horizon, om_fast, drift
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _finite(volt, yb):
     """Whether the amplifier output and every state of one turntable are finite."""
     chk = volt
@@ -233,7 +234,7 @@ def _finite(volt, yb):
     return math.isfinite(chk)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _modal_y(t, z0, vmat, lam, yp0, yp1, ez, out):
     """State at t [s] on the all-stick analytic solution: y_p(t) + Re Σ_j v_j z_j e^{λ_j t}."""
     _modal_at(t, z0, lam, ez)
@@ -244,7 +245,7 @@ def _modal_y(t, z0, vmat, lam, yp0, yp1, ez, out):
         out[a] = s
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _write_record(row, t, yv, volt, mech, f0, kk, x0, ne):
     """One record (fields :data:`REC_FIELDS`) of an all-stick state yv at t [s]."""
     row[0] = t
@@ -262,7 +263,7 @@ def _write_record(row, t, yv, volt, mech, f0, kk, x0, ne):
         row[10 + k] = ne
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _locate(lo, hi, g_lo, g_hi, h_min, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms,
             ez, xs, vs):  # fmt: skip
     """First grid offset in (lo, hi] with a breakaway (none at lo, one at hi): the Illinois
@@ -291,7 +292,7 @@ def _locate(lo, hi, g_lo, g_hi, h_min, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, 
     return hi
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=CACHE, parallel=True)
 def run_reduced_batch(state, model, drive, h_min, recording):
     """Advance every turntable b of the batch from grid time state.n[b] to recording.n_end[b].
 
@@ -312,14 +313,14 @@ def run_reduced_batch(state, model, drive, h_min, recording):
         _run_one(b, state, model, drive, h_min, recording)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def run_reduced_serial(state, model, drive, h_min, recording):
     """:func:`run_reduced_batch` on one thread (a batch of one: no thread launch)."""
     for b in range(state.y.shape[0]):
         _run_one(b, state, model, drive, h_min, recording)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _run_one(b, state, model, drive, h_min, recording):
     """Turntable b of :func:`run_reduced_batch`."""
     y, volt, f, st, n_now = state.y, state.volt, state.f, state.st, state.n

@@ -22,6 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .kernel_cache import CACHE
 from .validation import check_array_finite
 
 __all__ = [
@@ -96,7 +97,7 @@ def log_so3(r: np.ndarray) -> np.ndarray:
     return log_so3_nb(rr)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _exp_so3_into(w, r):
     """Fill ``r`` (3, 3) with exp(w̃) (Rodrigues)."""
     th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
@@ -119,14 +120,14 @@ def _exp_so3_into(w, r):
     r[2, 1] = a * x + b * y * z
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _exp_so3_nb(w):
     r = np.empty((3, 3))
     _exp_so3_into(w, r)
     return r
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def log_so3_nb(r):
     c = 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0)
     c = min(1.0, max(-1.0, c))
@@ -146,7 +147,7 @@ def log_so3_nb(r):
     return out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def rotate_left_inplace(r, w, e):
     """R ← exp(w̃)·R, re-orthonormalised (keeps R in SO(3) over millions of steps);
     ``e`` is a (3, 3) scratch array, so the step allocates nothing."""

@@ -8,6 +8,7 @@ field and the offending value.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable
 
 import numpy as np
@@ -16,6 +17,7 @@ __all__ = [
     "check_array_finite",
     "check_finite",
     "check_in_open",
+    "check_int",
     "check_nonnegative",
     "check_positive",
     "check_positive_array",
@@ -25,18 +27,38 @@ __all__ = [
 
 
 def _describe(value: object) -> str:
-    return repr(value)
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def check_finite(name: str, value: float) -> float:
-    """Return ``value`` as float; raise ValueError if it is NaN, infinite or not a number."""
+    """Return ``value`` as float; raise ValueError if it is NaN, infinite or not a real
+    number (a bool, a string, a complex number, a container or an integer beyond float
+    are refused, not converted)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+    if not real:
+        raise ValueError(f"{name}={_describe(value)}: must be a real number")
     try:
         x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}={_describe(value)}: must be a real number") from None
+    except OverflowError:
+        raise ValueError(f"{name}={_describe(value)}: must be finite") from None
     if not math.isfinite(x):
         raise ValueError(f"{name}={_describe(value)}: must be finite")
     return x
+
+
+def check_int(name: str, value: int, lo: int | None = None, hi: int | None = None) -> int:
+    """An integer (not a bool, not a float) within [lo, hi] where given."""
+    if isinstance(value, np.integer):
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{name}={_describe(value)}: must be an integer")
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        bounds = f"{lo if lo is not None else '-inf'}…{hi if hi is not None else 'inf'}"
+        raise ValueError(f"{name}={_describe(value)}: must lie in {bounds}")
+    return value
 
 
 def check_positive(name: str, value: float) -> float:

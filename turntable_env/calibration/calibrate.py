@@ -25,6 +25,7 @@ import scipy.stats
 import threadpoolctl
 
 from ..effects import CATALOGUE
+from ..files import output_directory
 from ..plant import Plant, calibrated_set_toml
 from .measurement import Measurement
 
@@ -265,6 +266,11 @@ def plot_overlay(result: CalibrationResult, path: Path) -> bool:
     return True
 
 
+def _ratio(x: float, floor: float) -> str:
+    """x / floor to one decimal; "—" for a noise-free trace (floor 0)."""
+    return f"{x / floor:.1f}" if floor > 0 else "—"
+
+
 def _md_trace_sections(result: CalibrationResult) -> list[str]:
     """report.md lines of a trace calibration: floor, starts, parameters, diagnosis."""
     d = result.diagnosis
@@ -278,9 +284,9 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
         "",
         f"| model | held-out error [{u}] | × floor |",
         "|---|---:|---:|",
-        f"| prior (before) | {result.error_before:.3g} | {result.error_before / floor:.1f} |",
-        f"| nominal fit | {d['error_nominal']:.3g} | {d['error_nominal'] / floor:.1f} |",
-        f"| final | {result.error_after:.3g} | {result.error_after / floor:.1f} |",
+        f"| prior (before) | {result.error_before:.3g} | {_ratio(result.error_before, floor)} |",
+        f"| nominal fit | {d['error_nominal']:.3g} | {_ratio(d['error_nominal'], floor)} |",
+        f"| final | {result.error_after:.3g} | {_ratio(result.error_after, floor)} |",
         "",
         f"Target max(3× floor, 2 % of the RMS motion {d['rms_motion']:.4g} {u}) = "
         f"{d['target']:.3g} {u}: {'met' if result.error_after <= d['target'] else 'not met'}.",
@@ -320,9 +326,15 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
 def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
     """``report.json``, ``report.md``, ``residual.png`` (and ``overlay.png`` for traces)
     in ``out``; with a rig fit also ``calibrated.toml``, the calibrated parameter set
-    (:func:`~turntable_env.plant.calibrated_set_toml`)."""
-    d = Path(out)
-    d.mkdir(parents=True, exist_ok=True)
+    (:func:`~turntable_env.plant.calibrated_set_toml`). The directory is complete or
+    untouched (:func:`~turntable_env.files.output_directory`)."""
+    final = Path(out)
+    with output_directory(final) as d:
+        names = _write_report_files(result, d, final)
+    return {k: final / v for k, v in names.items()}
+
+
+def _write_report_files(result: CalibrationResult, d: Path, final: Path) -> dict[str, str]:
     pj = d / "report.json"
     pj.write_text(json.dumps(result.to_json(), indent=2))
     plot_residual(result, d / "residual.png")
@@ -366,13 +378,13 @@ def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
     lines.append("![residual](residual.png)")
     pm = d / "report.md"
     pm.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    paths = {"json": pj, "md": pm, "png": d / "residual.png"}
+    paths = {"json": pj.name, "md": pm.name, "png": "residual.png"}
     if has_overlay:
-        paths["overlay"] = d / "overlay.png"
+        paths["overlay"] = "overlay.png"
     if result.plant is not None and result.plant.rig is not None:
-        paths["parameters"] = d / "calibrated.toml"
-        paths["parameters"].write_text(
-            calibrated_set_toml(result.plant, source=f"turntable calibrate --report {d}"),
+        paths["parameters"] = "calibrated.toml"
+        (d / "calibrated.toml").write_text(
+            calibrated_set_toml(result.plant, source=f"turntable calibrate --report {final}"),
             encoding="utf-8",
         )
     return paths

@@ -19,16 +19,23 @@ A measurement file is CSV in UTF-8 — only what a laboratory records:
   ==================  =====================================================  ==========
 
 Physical ranges (checked): amplifier gain 1–1000, S 1e-7–1e-2 m/V, L 1 mm–10 m,
-R_table 0.1 mm–1 m, |detector| ≤ 15 V. Any defect — a missing key or column, an unknown
-column, a non-numeric or non-finite cell, time not increasing, an unknown axis, a value
-out of range — raises ValueError naming the file, the line and the column; nothing is
-returned half-loaded.
+R_table 0.1 mm–1 m, |detector| ≤ 15 V. The watched axis must have its drive column; a
+metadata key appears once; numbers are plain ASCII decimals (``1.5e-3``; not ``1_0`` or
+full-width digits). Bounds, checked before the work: a regular file of at most
+``MAX_FILE_BYTES``, lines of at most ``MAX_LINE_CHARS``, ``MIN_SAMPLES``–``MAX_SAMPLES``
+samples, no gap in time over ``MAX_GAP_FACTOR`` × the median interval. A UTF-8 byte-order
+mark (as spreadsheet programs write) is dropped. Any defect — a missing key or column, an
+unknown column, a non-numeric or non-finite cell, time not increasing, an unknown axis, a
+value out of range — raises ValueError naming the file, the line and the column; nothing
+is returned half-loaded.
 """
 
 from __future__ import annotations
 
 import csv
 import math
+import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,12 +43,18 @@ from typing import Any
 import numpy as np
 
 from ..detector import Detector
+from ..files import write_atomic
 
 __all__ = ["AXES", "Measurement", "load_measurement"]
 
 AXES = ("A", "B", "C", "Z")
 INPUT_LIMIT = 10.0  # V, amplifier input range (§4.1.1: LabView signal between ±10 V)
 DETECTOR_LIMIT = 15.0  # V, photodiode electronics supply
+MAX_FILE_BYTES = 256 * 2**20  # bytes a measurement file may hold
+MAX_LINE_CHARS = 4096  # characters per line
+MAX_SAMPLES = 4_000_000  # samples per file
+MIN_SAMPLES = 16  # samples per file: a drive segment to fit and one to hold out
+MAX_GAP_FACTOR = 1000.0  # a sample interval this many times the median is a gap
 META_RANGES = {  # key: (low, high, unit)
     "amplifier_gain": (1.0, 1000.0, "-"),
     "detector_sensitivity_m_per_V": (1e-7, 1e-2, "m/V"),
@@ -104,61 +117,111 @@ class Measurement:
         return axes
 
     def save(self, path: str | Path) -> Path:
-        """Write in the format above (full float precision); :func:`load_measurement`
-        reads it back unchanged."""
+        """Write in the format above (full float precision), atomically (a temporary file
+        renamed into place); :func:`load_measurement` reads it back unchanged. ValueError
+        for what the loader would refuse: extra metadata that collides with a required key
+        or holds a line break, a non-finite sample."""
         p = Path(path)
-        p.parent.mkdir(parents=True, exist_ok=True)
         det = self.detector
+        for k, v in self.meta.items():
+            if k in ("axis", *META_RANGES) or not isinstance(k, str) or not k.strip():
+                raise ValueError(f"meta key {k!r}: reserved or empty")
+            if any(ch in f"{k}{v}" for ch in "\r\n") or ":" in k or k != k.strip():
+                raise ValueError(f"meta[{k!r}] = {v!r}: keys and values are single lines")
         meta = {
             "axis": self.axis,
             "amplifier_gain": repr(self.amplifier_gain),
             "detector_sensitivity_m_per_V": repr(det.sensitivity),
             "detector_distance_m": repr(det.distance),
             "table_radius_m": repr(det.table_radius),
-            **self.meta,
+            **{k: str(v) for k, v in self.meta.items()},
         }
         cols = ["t_s", *(f"drive_{k}_V" for k in self.drives), "detector_V"]
         data = [self.time, *self.drives.values(), self.detector_v]
         if self.detector_y_v is not None:
             cols.append("detector_y_V")
             data.append(self.detector_y_v)
-        with p.open("w", newline="", encoding="utf-8") as fh:
-            for k, v in meta.items():
-                fh.write(f"# {k}: {v}\n")
-            w = csv.writer(fh)
-            w.writerow(cols)
-            for row in np.column_stack(data):
-                w.writerow([repr(float(x)) for x in row])
+        table = np.column_stack(data)
+        if not np.isfinite(table).all():
+            r, c = (int(x) for x in np.argwhere(~np.isfinite(table))[0])
+            raise ValueError(f"sample {r}, column {cols[c]!r} = {table[r, c]!r}: not finite")
+        lines = [f"# {k}: {v}\n" for k, v in meta.items()]
+        lines.append(",".join(cols) + "\n")
+        lines += [",".join(repr(float(x)) for x in row) + "\n" for row in table]
+        write_atomic(p, "".join(lines))
         return p
+
+
+_NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")  # ASCII decimal
+
+
+def _number(text: str) -> float | None:
+    """A plain ASCII decimal number (``float`` would also take ``1_0`` and full-width digits);
+    None when ``text`` is not one."""
+    t = text.strip()
+    return float(t) if _NUMBER.fullmatch(t) else None
 
 
 def _meta_float(path: Path, line: int, key: str, text: str) -> float:
     lo, hi, unit = META_RANGES[key]
-    try:
-        v = float(text)
-    except ValueError:
-        raise ValueError(f"{path}:{line}: metadata {key!r} = {text!r} is not a number") from None
+    v = _number(text)
+    if v is None:
+        raise ValueError(f"{path}:{line}: metadata {key!r} = {text!r} is not a number")
     if not (math.isfinite(v) and lo <= v <= hi):
-        raise ValueError(f"{path}:{line}: metadata {key!r} = {text!r} outside {lo:g}…{hi:g} {unit}")
+        raise ValueError(
+            f"{path}:{line}: metadata {key!r} = {text!r} outside {lo:g}…{hi:g}"
+            + (f" {unit}" if unit != "-" else "")
+        )
     return v
+
+
+def _read_text(p: Path) -> str:
+    """The file's text (UTF-8, a leading BOM dropped), refused before reading when it is
+    not a regular file or larger than :data:`MAX_FILE_BYTES`."""
+    try:
+        st = p.stat()
+    except OSError as exc:
+        raise ValueError(f"{p}: cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{p}: not a regular file")
+    if st.st_size > MAX_FILE_BYTES:
+        raise ValueError(
+            f"{p}: {st.st_size} bytes, more than the {MAX_FILE_BYTES} a measurement file may "
+            "hold (split the record)"
+        )
+    try:
+        with p.open("rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ValueError(f"{p}: cannot be read ({exc.strerror})") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ValueError(f"{p}: more than {MAX_FILE_BYTES} bytes")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{p}: not UTF-8 ({exc.reason} at byte {exc.start})") from None
 
 
 def load_measurement(path: str | Path) -> Measurement:
     """Read and validate a measurement file (module docstring)."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{p}: not UTF-8 ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise ValueError(f"{p}: cannot be read ({exc.strerror})") from None
+    text = _read_text(p)
     lines = text.splitlines()
+    for k, line in enumerate(lines):
+        if len(line) > MAX_LINE_CHARS:
+            raise ValueError(f"{p}:{k + 1}: {len(line)} characters, more than {MAX_LINE_CHARS}")
     meta: dict[str, tuple[int, str]] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
         key, sep, val = lines[i][1:].partition(":")
         if lines[i].startswith("#") and sep:
-            meta[key.strip()] = (i + 1, val.strip())
+            key = key.strip()
+            if key in meta:
+                raise ValueError(
+                    f"{p}:{i + 1}: metadata {key!r} given twice (first on line {meta[key][0]})"
+                )
+            meta[key] = (i + 1, val.strip())
         i += 1
     for key in ("axis", *META_RANGES):
         if key not in meta:
@@ -186,7 +249,13 @@ def load_measurement(path: str | Path) -> Measurement:
         raise ValueError(f"{p}:{header_line}: no drive_<axis>_V column")
     if len(set(header)) != len(header):
         raise ValueError(f"{p}:{header_line}: a column appears twice")
+    if f"drive_{axis}_V" not in header:
+        raise ValueError(
+            f"{p}:{header_line}: column 'drive_{axis}_V' missing: the watched axis "
+            f"({axis}, line {ln}) must be driven"
+        )
     rows: list[list[float]] = []
+    t_col = header.index("t_s")
     for j in range(i + 1, len(lines)):
         if not lines[j].strip():
             continue
@@ -195,20 +264,21 @@ def load_measurement(path: str | Path) -> Measurement:
             raise ValueError(f"{p}:{j + 1}: {len(cells)} cells, the header has {len(header)}")
         row = []
         for name, cell in zip(header, cells, strict=True):
-            try:
-                v = float(cell)
-            except ValueError:
-                raise ValueError(
-                    f"{p}:{j + 1}: column {name!r} = {cell!r} is not a number"
-                ) from None
+            v = _number(cell)
+            if v is None and _NONFINITE.fullmatch(cell.strip()):
+                raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
+            if v is None:
+                raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not a number")
             if not math.isfinite(v):
                 raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
             row.append(v)
         rows.append(row)
+        if len(rows) > MAX_SAMPLES:
+            raise ValueError(f"{p}:{j + 1}: more than {MAX_SAMPLES} samples")
         rec = dict(zip(header, row, strict=True))
         if rec["t_s"] < 0.0:
             raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is negative")
-        if len(rows) > 1 and rec["t_s"] <= rows[-2][header.index("t_s")]:
+        if len(rows) > 1 and rec["t_s"] <= rows[-2][t_col]:
             raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is not increasing")
         for c in drive_cols:
             if abs(rec[c]) > INPUT_LIMIT:
@@ -221,9 +291,18 @@ def load_measurement(path: str | Path) -> Measurement:
                 raise ValueError(
                     f"{p}:{j + 1}: column {c!r} = {rec[c]!r} V beyond ±{DETECTOR_LIMIT:g} V"
                 )
-    if len(rows) < 2:
-        raise ValueError(f"{p}: need at least 2 samples, found {len(rows)}")
+    if len(rows) < MIN_SAMPLES:
+        raise ValueError(f"{p}: need at least {MIN_SAMPLES} samples, found {len(rows)}")
     data = np.array(rows)
+    t = data[:, t_col]
+    dt = np.diff(t)
+    k = int(np.argmax(dt))
+    if dt[k] > MAX_GAP_FACTOR * float(np.median(dt)):
+        raise ValueError(
+            f"{p}: column 't_s' jumps {dt[k]:.6g} s after t = {t[k]!r} s, more than "
+            f"{MAX_GAP_FACTOR:g}× the median interval {float(np.median(dt)):.6g} s (a record "
+            "with a gap: split it into files)"
+        )
     col = {c: data[:, k] for k, c in enumerate(header)}
     det = Detector(
         sensitivity=values["detector_sensitivity_m_per_V"],

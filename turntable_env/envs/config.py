@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
 
@@ -122,13 +122,36 @@ class ActionScaling:
 
 
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """The action as float64, clipped to [-1, 1]; NaN/inf or a wrong shape → ValueError."""
-    a = np.asarray(action, dtype=np.float64)
+    """The action as float64, clipped to [-1, 1]; anything but real numbers (complex,
+    strings, mappings, integers beyond float), NaN/inf or a wrong shape → ValueError."""
+    if isinstance(action, Mapping | str | bytes):
+        raise ValueError(f"action={action!r}: must be an array of real numbers")
+    try:
+        raw = np.asarray(action)
+        if raw.dtype.kind not in "biuf":
+            raise TypeError
+        a = raw.astype(np.float64)
+    except (TypeError, ValueError, OverflowError):
+        text = repr(action)
+        text = text if len(text) < 80 else text[:77] + "..."
+        raise ValueError(f"action={text}: must be an array of real numbers") from None
     if a.shape != shape:
         raise ValueError(f"action={action!r}: shape {a.shape}, expected {shape}")
     if not np.isfinite(a).all():
         raise ValueError(f"action={action!r}: must be finite (NaN or inf found)")
     return np.clip(a, -1.0, 1.0)
+
+
+MAX_CONTROL_INTERVAL = 10.0  # s: one env step at most (a frozen env below one grid step)
+
+
+def _pair(name: str, value: Any) -> tuple[Any, Any]:
+    """A (low, high) pair: a sequence of exactly two items (not a string)."""
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence | np.ndarray):
+        raise ValueError(f"{name}={value!r}: must be (low, high)")
+    if len(value) != 2:
+        raise ValueError(f"{name}={value!r}: must be (low, high), got {len(value)} values")
+    return value[0], value[1]
 
 
 @dataclass(frozen=True)
@@ -201,7 +224,10 @@ class EnvConfig:
         object.__setattr__(self, "plant", self._resolve_plant())
         if self.axis not in ("A", "B", "C"):
             raise ValueError(f"axis={self.axis!r}: must be 'A', 'B' or 'C'")
-        check_positive("control_interval", self.control_interval)
+        if check_positive("control_interval", self.control_interval) > MAX_CONTROL_INTERVAL:
+            raise ValueError(
+                f"control_interval={self.control_interval!r}: must be <= {MAX_CONTROL_INTERVAL} s"
+            )
         if not isinstance(self.noise, bool):
             raise ValueError(f"noise={self.noise!r}: must be a bool")
         check_positive("tolerance", self.tolerance)
@@ -214,10 +240,7 @@ class EnvConfig:
                 raise ValueError(f"{name}={v!r}: must be <= 1 (fraction of the detector range)")
         check_positive("angle_limit", self.angle_limit)
         if self.move_range is not None:
-            try:
-                lo, hi = (check_positive("move_range", float(x)) for x in self.move_range)
-            except TypeError:
-                raise ValueError(f"move_range={self.move_range!r}: must be (low, high)") from None
+            lo, hi = (check_positive("move_range", x) for x in _pair("move_range", self.move_range))
             if lo > hi or hi >= self.angle_limit:
                 raise ValueError(f"move_range={self.move_range!r}: need low <= high < angle_limit")
             object.__setattr__(self, "move_range", (lo, hi))
@@ -292,10 +315,8 @@ def _randomization_ranges(
             raise ValueError(
                 f"randomize[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
             )
-        try:
-            lo, hi = (check_positive(f"randomize[{key!r}]", x) for x in rng)
-        except TypeError:
-            raise ValueError(f"randomize[{key!r}]={rng!r}: must be (low, high)") from None
+        name = f"randomize[{key!r}]"
+        lo, hi = (check_positive(name, x) for x in _pair(name, rng))
         if lo > hi:
             raise ValueError(f"randomize[{key!r}]={rng!r}: low must be <= high")
         out[key] = (lo, hi)

@@ -24,6 +24,7 @@ action, the measured angle) and hands the physics to one
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -70,7 +71,8 @@ class TurntableTask:
         self.stepper = PlantStepper([self.plant] * num, config.axis, noise=config.noise)
         self.grid = self.stepper.grid
         self.steps_per_interval = round(config.control_interval / self.grid)
-        if abs(self.steps_per_interval * self.grid - config.control_interval) > 1e-12:
+        off_grid = abs(self.steps_per_interval * self.grid - config.control_interval) > 1e-12
+        if self.steps_per_interval < 1 or off_grid:
             raise ValueError(
                 f"control_interval={config.control_interval!r}: must be a multiple of the "
                 f"{self.grid * 1e9:.1f} ns integration grid"
@@ -114,6 +116,8 @@ class TurntableTask:
         controller benchmark's held-out plants), start and target angles, reference and knock
         (:data:`RESET_OPTIONS`)."""
         cfg = self.config
+        if options is not None and not isinstance(options, Mapping):
+            raise ValueError(f"options={options!r}: must be a dict (or None)")
         opts = dict(options or {})
         unknown = set(opts) - set(RESET_OPTIONS)
         if unknown:

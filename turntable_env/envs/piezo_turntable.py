@@ -11,7 +11,7 @@ from gymnasium import spaces
 
 from ..params import ParameterSet
 from ..plant import Plant
-from .config import ACTION_NAMES, OBSERVATION_NAMES, EnvConfig
+from .config import ACTION_NAMES, OBSERVATION_NAMES, EnvConfig, check_action
 from .core import TurntableTask
 
 __all__ = ["PiezoTurntableEnv", "action_space", "observation_space"]
@@ -234,9 +234,7 @@ class PiezoTurntableEnv(gym.Env):
         return t.observation()[0], info
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (5,):
-            raise ValueError(f"action={action!r}: shape {a.shape}, expected (5,)")
+        a = check_action(action, (5,))  # ValueError for anything but 5 finite reals
         res = self.task.step(a[None, :], self.np_random)
         info = {k: v[0].item() for k, v in res.info.items()}
         return (

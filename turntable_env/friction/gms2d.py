@@ -24,12 +24,13 @@ import math
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import CACHE
 from .kernels import stribeck_magnitude
 
 __all__ = ["gms2d_force", "gms2d_rates", "gms2d_update", "run_gms2d_velocity_driven"]
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def gms2d_force(f, vx, vy, sigma2):
     """Total friction force (Eq. 2.26 in the plane): Σ F_i + σ₂ v [N], as (fx, fy)."""
     fx = sigma2 * vx
@@ -40,7 +41,7 @@ def gms2d_force(f, vx, vy, sigma2):
     return fx, fy
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def gms2d_rates(f, stick, vx, vy, fn, nu, k, c, mu_s, mu_c, v_s, delta, df):
     """Write dF_i/dt [N/s] of every element into ``df`` (shape (n, 2))."""
     speed = math.sqrt(vx * vx + vy * vy)
@@ -67,7 +68,7 @@ def gms2d_rates(f, stick, vx, vy, fn, nu, k, c, mu_s, mu_c, v_s, delta, df):
         df[i, 1] = ry
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def gms2d_update(f, stick, vx, vy, fn, nu, mu_s, mu_c, v_s, delta):
     """Stick/slip transitions after a step; returns the number of sticking elements."""
     speed = math.sqrt(vx * vx + vy * vy)
@@ -86,7 +87,7 @@ def gms2d_update(f, stick, vx, vy, fn, nu, mu_s, mu_c, v_s, delta):
     return n_stick
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def run_gms2d_velocity_driven(f0, stick0, vel, dt, fn, nu, k, c, mu_s, mu_c, v_s, delta, sigma2):
     """Integrate 2-D GMS under prescribed plane velocities vel[N, 2] (explicit Euler).
 

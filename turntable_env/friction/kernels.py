@@ -3,7 +3,7 @@
 Every model is a packed parameter vector ``p`` and a model id. Its state is a
 float vector ``x`` (continuous states) and an int vector ``fl`` (logic flags:
 stick/slip per GMS element, Breedveld's slip flag, Leuven's last velocity sign).
-Three functions, all ``numba.njit(cache=True)``, make the interface:
+Three functions, all ``numba.njit(cache=CACHE)``, make the interface:
 
 * ``kernel_force(mid, p, x, fl, v, fa, fn)`` → friction force [N]
 * ``kernel_rates(mid, p, x, fl, v, fa, fn, dx)`` → writes dx/dt into ``dx``
@@ -24,6 +24,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from ..kernel_cache import CACHE
 
 __all__ = [
     "BREEDVELD",
@@ -55,7 +57,7 @@ GMS = 8  # Eq. 2.24–2.26. p[5] = C [N/s], p[6] = n, p[7:7+n] = ν, p[7+n:7+2n]
 #           x = (F_1..F_n); fl[i] = 1 stick, 0 slip.
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def stribeck_magnitude(speed, fn, mu_s, mu_c, v_s, delta):
     """|s(v)| = F_c + (F_s − F_c)·exp(−|v/v_S|^δ), F_s = μ_s F_N, F_c = μ_c F_N (Eq. 2.13–2.14)."""
     f_s = mu_s * fn
@@ -65,7 +67,7 @@ def stribeck_magnitude(speed, fn, mu_s, mu_c, v_s, delta):
     return f_c + (f_s - f_c) * math.exp(-p)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def stribeck_signed(v, fn, mu_s, mu_c, v_s, delta):
     """s(v) = sgn(v)·|s(v)| of Eq. 2.13 (zero at v = 0)."""
     if v == 0.0:
@@ -74,7 +76,7 @@ def stribeck_signed(v, fn, mu_s, mu_c, v_s, delta):
     return m if v > 0.0 else -m
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _sgn(a):
     if a > 0.0:
         return 1.0
@@ -83,7 +85,7 @@ def _sgn(a):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _leuven_fh(p, x):
     n = int(p[7])
     fh = 0.0
@@ -92,7 +94,7 @@ def _leuven_fh(p, x):
     return fh
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _leuven_zdot(p, x, v, fn):
     s = stribeck_signed(v, fn, p[0], p[1], p[2], p[3])
     fb = x[1]
@@ -103,7 +105,7 @@ def _leuven_zdot(p, x, v, fn):
     return v * (1.0 - _sgn(ratio) * abs(ratio) ** p[6])
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _lugre_zdot(p, x, v, fn, with_elastoplastic):
     sigma0 = p[5]
     z = x[0]
@@ -122,7 +124,7 @@ def _lugre_zdot(p, x, v, fn, with_elastoplastic):
     return v - alpha * sigma0 * abs(v) / smag * z
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def kernel_force(mid, p, x, fl, v, fa, fn):
     """Friction force [N] of model ``mid`` in state (x, fl) at sliding velocity v."""
     mu_s, mu_c, v_s, delta, sigma2 = p[0], p[1], p[2], p[3], p[4]
@@ -157,7 +159,7 @@ def kernel_force(mid, p, x, fl, v, fa, fn):
     return math.nan
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def kernel_rates(mid, p, x, fl, v, fa, fn, dx):
     """Write dx/dt of the continuous states into ``dx``."""
     mu_s, mu_c, v_s, delta = p[0], p[1], p[2], p[3]
@@ -197,7 +199,7 @@ def kernel_rates(mid, p, x, fl, v, fa, fn, dx):
             dx[i] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def kernel_update(mid, p, x, fl, v, fa, fn):
     """Discrete logic after an integration step: stick/slip flags, saturations, reversal memory."""
     mu_s, mu_c, v_s, delta = p[0], p[1], p[2], p[3]
@@ -232,7 +234,7 @@ def kernel_update(mid, p, x, fl, v, fa, fn):
                 x[2 + j] = -w / k
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def run_velocity_driven(mid, p, x0, fl0, v, dt, fn):
     """Integrate a friction model under a prescribed sliding velocity (explicit Euler).
 
@@ -263,7 +265,7 @@ def run_velocity_driven(mid, p, x0, fl0, v, dt, fn):
     return force, xs, fls
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def run_mass(mid, p, x0, fl0, f_applied, mass, dt, fn, v0):
     """A block of ``mass`` [kg] pushed by f_applied[N] [N] on a surface with friction.
 

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ..files import check_writable, output_directory
 from .figures import (
     ReportFigure,
     amplifier_figure,
@@ -350,11 +351,12 @@ def _jsonable(x: Any) -> Any:
 
 
 def build_report(out: str | Path, *, quick: bool = False, progress: bool = True) -> dict[str, Path]:
-    """Run every section and write ``index.html`` and ``summary.json`` into ``out``."""
+    """Run every section and write ``index.html`` and ``summary.json`` into ``out`` (both
+    or neither: the output is checked writable before the sections run, and written
+    through :func:`~turntable_env.files.output_directory`)."""
     from tqdm import tqdm
 
-    d = Path(out)
-    d.mkdir(parents=True, exist_ok=True)
+    d = check_writable("out", out, directory=True)
     jobs: list[tuple[str, Callable[[], Section]]] = [
         ("friction", lambda: _friction(quick)),
         ("drive", lambda: _drive(quick)),
@@ -383,8 +385,8 @@ def build_report(out: str | Path, *, quick: bool = False, progress: bool = True)
             s.id: {"title": s.title, "wall_s": s.wall_s, **_jsonable(s.numbers)} for s in sections
         },
     }
-    pj = d / "summary.json"
-    pj.write_text(json.dumps(summary, indent=2), encoding="utf-8")
-    ph = d / "index.html"
-    ph.write_text(render_html(sections, summary), encoding="utf-8")
-    return {"html": ph, "json": pj}
+    html = render_html(sections, summary)
+    with output_directory(d) as tmp:
+        (tmp / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+        (tmp / "index.html").write_text(html, encoding="utf-8")
+    return {"html": d / "index.html", "json": d / "summary.json"}

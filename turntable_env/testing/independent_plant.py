@@ -57,6 +57,8 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
+from ..kernel_cache import CACHE
+
 __all__ = [
     "DEFAULT_STEP_S",
     "EFFECT_NAMES",
@@ -483,7 +485,7 @@ class Effects:
 # ---------------------------------------------------------------------------------------
 # mech: J, k_g, r_c, m_t, k_t, c_t, d1, d2, F_N, mu_s, mu_c, v_s, sigma0, sigma1, v_d, sigma2
 # amp:  gain, input limit, tau1, tau2, rate limit
-@njit(cache=True)
+@njit(cache=CACHE)
 def _amp_step(u, y1, y, amp, h):
     uc = min(max(u, -amp[1]), amp[1])
     r = amp[0] * uc
@@ -497,7 +499,7 @@ def _amp_step(u, y1, y, amp, h):
     return y1, y + dy
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _amp_crossing(amplitude, t_ramp, overshoot, amp, h, t_max):
     """Time after the flyback jump (input +A → −k·A, after a ramp 0 → A over t_ramp from
     rest) at which the amplifier output crosses 0; −1 if not within t_max."""
@@ -518,7 +520,7 @@ def _amp_crossing(amplitude, t_ramp, overshoot, amp, h, t_max):
     return -1.0
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _integrate(
     t,
     u,

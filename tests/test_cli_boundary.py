@@ -1,0 +1,112 @@
+"""The command line's boundary (issue 23): every subcommand given a bad value or an
+unwritable place exits 2 with one line on stderr naming the option, before any work, and
+leaves no file behind."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from turntable_env import __version__
+from turntable_env.cli import main
+
+NOT_A_DIR = "/etc/hostname/x"  # below a regular file: unwritable, root or not
+
+
+def _run(argv: list[str], capsys) -> tuple[int, str, str]:
+    try:
+        code = main(argv)
+    except SystemExit as e:  # argparse's own exits
+        code = int(e.code)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize(
+    ("argv", "names"),
+    [
+        (["simulate", "--amplitude", "nan"], "--amplitude"),
+        (["simulate", "--amplitude", "11"], "--amplitude"),
+        (["simulate", "--frequency", "1e9"], "--frequency"),
+        (["simulate", "--periods", "1e9"], "--periods"),
+        (["simulate", "--periods", "0"], "--periods"),
+        (["simulate", "--a", "0"], "--a"),
+        (["simulate", "--settle", "1e9"], "--settle"),
+        (["simulate", "--output-dt", "0"], "--output-dt"),
+        (["simulate", "--output-dt", "1e-15"], "--output-dt"),
+        (["simulate", "--frequency", "0.001", "--periods", "100000"], "--periods"),
+        (["simulate", "--out", "/nonexistent/x.csv"], "--out"),
+        (["simulate", "--out", "/tmp"], "--out"),
+        (["simulate", "--out", NOT_A_DIR], "--out"),
+        (["bench", "--duration", "nan"], "--duration"),
+        (["bench", "--batch", "-1"], "--batch"),
+        (["benchmark", "--seeds", "1"], "--seeds"),
+        (["benchmark", "--controllers", "nope", "--quick"], "controllers"),
+        (["benchmark", "--plant-sets", "lunar"], "plant_sets"),
+        (["benchmark", "--out", NOT_A_DIR], "--out"),
+        (["benchmark", "--workers", "2"], "--workers"),
+        (["benchmark", "--backend", "slurm"], "--backend"),
+        (["virtual-lab", "--noise", "nan", "--out", "v.csv"], "--noise"),
+        (["virtual-lab", "--noise", "-1", "--out", "v.csv"], "--noise"),
+        (["virtual-lab", "--effects", "piezo_creep=5", "--out", "v.csv"], "piezo_creep"),
+        (["virtual-lab", "--out", NOT_A_DIR], "--out"),
+        (["virtual-lab", "--out", "/tmp"], "--out"),
+        (["calibrate", "--thesis", "--report", NOT_A_DIR], "--report"),
+        (["calibrate", "missing.csv", "--report", "rep"], "missing.csv"),
+        (["calibrate", "--global-points", "0", "--thesis"], "--global-points"),
+        (["report", "--out", NOT_A_DIR], "--out"),
+        (["params", "--set", "lunar"], "--set"),
+    ],
+)
+def test_bad_values_exit_2_with_one_line_naming_the_option(argv, names, capsys, tmp_path,
+                                                            monkeypatch):  # fmt: skip
+    monkeypatch.chdir(tmp_path)
+    code, _out, err = _run(argv, capsys)
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert names in lines[0], lines[0]
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_version_and_help_render(capsys):
+    code, out, _ = _run(["--version"], capsys)
+    assert code == 0 and out.strip() == f"turntable {__version__}"
+    code, out, _ = _run(["benchmark", "--help"], capsys)
+    assert code == 0 and "%%" not in out and "±30 %" in out
+
+
+def test_a_closed_pipe_is_not_an_error():
+    """`turntable params --json | head -1`: the reader leaves early, no traceback."""
+    p = subprocess.run(
+        f"{sys.executable} -m turntable_env.cli params --json | head -c 10",
+        shell=True, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert "Traceback" not in p.stderr and "BrokenPipe" not in p.stderr
+
+
+def test_a_failing_report_leaves_the_directory_untouched(tmp_path, monkeypatch):
+    """A plot that fails halfway: the old report stays, no half-new one beside it."""
+    from turntable_env.calibration import calibrate as cal
+
+    out = tmp_path / "rep"
+    out.mkdir()
+    (out / "report.json").write_text("old")
+
+    def boom(*_a, **_k):
+        raise RuntimeError("plot failed")
+
+    monkeypatch.setattr(cal, "plot_overlay", boom)
+
+    class R:  # the parts of a result the writer reads before the overlay
+        def to_json(self):
+            return {"new": True}
+
+    monkeypatch.setattr(cal, "plot_residual", lambda *_a, **_k: None)
+    with pytest.raises(RuntimeError, match="plot failed"):
+        cal.write_report(R(), out)
+    assert [p.name for p in out.iterdir()] == ["report.json"]
+    assert (out / "report.json").read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["rep"]  # no temporary left

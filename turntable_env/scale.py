@@ -1,0 +1,103 @@
+"""Independent jobs at once: Ray tasks when Ray is installed, local processes otherwise.
+
+Every scale-out in the project goes through :func:`map_tasks`: training seeds and
+hyperparameter trials (:mod:`agents.scale`, :mod:`agents.tune`), benchmark cells
+(:func:`controllers.benchmark.run_benchmark` with ``backend``) and calibration sweeps
+(``experiments/independent_calibration.py``). No scheduler of our own: with Ray
+(``pip install -e ".[scale]"``) each job is a Ray task of ``num_cpus`` CPUs — ``ray.init()``
+starts a local instance on this machine by default, ``address`` joins a cluster
+(``"auto"`` on a cluster node, ``"ray://head:10001"`` from outside); without Ray, or with
+``backend="processes"``, the jobs go to a ``concurrent.futures.ProcessPoolExecutor`` of
+spawned processes (``fn`` must be importable, or defined in a script that guards its
+``main()``).
+The results come back in the jobs' order, so a parallel run equals the serial one.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, TypeVar
+
+__all__ = ["BACKENDS", "has_ray", "map_tasks", "resolve_backend"]
+
+BACKENDS = ("auto", "ray", "processes")
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def has_ray() -> bool:
+    """Whether Ray (the ``scale`` extra) is importable."""
+    return importlib.util.find_spec("ray") is not None
+
+
+def resolve_backend(backend: str, address: str | None = None) -> str:
+    """``"ray"`` or ``"processes"`` for a requested backend; ValueError (naming the
+    option) when it cannot be had — checked before any job starts."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend={backend!r}: must be one of {', '.join(BACKENDS)}")
+    ray = has_ray()
+    if backend == "ray" and not ray:
+        raise ValueError('backend="ray": Ray is not installed (pip install -e ".[scale]")')
+    if address is not None:
+        if not isinstance(address, str) or not address.strip():
+            raise ValueError(f"address={address!r}: must be a non-empty string")
+        if not ray:
+            raise ValueError(f"address={address!r}: joining a cluster needs Ray (the scale extra)")
+        if backend == "processes":
+            raise ValueError(f"address={address!r}: a cluster needs backend 'ray' or 'auto'")
+    return "ray" if ray and backend != "processes" else "processes"
+
+
+def map_tasks(
+    fn: Callable[[T], R],
+    jobs: Sequence[T],
+    *,
+    backend: str = "auto",
+    address: str | None = None,
+    workers: int | None = None,
+    num_cpus: float = 1.0,
+) -> list[R]:
+    """``[fn(j) for j in jobs]``, each call a Ray task or a process (module docstring).
+
+    Args:
+        fn: a module-level function (pickled by reference) of one picklable argument.
+        backend: ``"auto"`` (Ray if installed), ``"ray"`` or ``"processes"``.
+        address: a Ray cluster to join (None: a local instance, shut down afterwards).
+        workers: processes for the process backend (default: the CPUs this process may use).
+        num_cpus: CPUs Ray reserves for each task.
+    """
+    kind = resolve_backend(backend, address)
+    bad_workers = isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    if workers is not None and bad_workers:
+        raise ValueError(f"workers={workers!r}: must be an integer >= 1")
+    if not num_cpus > 0:
+        raise ValueError(f"num_cpus={num_cpus!r}: must be > 0")
+    jobs = list(jobs)
+    if not jobs:
+        return []
+    if kind == "ray":
+        return _with_ray(fn, jobs, address, num_cpus)
+    n = workers or len(os.sched_getaffinity(0))
+    # spawn, not fork: a fork after torch, the kernels or BLAS started threads can deadlock
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(n, len(jobs)), mp_context=spawn) as pool:
+        return list(pool.map(fn, jobs))
+
+
+def _with_ray(fn: Callable[[Any], Any], jobs: list[Any], address: str | None, cpus: float) -> list:
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address, include_dashboard=False, log_to_driver=False)
+    try:
+        task = ray.remote(num_cpus=cpus)(fn)
+        return ray.get([task.remote(j) for j in jobs])
+    finally:
+        if started:
+            ray.shutdown()
