@@ -280,6 +280,7 @@ def train(
     t0 = time.perf_counter()
     model.learn(total_timesteps=n_steps, callback=callbacks, progress_bar=progress)
     wall = time.perf_counter() - t0
+    model.logger.close()  # flush and close logs/progress.csv (and TensorBoard)
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
     effective = {

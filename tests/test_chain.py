@@ -60,6 +60,7 @@ def _vibration_amplitude(env, frequency: float) -> float:
     return float(np.hypot(c[0], c[1]))
 
 
+@pytest.mark.slow  # a full calibration of a virtual-lab trace (about 50 s)
 def test_creep_found_in_lab_data_keeps_creeping_in_the_env(tmp_path):
     """The short version (the calibrator chooses between creep and its look-alike, drift)."""
     env = _calibrated_env(tmp_path, {"piezo_creep": {"gamma": 0.03}},

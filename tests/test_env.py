@@ -136,7 +136,7 @@ def test_out_of_range_action_is_clipped():
         ({"tolerance": -1.0}, "tolerance"),
         ({"randomize": {"gravity": (0.9, 1.1)}}, "randomize"),
         ({"params": "thesis", "randomize": True}, "randomize"),
-        ({"render_mode": "human"}, "render_mode"),
+        ({"render_mode": "ascii"}, "render_mode"),
         ({"terminate_on_success": 1}, "terminate_on_success"),
         ({"move_range": (1e-3, 1e-4)}, "move_range"),
         ({"move_range": (1e-6, 0.06)}, "move_range"),
@@ -521,3 +521,38 @@ def test_render_fps_and_detector_spot():
         red = (right[..., 0] > 200) & (right[..., 1] < 60) & (right[..., 2] < 60)
         xs.append(np.nonzero(red)[1].mean())
     assert xs[0] < xs[1] < xs[2]  # the spot moves with the angle
+
+
+def test_human_render_shows_the_rgb_frame_in_one_window():
+    """render_mode="human": reset and step draw the rgb_array frame into one matplotlib
+    figure (Agg here: no window, the same image data)."""
+    import matplotlib.pyplot as plt
+
+    env = gym.make(ENV_ID, render_mode="human", noise=False).unwrapped
+    ref = gym.make(ENV_ID, render_mode="rgb_array", noise=False).unwrapped
+    for e in (env, ref):
+        e.reset(seed=0, options={"start_angle": 1e-4, "target_angle": 0.0})
+    before = len(plt.get_fignums())
+    assert env.render() is None
+    env.step(np.zeros(5, np.float32))
+    ref.step(np.zeros(5, np.float32))
+    fig, image = env._window
+    np.testing.assert_array_equal(np.asarray(image.get_array()), ref.render())
+    assert len(plt.get_fignums()) == before  # the reset's window, reused by render and step
+    env.close()
+    assert not plt.fignum_exists(fig.number)
+
+
+def test_record_video_writes_an_mp4(tmp_path):
+    """Gymnasium's RecordVideo on the env (the ``video`` extra provides moviepy)."""
+    pytest.importorskip("moviepy")
+    from gymnasium.wrappers import RecordVideo
+
+    env = RecordVideo(gym.make(ENV_ID, render_mode="rgb_array", max_episode_steps=5),
+                      str(tmp_path), episode_trigger=lambda k: k == 0)  # fmt: skip
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(env.action_space.sample())
+    env.close()
+    videos = list(tmp_path.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000

@@ -83,6 +83,20 @@ class _Page(HTMLParser):
             self.sections[self._section]["text"] += data.strip()
 
 
+def test_every_table_is_an_html_table(report):
+    """Issue 24: the speed and benchmark tables are real <table>s (sortable), no Markdown
+    pipe text in <pre>; the page states the machine and each section's time."""
+    import re
+
+    page = (report / "index.html").read_text(encoding="utf-8")
+    assert "<pre" not in page and not re.search(r"\|\s*-{3,}", page)
+    for sid in ("speed", "benchmark"):
+        m = re.search(rf"<section id='{sid}'>(.*?)</section>", page, re.S)
+        assert m is not None and "<table class='sortable'>" in m.group(1), sid
+    assert page.count("section computed in") == len(SECTIONS)
+    assert "CPUs, Python" in page
+
+
 def test_page_loads_in_headless_chromium(report):
     if CHROMIUM is None:
         if os.environ.get("CI"):

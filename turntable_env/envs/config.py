@@ -182,8 +182,9 @@ class EnvConfig:
             False keeps it running to the time limit, so a controller must also hold the
             target (the controller benchmark measures settling this way).
         energy_weight: weight of the electrical-energy cost in the reward [-].
-        start_range, target_range: start and target angles are drawn uniformly within
-            ±range·θ_lin, θ_lin the detector's linear angle range [-].
+        start_range: start angles are drawn uniformly within ±start_range·θ_lin, θ_lin the
+            detector's linear angle range [-].
+        target_range: target angles likewise, within ±target_range·θ_lin [-].
         move_range: (smallest, largest) move [rad]: when given, the start is the target
             less a move of log-uniform size in this range and random sign (moves may start
             beyond the detector range, as the controller benchmark's do); ``start_range``

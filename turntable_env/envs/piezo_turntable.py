@@ -114,7 +114,7 @@ class PiezoTurntableEnv(gym.Env):
     generator idle, tubes unbent. ``reset(options={"start_angle": ..., "target_angle":
     ...})`` sets them [rad] (start within ±``angle_limit``, target within ±θ_lin);
     ``move_range`` draws the start as the target less a log-uniform move instead.
-    ``options={"reference": r}`` commands a trajectory instead of a fixed target: r[k] [rad]
+    ``options={"reference": r}`` commands a trajectory instead of a fixed target: ``r[k]`` [rad]
     is the target at time k·Δt (the last value held after the end; observation and reward
     use the target of the moment); ``options={"knock": (t, dθ)}`` displaces the table by
     dθ [rad] at the end of the interval ending at t [s] (every contact re-sticks at the new
@@ -169,7 +169,10 @@ class PiezoTurntableEnv(gym.Env):
       options (tracking and disturbance tasks).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 100}
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["human", "rgb_array"],
+        "render_fps": 100,
+    }
 
     def __init__(
         self,
@@ -202,13 +205,14 @@ class PiezoTurntableEnv(gym.Env):
             success_bonus=success_bonus,
         )  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode={render_mode!r}: must be None or 'rgb_array'")
+            raise ValueError(f"render_mode={render_mode!r}: must be None, 'human' or 'rgb_array'")
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": 1.0 / control_interval}
         self.task = TurntableTask(self.config, 1)
         self.action_space = action_space()
         self.observation_space = observation_space(self.task)
         self._renderer: Any = None
+        self._window: Any = None  # (figure, image) of render_mode="human"
 
     @property
     def observation_names(self) -> tuple[str, ...]:
@@ -231,12 +235,16 @@ class PiezoTurntableEnv(gym.Env):
             "detector_V": float(t.detector_v[0]),
             "parameter_factors": dict(t.draws[0]),
         }
+        if self.render_mode == "human":
+            self.render()
         return t.observation()[0], info
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         a = check_action(action, (5,))  # ValueError for anything but 5 finite reals
         res = self.task.step(a[None, :], self.np_random)
         info = {k: v[0].item() for k, v in res.info.items()}
+        if self.render_mode == "human":
+            self.render()
         return (
             res.obs[0],
             float(res.reward[0]),
@@ -246,20 +254,50 @@ class PiezoTurntableEnv(gym.Env):
         )
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode != "rgb_array":
+        """``rgb_array``: the frame (H, W, 3) uint8; ``human``: the frame shown in a
+        matplotlib window, refreshed at ``render_fps`` (called by ``reset`` and ``step``)."""
+        if self.render_mode is None:
             return None
         if self._renderer is None:
             from .render import TurntableRenderer
 
             self._renderer = TurntableRenderer(self.task)
-        return self._renderer.draw(0)
+        frame = self._renderer.draw(0)
+        if self.render_mode == "rgb_array":
+            return frame
+        self._show(frame)
+        return None
+
+    def _show(self, frame: np.ndarray) -> None:
+        """The human window: one figure, its image replaced each frame."""
+        import matplotlib
+        import matplotlib.pyplot as plt
+
+        if self._window is None or not plt.fignum_exists(self._window[0].number):
+            fig, ax = plt.subplots(figsize=(frame.shape[1] / 100, frame.shape[0] / 100))
+            ax.set_axis_off()
+            fig.subplots_adjust(0, 0, 1, 1)
+            self._window = (fig, ax.imshow(frame))
+            if matplotlib.get_backend().lower() != "agg":
+                plt.show(block=False)
+        fig, image = self._window
+        image.set_data(frame)
+        fig.canvas.draw_idle()
+        if matplotlib.get_backend().lower() != "agg":  # a headless backend has no window
+            plt.pause(1.0 / self.metadata["render_fps"])
 
     def close(self) -> None:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        if self._window is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._window[0])
+            self._window = None
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_renderer"] = None  # matplotlib figures are rebuilt on demand
+        state["_window"] = None
         return state

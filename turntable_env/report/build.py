@@ -221,14 +221,14 @@ def _speed(quick: bool) -> Section:
     return s
 
 
-def _benchmark(quick: bool) -> Section:
+def _benchmark(quick: bool, progress: bool = False) -> Section:
     from controllers.benchmark import QUICK, plot_trajectories, run_benchmark
 
     # the page runs the held-out set (about 2 min on one core); turntable benchmark all five
     kw: dict[str, Any] = dict(QUICK) if quick else {"plant_sets": ("held_out",)}
     if quick:
         kw["controllers"] = ["feedforward", "fuzzy", "closed_loop", "scan_pid"]
-    res = run_benchmark(**kw)
+    res = run_benchmark(progress=progress, **kw)  # a bar over its control intervals
     s = Section(
         "benchmark",
         "Controller benchmark",
@@ -256,17 +256,24 @@ def _benchmark(quick: bool) -> Section:
     return s
 
 
-def _calibration(quick: bool) -> Section:
+def _calibration(quick: bool, progress: bool = False) -> Section:
     from ..calibration.calibrate import plot_residual
     from ..calibration.rig import hypotheses
     from ..calibration.summary import calibrate_summary
 
+    say = None
+    if progress:  # each calibration stage as a line above the report's bar
+        from tqdm import tqdm
+
+        def say(msg: str) -> None:
+            tqdm.write(f"  calibration: {msg}")
+
     if quick:  # one amplifier effect, the best hypothesis on the per-axis model only
         best = [h for h in hypotheses() if h.drive_mode == "symmetric" and h.mirror_tilt < 0.99]
         res = calibrate_summary(candidates=["amplifier_dynamics"], rig_hypotheses=best,
-                                rig_fidelity="reduced", progress=None)  # fmt: skip
+                                rig_fidelity="reduced", progress=say)  # fmt: skip
     else:
-        res = calibrate_summary(progress=None)
+        res = calibrate_summary(progress=say)
     rig = res.diagnosis.get("rig", {})
     s = Section(
         "calibration",
@@ -350,6 +357,15 @@ def _jsonable(x: Any) -> Any:
     return x
 
 
+def _machine() -> str:
+    """The machine the sections ran on, as the page states it."""
+    import os
+    import platform
+
+    cpu = platform.processor() or platform.machine()
+    return f"{cpu}, {os.cpu_count()} CPUs, Python {platform.python_version()}"
+
+
 def build_report(out: str | Path, *, quick: bool = False, progress: bool = True) -> dict[str, Path]:
     """Run every section and write ``index.html`` and ``summary.json`` into ``out`` (both
     or neither: the output is checked writable before the sections run, and written
@@ -365,8 +381,8 @@ def build_report(out: str | Path, *, quick: bool = False, progress: bool = True)
         ("stepping (thesis)", lambda: _stepping("thesis", quick)),
         ("render", lambda: _render(quick)),
         ("speed", lambda: _speed(quick)),
-        ("benchmark", lambda: _benchmark(quick)),
-        ("calibration", lambda: _calibration(quick)),
+        ("benchmark", lambda: _benchmark(quick, progress)),
+        ("calibration", lambda: _calibration(quick, progress)),
     ]
     sections: list[Section] = []
     t_all = time.perf_counter()
@@ -381,6 +397,7 @@ def build_report(out: str | Path, *, quick: bool = False, progress: bool = True)
     summary = {
         "quick": quick,
         "wall_s": wall,
+        "machine": _machine(),
         "sections": {
             s.id: {"title": s.title, "wall_s": s.wall_s, **_jsonable(s.numbers)} for s in sections
         },

@@ -66,7 +66,7 @@ def stribeck_figure(quick: bool = False) -> ReportFigure:
     err = float(np.max(np.abs(np.array(steady) / curve - 1)))
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    vv = np.linspace(-2, 2, 801)
+    vv = np.linspace(-1.05 * vs[-1], 1.05 * vs[-1], 1601)  # the curve spans the GMS points
     ax.plot(vv, gms.stribeck.curve(vv, 100.0), label="Stribeck s(v), Eq. 2.13")
     ax.plot(vs, steady, "o", label="GMS steady sliding")
     ax.set(xlabel="v [m/s]", ylabel="F [N]", title="Fig. 2.8: Stribeck curve")
@@ -87,8 +87,16 @@ def hysteresis_figure(quick: bool = False) -> ReportFigure:
     h = presliding_hysteresis(steps_per_delta=500 if quick else 2000)
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    h.reference.plot(ax, x="displacement")
     h.with_inner_loop.plot(ax, x="displacement")
+    for line in ax.lines:
+        line.set_label("GMS, with the inner loop")
+    n = len(ax.lines)
+    h.reference.plot(ax, x="displacement")
+    for line in ax.lines[n:]:  # the loop without the excursion, drawn beneath, dashed
+        line.set(label="GMS, outer loop only (reference)", linestyle="--", color="0.5", zorder=0)
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles, strict=True))  # one entry per curve
+    ax.legend(unique.values(), unique.keys(), fontsize=8)
     ax.set_title("Fig. 2.9: presliding hysteresis, inner loop")
     fig.tight_layout()
     return ReportFigure(
@@ -172,8 +180,18 @@ def amplifier_figure() -> ReportFigure:
     m = (t >= 0.0095) & (t < 0.0105)
     nums["slew_adapted_90V_V_per_s"] = measure_slew_rate(t[m], ra.output[m], 90, 0)
     ax.plot((t[m] - 0.0095) * 1e6, ra.output[m], label="adapted flyback 90 V → 0 (Fig. 4.3)")
+    for step, rate in ((1.0, 0.9), (3.0, 2.7)):  # the thesis's measured slew rates [V/µs]
+        ax.plot([0, 45 * step / rate], [0, 45 * step], "k:", lw=1)
+        ax.annotate(f"measured {rate:g} V/µs", (45 * step / rate, 45 * step), fontsize=7,
+                    xytext=(3, -10), textcoords="offset points")  # fmt: skip
+    model = ", ".join(
+        f"{k.removeprefix('slew_').removesuffix('_V_per_s')} {v / 1e6:.2g}"
+        for k, v in nums.items() if k.startswith("slew_") and "peak" not in k
+    )  # fmt: skip
+    ax.text(0.99, 0.02, f"model [V/µs]: {model}\nmeasured: 0.9, 2.7, 12, 8.0",
+            transform=ax.transAxes, ha="right", va="bottom", fontsize=7)  # fmt: skip
     ax.set(xlabel="time [µs]", ylabel="output [V]", xlim=(0, 100), title="Figs. 4.2/4.3: HVA 900")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="center right")
     fig.tight_layout()
     return ReportFigure(
         "fig4_2_amplifier",

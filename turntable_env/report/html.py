@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -37,6 +38,19 @@ window.addEventListener('load', () => {
   }
   document.body.dataset.ready = '1';
 });
+// sortable tables: a click on a header sorts by that column (numbers as numbers)
+document.querySelectorAll('table.sortable th').forEach((th, col) => {
+  th.style.cursor = 'pointer';
+  th.addEventListener('click', () => {
+    const body = th.closest('table').tBodies[0];
+    const key = (tr) => { const t = tr.cells[th.cellIndex].textContent.trim();
+                          const x = parseFloat(t); return isNaN(x) ? t : x; };
+    const dir = th.dataset.dir === 'asc' ? -1 : 1;
+    th.dataset.dir = dir === 1 ? 'asc' : 'desc';
+    [...body.rows].sort((a, b) => { const p = key(a), q = key(b);
+      return (p > q ? 1 : p < q ? -1 : 0) * dir; }).forEach((r) => body.appendChild(r));
+  });
+});
 """
 
 
@@ -48,15 +62,49 @@ def _fmt(v: Any) -> str:
     return html.escape(str(v))
 
 
+def _html_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A sortable HTML table (click a header; the page's script sorts numbers as numbers)."""
+    head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows
+    )
+    return f"<table class='sortable'><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+_RULE = re.compile(r"^\|?\s*:?-{3,}:?\s*(\|\s*:?-{3,}:?\s*)*\|?\s*$")
+
+
+def markdown_to_html(text: str) -> str:
+    """A command's Markdown output as HTML: pipe tables become ``<table>``s, headings and
+    other lines paragraphs (``turntable bench``'s table, the benchmark's leaderboard)."""
+    out: list[str] = []
+    block: list[list[str]] = []
+
+    def flush() -> None:
+        if block:
+            out.append(_html_table(block[0], block[1:]))
+            block.clear()
+
+    for line in text.splitlines():
+        st = line.strip()
+        if st.startswith("|"):
+            if not _RULE.match(st):
+                block.append([c.strip() for c in st.strip("|").split("|")])
+            continue
+        flush()
+        if st.startswith("#"):
+            out.append(f"<h3>{html.escape(st.lstrip('#').strip())}</h3>")
+        elif st:
+            out.append(f"<p>{html.escape(st)}</p>")
+    flush()
+    return "".join(out)
+
+
 def _table(t: dict[str, Any]) -> str:
     cap = f"<p><b>{html.escape(t.get('caption', ''))}</b></p>"
-    if "text" in t:  # preformatted (Markdown) table from a command
-        return cap + f"<pre>{html.escape(t['text'])}</pre>"
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in t["header"])
-    rows = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in t["rows"]
-    )
-    return cap + f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>"
+    if "text" in t:  # a command's Markdown output: its tables as HTML tables
+        return cap + markdown_to_html(t["text"])
+    return cap + _html_table(t["header"], t["rows"])
 
 
 def _image(im: dict[str, Any]) -> str:
@@ -99,7 +147,9 @@ def render_html(sections: Sequence[Section], summary: dict[str, Any]) -> str:
         f"<h1>piezo-turntable: what the environment knows{html.escape(quick)}</h1>"
         "<p>The piezoelectric stick–slip turntable of M. Schepers' M.Sc. thesis, simulated "
         "with the real parameters (Table D.1). Every number on this page is in "
-        f"summary.json. Total time {summary['wall_s']:.0f} s.</p>"
+        f"summary.json. Total time {summary['wall_s']:.0f} s on "
+        f"{html.escape(str(summary.get('machine', 'this machine')))}; each section states "
+        "its own time.</p>"
         f"<nav><ul>{toc}</ul></nav>{''.join(body)}"
         f"<script>{_SCRIPT}</script></body></html>"
     )
