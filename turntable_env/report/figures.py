@@ -223,10 +223,17 @@ def stepping_figure(params: str, signal: str, *, periods: int = 5) -> ReportFigu
     r = simulate(ps, drive, axis="B", output_dt=output_dt)
     plt = _plt()
     fig, axs = plt.subplots(2, 1, sharex=True, figsize=(6, 4))
-    axs[0].plot(r.time, r.detector_voltage(), lw=0.8)
+    det_v = r.detector_voltage()
+    axs[0].plot(r.time, det_v, lw=0.8)
     axs[0].set_ylabel("detector [V]")
-    axs[1].plot(r.time, r.angle("B") * 1e6, lw=0.8)
-    axs[1].set(xlabel="time [s]", ylabel="θ_B [µrad]")
+    vs = ps.detector.saturation_voltage
+    if np.max(np.abs(det_v)) >= 0.999 * vs:  # say so rather than leave a flat line unexplained
+        axs[0].text(0.01, 0.05, f"detector saturated at ±{vs:.2g} V: the rotation leaves its "
+                    "linear range", transform=axs[0].transAxes, fontsize=7)  # fmt: skip
+    theta = r.angle("B")
+    big = np.max(np.abs(theta)) > 1e-3  # rad: plot in mrad, as the thesis does for its set
+    axs[1].plot(r.time, theta * (1e3 if big else 1e6), lw=0.8)
+    axs[1].set(xlabel="time [s]", ylabel="θ_B [mrad]" if big else "θ_B [µrad]")
     word = "one" if signal == "one" else "two"
     axs[0].set_title(f"Fig. {fig_no}: {word}-directional about B, {params} parameters")
     fig.tight_layout()
@@ -249,6 +256,9 @@ def stepping_figure(params: str, signal: str, *, periods: int = 5) -> ReportFigu
                     ax.axvline(reading[key], color="0.6", lw=0.6, ls=":")
         nums["measured_step_m"] = measured[signal]
         nums["model_over_measured"] = reading["step"] / measured[signal]
+        axs[1].text(0.01, 0.9, f"step: model {reading['step'] * 1e6:.3f} µm, measured "
+                    f"{measured[signal] * 1e6:.3f} µm (§4.1.3)", transform=axs[1].transAxes,
+                    fontsize=7, va="top")  # fmt: skip
         thesis = f"Measured (§4.1.3, Fig. {fig_no}): " + (
             "1.19 V in 9 steps, 3.4 µm, 0.37 µm per step."
             if signal == "one"

@@ -107,13 +107,42 @@ def _table(t: dict[str, Any]) -> str:
     return cap + _html_table(t["header"], t["rows"])
 
 
+# display units for the numbers under a figure (summary.json keeps SI): name suffix →
+# (factor, unit as the thesis writes it)
+DISPLAY_UNITS = {
+    "_V_per_s": (1e-6, "V/µs"),
+    "_um": (1.0, "µm"),
+    "_m": (1e6, "µm"),
+    "_urad": (1.0, "µrad"),
+    "_rad": (1e3, "mrad"),
+    "_mrad": (1.0, "mrad"),
+    "_s": (1.0, "s"),
+    "_N": (1.0, "N"),
+    "_V": (1.0, "V"),
+    "_J": (1.0, "J"),
+}
+
+
+def display_number(name: str, value: Any) -> tuple[str, str]:
+    """(label, text) of a figure's number in the thesis's units: ``slew_1V_step_V_per_s``
+    = 9e5 → ("slew 1V step [V/µs]", "0.9")."""
+    for suffix, (factor, unit) in DISPLAY_UNITS.items():
+        if name.endswith(suffix) and isinstance(value, int | float) and not isinstance(value, bool):
+            label = name[: -len(suffix)].replace("_", " ")
+            return f"{label} [{unit}]", f"{value * factor:.4g}"
+    return name.replace("_", " "), _fmt(value)
+
+
 def _image(im: dict[str, Any]) -> str:
     src = f"data:{im['mime']};base64,{base64.b64encode(im['data']).decode('ascii')}"
     thesis = f"<p class='thesis'>Thesis: {html.escape(im['thesis'])}</p>" if im["thesis"] else ""
     nums = im.get("numbers") or {}
     num_html = (
         "<p class='numbers'>"
-        + "; ".join(f"{html.escape(k)} = {_fmt(v)}" for k, v in nums.items())
+        + "; ".join(
+            f"{html.escape(label)} = {text}"
+            for label, text in (display_number(k, v) for k, v in nums.items())
+        )
         + "</p>"
         if nums
         else ""
