@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from turntable_env.scale import map_tasks, resolve_backend
+from turntable_env.scale import map_tasks, resolve_backend, session
 
 from .interface import RAW_ENV_ID
 from .train import ENV_ID, ENV_IDS, apply_overrides, load_hyperparams, zoo_policy_kwargs
@@ -159,27 +159,28 @@ def search(
     sampler = optuna.samplers.TPESampler(seed=seed, constant_liar=True, n_startup_trials=4)
     study = _load_study(name, journal, sampler)
     n_actions = 5 if env_id == RAW_ENV_ID else 3
-    done = 0
-    while done < trials:
-        asked = [study.ask() for _ in range(min(parallel, trials - done))]
-        jobs = []
-        for tr in asked:
-            over = sample_overrides(tr, algo, n_actions, int(base["n_envs"]))
-            tr.set_user_attr("overrides", over)
-            jobs.append({
-                "algo": algo, "env_id": env_id, "timesteps": timesteps, "seed": seed,
-                "out": str(root / f"trial_{tr.number}"), "training": str(training),
-                "overrides": over, "hyperparams": hyperparams,
-            })  # fmt: skip
-        results = map_tasks(_trial, jobs, backend=backend, address=address)
-        for tr, res in zip(asked, results, strict=True):
-            tr.set_user_attr("wall_s", round(res["wall_s"], 1))
-            if res["error"] is None:
-                study.tell(tr, res["value"])
-            else:
-                tr.set_user_attr("error", res["error"])
-                study.tell(tr, state=optuna.trial.TrialState.FAIL)
-        done += len(asked)
+    with session(backend, address):  # one Ray instance for every round
+        done = 0
+        while done < trials:
+            asked = [study.ask() for _ in range(min(parallel, trials - done))]
+            jobs = []
+            for tr in asked:
+                over = sample_overrides(tr, algo, n_actions, int(base["n_envs"]))
+                tr.set_user_attr("overrides", over)
+                jobs.append({
+                    "algo": algo, "env_id": env_id, "timesteps": timesteps, "seed": seed,
+                    "out": str(root / f"trial_{tr.number}"), "training": str(training),
+                    "overrides": over, "hyperparams": hyperparams,
+                })  # fmt: skip
+            results = map_tasks(_trial, jobs, backend=backend, address=address)
+            for tr, res in zip(asked, results, strict=True):
+                tr.set_user_attr("wall_s", round(res["wall_s"], 1))
+                if res["error"] is None:
+                    study.tell(tr, res["value"])
+                else:
+                    tr.set_user_attr("error", res["error"])
+                    study.tell(tr, state=optuna.trial.TrialState.FAIL)
+            done += len(asked)
     complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
     if not complete:
         errors = {t.number: t.user_attrs.get("error") for t in study.trials}

@@ -15,14 +15,15 @@ The results come back in the jobs' order, so a parallel run equals the serial on
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import multiprocessing
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 
-__all__ = ["BACKENDS", "has_ray", "map_tasks", "resolve_backend"]
+__all__ = ["BACKENDS", "has_ray", "map_tasks", "resolve_backend", "session"]
 
 BACKENDS = ("auto", "ray", "processes")
 
@@ -89,15 +90,31 @@ def map_tasks(
         return list(pool.map(fn, jobs))
 
 
+@contextlib.contextmanager
+def session(backend: str = "auto", address: str | None = None) -> Iterator[str]:
+    """Hold one Ray instance (local, or the cluster ``address`` names) across several
+    :func:`map_tasks` calls — a search's rounds — instead of one per call; shut down on
+    exit if this call started it. Yields the resolved backend; no-op for processes."""
+    kind = resolve_backend(backend, address)
+    started = False
+    if kind == "ray":
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+            started = True
+    try:
+        yield kind
+    finally:
+        if started:
+            import ray
+
+            ray.shutdown()
+
+
 def _with_ray(fn: Callable[[Any], Any], jobs: list[Any], address: str | None, cpus: float) -> list:
     import ray
 
-    started = not ray.is_initialized()
-    if started:
-        ray.init(address=address, include_dashboard=False, log_to_driver=False)
-    try:
+    with session("ray", address):
         task = ray.remote(num_cpus=cpus)(fn)
         return ray.get([task.remote(j) for j in jobs])
-    finally:
-        if started:
-            ray.shutdown()
