@@ -29,6 +29,7 @@ import numpy as np
 from agents import PRETRAINED_DIR
 from agents.interface import RAW_ENV_ID
 from agents.train import ALGOS, ENV_ID, ENV_IDS, ship, train
+from turntable_env.scale import BACKENDS
 
 
 def _multi(args: argparse.Namespace, name: str) -> None:
@@ -67,7 +68,7 @@ def main() -> None:
     ap.add_argument("--seeds", default=None, help="comma-separated: one run per seed")
     ap.add_argument(
         "--backend",
-        choices=("auto", "ray", "processes"),
+        choices=BACKENDS,
         default="auto",
         help="--seeds runs as Ray tasks (auto: when installed) or processes",
     )

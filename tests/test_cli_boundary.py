@@ -79,12 +79,21 @@ def test_version_and_help_render(capsys):
 
 
 def test_a_closed_pipe_is_not_an_error():
-    """`turntable params --json | head -1`: the reader leaves early, no traceback."""
-    p = subprocess.run(
-        f"{sys.executable} -m turntable_env.cli params --json | head -c 10",
-        shell=True, capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert "Traceback" not in p.stderr and "BrokenPipe" not in p.stderr
+    """`turntable params --json | head -1`: the reader has gone before the output is
+    written (its end of the pipe closed at once); exit 0, nothing on stderr. A plain
+    print to the closed pipe raises BrokenPipeError with a traceback (checked alongside)."""
+    def run(argv: list[str]) -> tuple[int, str]:
+        p = subprocess.Popen([sys.executable, *argv], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE)  # fmt: skip
+        p.stdout.close()
+        err = p.stderr.read().decode()
+        return p.wait(timeout=120), err
+
+    code, err = run(["-m", "turntable_env.cli", "params", "--json"])
+    assert code == 0 and err == "", err
+    plain = "import json\nprint(json.dumps(list(range(100))))"
+    code, err = run(["-c", plain])
+    assert code != 0 and "BrokenPipeError" in err  # the harness does reach a closed pipe
 
 
 def test_a_failing_report_leaves_the_directory_untouched(tmp_path, monkeypatch):

@@ -21,6 +21,7 @@ from typing import NoReturn
 from . import __version__
 from .files import check_writable, write_atomic
 from .params import PARAMETER_SETS, get_parameter_set
+from .scale import BACKENDS
 
 __all__ = ["main"]
 
@@ -421,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pk.add_argument(
         "--backend",
-        choices=("auto", "ray", "processes"),
+        choices=BACKENDS,
         default=None,
         help="run the cells in parallel: Ray tasks (auto: when installed) or processes",
     )
