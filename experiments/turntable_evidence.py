@@ -22,16 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from turntable_env.model import AXES, SimulationError, TurntableModel
-from turntable_env.simulation import simulate, stepping_drive
-
-
-def _cycle_minima(r, drive) -> tuple[list[float], float]:
-    a, t = r.angle(), r.time
-    period = 2 * drive.n_periods / drive.frequency
-    mins = [
-        float(a[(t >= c * period) & (t < (c + 1) * period)].min()) for c in range(drive.n_cycles)
-    ]
-    return mins, float(a.max() - a.min())
+from turntable_env.simulation import cycle_minima, simulate, stepping_drive
 
 
 def free_travel() -> None:
@@ -62,7 +53,7 @@ def thesis_set(out: Path | None) -> None:
         print(f"   {f:.0f} Hz one-directional steps about B [mrad]: {np.round(steps, 3).tolist()}")
     drive, ps = stepping_drive("thesis", periods=5, signal="two", cycles=3)
     r = simulate(ps, drive, axis="B", settle=0.5, output_dt=1e-3)
-    mins, exc = _cycle_minima(r, drive)
+    mins, exc = cycle_minima(r, drive)
     spread = (max(mins) - min(mins)) / exc
     back = (r.angle()[-1] - r.angle()[0]) / exc
     minima = np.round(np.array(mins) * 1e3, 3).tolist()

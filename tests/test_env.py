@@ -523,6 +523,60 @@ def test_render_fps_and_detector_spot():
     assert xs[0] < xs[1] < xs[2]  # the spot moves with the angle
 
 
+@pytest.mark.parametrize(("fidelity", "axis_modelled"), [("reduced", False), ("full", True)])
+def test_render_draws_all_three_tubes(fidelity, axis_modelled):
+    """Seen along the rotation axis (§3.1): two driving tubes, 90° apart, and the axis tube
+    end on at the centre. While the contacts stick, a rising voltage bends both driving
+    tubes and turns the table the same way, so the contact dots and the table's pointer
+    move in one sense about the centre, and their mean deflection is R_table·θ (both
+    fidelities report the contact point's displacement). The axis tube's spinning contact
+    is grey where the fidelity does not model it, stick-coloured (green at rest) where it
+    does."""
+    from scipy import ndimage
+
+    from turntable_env.envs.render import TurntableRenderer
+
+    env = _quiet_env(fidelity=fidelity)
+    env.reset(seed=0, options=HOME)
+    r = TurntableRenderer(env.task)
+    h = r.fig.canvas.get_width_height()[1]
+
+    cx, cy = r.ax.transData.transform((0.0, 0.0))  # the table's centre [px from bottom]
+
+    def blobs(mask):  # (row, col) centres of the blobs of mask over 50 px (no edge pixels)
+        lab, n = ndimage.label(mask)
+        size = ndimage.sum(mask, lab, range(1, n + 1))
+        cen = ndimage.center_of_mass(mask, lab, range(1, n + 1))
+        return [c for c, s in zip(cen, size, strict=True) if s > 50]
+
+    def frame():  # the frame, its driving tubes, the angles [rad] of its contacts
+        img = r.draw(0).astype(int)
+        left = np.zeros(img.shape[:2], bool)
+        left[:, : img.shape[1] // 2] = True
+        yellow = (abs(img[..., 0] - 201) < 25) & (abs(img[..., 1] - 162) < 25) & (img[..., 2] < 90)
+        green = (img[..., 1] > 150) & (img[..., 0] < 80) & (img[..., 2] < 80) & left
+        polar = [(np.arctan2((h - row) - cy, col - cx), np.hypot((h - row) - cy, col - cx))
+                 for row, col in blobs(green)]  # fmt: skip
+        return img, blobs(yellow & left), sorted(a for a, rad in polar if rad > 20)
+
+    img0, tubes, dots0 = frame()
+    assert len(tubes) == 2  # the two driving tubes
+    centre = img0[round(h - cy), round(cx)]
+    grey = np.ptp(centre) < 10 and 120 < centre[0] < 180
+    assert grey != axis_modelled  # the axis tube's contact, end on at the centre
+    assert len(dots0) == 2 and np.degrees(dots0[1] - dots0[0]) == pytest.approx(90.0, abs=3.0)
+    for offset in (0.5, 1.0, 1.5, 2.0, 2.5, 3.0):  # a staircase of input offsets [V]
+        env.step(SCALE.encode(0.0, 100.0, 0.9, 0.0, offset))  # small steps: contacts stick
+    snap = env.task.stepper.snapshot(0)
+    assert np.all(snap["stick_fraction"] == 1.0) and env.task.angle[0] > 0.0
+    # sticking contacts move with the table: their mean deflection is R_table·θ
+    lever = env.task.plant.params.table.radius
+    assert np.mean(snap["tube_deflection"]) == pytest.approx(lever * env.task.angle[0], rel=0.02)
+    _, _, dots1 = frame()
+    assert all(a1 > a0 for a0, a1 in zip(dots0, dots1, strict=True)), (dots0, dots1)  # ccw, as θ
+    r.close()
+
+
 def test_human_render_shows_the_rgb_frame_in_one_window():
     """render_mode="human": reset and step draw the rgb_array frame into one matplotlib
     figure (Agg here: no window, the same image data)."""

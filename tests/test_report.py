@@ -50,6 +50,17 @@ def test_summary_carries_every_section_with_the_thesis_figures(report):
         assert fig["measured_step_m"] == pytest.approx(measured)
         assert fig["model_over_measured"] == pytest.approx(fig["step_m"] / measured)
         assert fig["step_m"] > 0.0
+        assert fig["detector_saturated"] is False and fig["step_read_from"] == "detector"
+    # Figs. 4.8/4.10 on the thesis's scaled set turn by mrad, beyond the detector's linear
+    # range: the figure reads its steps from the angle (x = θ·R_table, Eq. 4.2) instead of
+    # a saturated detector, so the one-directional step is the mean step of the periods
+    for key in ("fig4_8_thesis_one", "fig4_10_thesis_two"):
+        fig = sec["stepping_thesis"][key]
+        assert fig["detector_saturated"] is True and fig["step_read_from"] == "angle"
+    one = sec["stepping_thesis"]["fig4_8_thesis_one"]
+    two = sec["stepping_thesis"]["fig4_10_thesis_two"]
+    assert one["step_m"] == pytest.approx(one["mean_abs_step_m"], rel=1e-9)
+    assert abs(two["return_m"]) < 0.05 * two["excursion_m"]  # "it almost returns" (§4.3)
     assert sec["calibration"]["selected_effects"] == ["amplifier_dynamics"]
     assert sec["calibration"]["error_after"] < sec["calibration"]["error_before"]
 

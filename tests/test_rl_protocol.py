@@ -51,6 +51,7 @@ def _zoo(args, tmp_path):
     return res
 
 
+@pytest.mark.slow
 def test_rl_zoo3_trains_sac_on_the_raw_env_with_the_shipped_file(tmp_path):
     """The issue's command, with a few hundred steps."""
     pytest.importorskip("rl_zoo3")

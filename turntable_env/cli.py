@@ -146,17 +146,21 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(f"turntable: error: {exc}", file=sys.stderr)
         return 3
     two = drive.pattern == "two"
-    fig = r.figure_step(drive.n_periods, two)
+    fig = r.figure_step(drive.n_periods, two)  # from the angle where the detector saturates
+    how = (
+        "read from the detector with Eq. 4.1-4.2"
+        if fig["source"] == "detector"
+        else "read from the angle, x = theta*R_table (Eq. 4.2): the detector saturates"
+    )
     out = {
         "step_um": fig["step"] * 1e6,
         "figure": (
             f"Fig. 4.6: t1 -> t2 = the last forward block ({drive.n_periods} steps after a "
-            "reversal when cycles > 1), read from the detector with Eq. 4.1-4.2; return "
-            "t3 - t1 over its cycle"
+            f"reversal when cycles > 1), {how}; return t3 - t1 over its cycle"
             if two
-            else f"Fig. 4.7: t1 -> t2 over {drive.n_periods} periods from rest, read from the "
-            "detector with Eq. 4.1-4.2"
+            else f"Fig. 4.7: t1 -> t2 over {drive.n_periods} periods from rest, {how}"
         ),
+        "read_from": fig["source"],
         "excursion_um": fig["excursion"] * 1e6,
         **({"return_um": fig["return"] * 1e6,
             "return_fraction": fig["return"] / fig["excursion"]} if two else {}),

@@ -611,6 +611,8 @@ class _ReducedBackend:
             "stick_fraction": st.sum(axis=1) / st.shape[1],
             "voltage": float(self.batch.volt[b]),
             "tubes": self.batch.models[b].axis_params.tubes,
+            "axis": self.axis,
+            "axis_stick_fraction": None,  # the axis tube's contact only spins: not modelled
         }
 
 
@@ -679,14 +681,19 @@ class _FullBackend:
         return np.array([self.angle(b) for b in range(len(self.states))])
 
     def snapshot(self, b: int) -> dict[str, Any]:
-        d_nom = self.models[b].layout.d
+        model = self.models[b]
+        ar = model.packed
+        r_ball = model.params.tube.outer_radius  # m
         st = self.states[b]
         defl, frac, tubes = [], [], []
         for k in range(3):
             if k == self.c:
                 continue
-            e = np.cross(self.unit, d_nom[k])
-            defl.append(float(st.xi[k, 3:6] @ (e / np.linalg.norm(e))))
+            d = ar["d_nom"][k]
+            e = np.cross(self.unit, d)
+            e /= np.linalg.norm(e)
+            r_c = ar["r0"][k] - r_ball * d  # tube top → contact point [m]
+            defl.append(float(st.xi[k, :3] @ np.cross(r_c, e) + st.xi[k, 3:6] @ e))  # u_c = aᵀξ
             frac.append(float(st.gst[k].mean()))
             tubes.append("ABC"[k])
         return {
@@ -694,6 +701,8 @@ class _FullBackend:
             "stick_fraction": np.array(frac),
             "voltage": float(st.vch[self.c]),
             "tubes": tuple(tubes),
+            "axis": self.axis,
+            "axis_stick_fraction": float(st.gst[self.c].mean()),
         }
 
 
@@ -972,8 +981,10 @@ class PlantStepper:
         return x, y
 
     def snapshot(self, b: int) -> dict[str, Any]:
-        """Render data of turntable b: tube contact deflections [m], sticking fraction per
-        contact, channel voltage [V], the driving tubes' names."""
+        """Render data of turntable b: the driving tubes' contact deflections along their
+        bending directions e_k = n × d_k [m] and sticking fractions, channel voltage [V],
+        the driving tubes' names, the rotation axis (the third tube's name) and that tube's
+        sticking fraction (None where the fidelity does not model its spinning contact)."""
         return self._physics.snapshot(b)
 
 

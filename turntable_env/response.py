@@ -94,32 +94,53 @@ class SteppingMetrics:
         v = float(np.interp(t, self.time, self.detector_voltage()))
         return float(self.detector.table_displacement(v))
 
-    def figure_step(self, n_per_block: int, two_directional: bool) -> dict[str, float]:
-        """The step per period as §4.1.3 reads it from the detector [m].
+    def angle_reading(self, t: float) -> float:
+        """x_table at time t [m] from the angle itself, x = θ·R_table (Eq. 4.2): what the
+        detector would read without saturation, tilt or gain."""
+        return float(np.interp(t, self.time, self.angle())) * self.table_radius
+
+    @property
+    def detector_saturates(self) -> bool:
+        """True if the noise-free detector output reaches its saturation voltage anywhere
+        (the rotation leaves the linear range, Fig. 4.4)."""
+        return bool(np.any(self.detector.is_saturated(self.detector_voltage())))
+
+    def figure_step(
+        self, n_per_block: int, two_directional: bool, *, source: str = "auto"
+    ) -> dict[str, Any]:
+        """The step per period as §4.1.3 reads it from the detector [m] (``source=
+        "detector"``), or from the angle (``"angle"``, :meth:`angle_reading`); ``"auto"``
+        reads the detector unless it saturates (:attr:`detector_saturates`). The result
+        names its ``source``.
 
         One-directional (Fig. 4.7): x(t₂) − x(t₁) over the ``n_per_block`` periods from
         t₁, the first period's start. Two-directional (Fig. 4.6): t₁ → t₂ is the *last*
         forward block (``n_per_block`` steps after a reversal; a single cycle has none, so
         its block starts from rest) and t₁ → t₃ the whole last cycle: ``return`` is
         x(t₃) − x(t₁), ``excursion`` x(t₂) − x(t₁). Needs the drive's period starts."""
+        if source not in ("auto", "detector", "angle"):
+            raise ValueError(f"source={source!r}: 'auto', 'detector' or 'angle'")
+        if source == "auto":
+            source = "angle" if self.detector_saturates else "detector"
+        read = self.reading if source == "detector" else self.angle_reading
         ps = self.period_starts
         n = int(n_per_block)
         if ps.size < n + 1:
             raise ValueError(f"n_per_block={n_per_block!r}: the response has {ps.size - 1} periods")
         if not two_directional:
             t1, t2 = ps[0], ps[n]
-            exc = self.reading(t2) - self.reading(t1)
-            return {"step": exc / n, "excursion": exc, "t1": t1, "t2": t2}
+            exc = read(t2) - read(t1)
+            return {"step": exc / n, "excursion": exc, "t1": t1, "t2": t2, "source": source}
         if ps.size < 2 * n + 1:
             raise ValueError(
                 f"n_per_block={n_per_block!r}: a two-directional cycle needs {2 * n} periods"
             )
         t1 = ps[ps.size - 1 - 2 * n]
         t2, t3 = t1 + (ps[n] - ps[0]), ps[-1]
-        x1, x2, x3 = self.reading(t1), self.reading(t2), self.reading(t3)
+        x1, x2, x3 = read(t1), read(t2), read(t3)
         return {
             "step": abs(x2 - x1) / n, "excursion": x2 - x1, "return": x3 - x1,
-            "t1": t1, "t2": t2, "t3": t3,
+            "t1": t1, "t2": t2, "t3": t3, "source": source,
         }  # fmt: skip
 
 

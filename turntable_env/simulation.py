@@ -21,7 +21,13 @@ from .params import ParameterSet, get_parameter_set
 from .response import ENERGY_TERMS, TurntableResponse
 from .validation import check_nonnegative, check_positive
 
-__all__ = ["AMPLIFIER_MODES", "TWO_DIRECTIONAL_CYCLES", "simulate", "stepping_drive"]
+__all__ = [
+    "AMPLIFIER_MODES",
+    "TWO_DIRECTIONAL_CYCLES",
+    "cycle_minima",
+    "simulate",
+    "stepping_drive",
+]
 
 AMPLIFIER_MODES = ("adapted", "unadapted", "ideal")
 TWO_DIRECTIONAL_CYCLES = 3  # Fig. 4.6's forward-and-back cycles (its block is the last's)
@@ -158,3 +164,17 @@ def simulate(
             "wall_s": wall,
         },
     )
+
+
+def cycle_minima(response: TurntableResponse, drive: DriveSignal) -> tuple[list[float], float]:
+    """The smallest angle [rad] in each forward-and-back cycle of a two-directional drive
+    (Fig. 4.10: "the differences between the minimum values of cycles", §4.3), and the
+    whole excursion max θ − min θ [rad]."""
+    if drive.pattern != "two":
+        raise ValueError(f"drive.pattern={drive.pattern!r}: cycle minima need a two-way drive")
+    a, t = response.angle(), response.time
+    period = 2 * drive.n_periods / drive.frequency  # s per cycle
+    mins = [
+        float(a[(t >= c * period) & (t < (c + 1) * period)].min()) for c in range(drive.n_cycles)
+    ]
+    return mins, float(a.max() - a.min())

@@ -110,7 +110,9 @@ def _stepping(params: str, quick: bool) -> Section:
         "table's rotation), unlisted values of data/real_unlisted.toml",
         "calibrated": "the real turntable with the rig the thesis's figures ask for "
         "(turntable calibrate --thesis, data/calibrated.toml)",
-        "thesis": "Table D.2 (the scaled set the thesis could run), ideal source, 2 Hz.",
+        "thesis": "Table D.2 (the scaled set the thesis could run), ideal source, 2 Hz. It "
+        "turns by mrad, beyond the detector's linear range, so the figures draw the drive "
+        "instead of a saturated detector and read the steps from the angle (x = θ·R_table).",
     }[params]
     s = Section(
         f"stepping_{params}",
@@ -159,8 +161,9 @@ def _render(quick: bool) -> Section:
     s = Section(
         "render",
         "The turntable rendered (Fig. 4.9) and animated",
-        "PiezoTurntable-v0's rgb_array renderer: the three tubes and their contacts (green: "
-        "stick, red: slip) and the detector spot, during a fuzzy-controller move of 8 µm "
+        "PiezoTurntable-v0's rgb_array renderer, seen along the rotation axis: the axis tube "
+        "end on at the centre, the two driving tubes bent (exaggerated) and their contacts "
+        "(green: stick, red: slip), and the detector spot, during a fuzzy-controller move of 8 µm "
         "about B (the frame is taken during the move). The thesis showed two frames of its "
         "20-sim 3-D animation.",
     )

@@ -224,26 +224,34 @@ def stepping_figure(params: str, signal: str, *, periods: int = 5) -> ReportFigu
     plt = _plt()
     fig, axs = plt.subplots(2, 1, sharex=True, figsize=(6, 4))
     det_v = r.detector_voltage()
-    axs[0].plot(r.time, det_v, lw=0.8)
-    axs[0].set_ylabel("detector [V]")
-    vs = ps.detector.saturation_voltage
-    if np.max(np.abs(det_v)) >= 0.999 * vs:  # say so rather than leave a flat line unexplained
-        axs[0].text(0.01, 0.05, f"detector saturated at ±{vs:.2g} V: the rotation leaves its "
-                    "linear range", transform=axs[0].transAxes, fontsize=7)  # fmt: skip
+    saturated = r.detector_saturates
+    if saturated:  # a flat line shows nothing: draw the drive (Fig. 4.5) and say why
+        axs[0].plot(r.time, r.channel_voltage[:, "ABC".index("B")], lw=0.8)
+        axs[0].set_ylabel("channel B [V]")
+        theta_max = float(np.max(np.abs(r.angle("B"))))  # rad
+        fig.text(0.01, 0.01, f"Detector not drawn: θ reaches {theta_max * 1e3:.1f}"
+                 f" mrad, beyond its linear range of ±{ps.detector.angle_range * 1e3:.2f} mrad "
+                 f"(±{ps.detector.saturation_voltage:.2f} V); steps read as x = θ·R_table.",
+                 fontsize=6.5)  # fmt: skip
+    else:
+        axs[0].plot(r.time, det_v, lw=0.8)
+        axs[0].set_ylabel("detector [V]")
     theta = r.angle("B")
     big = np.max(np.abs(theta)) > 1e-3  # rad: plot in mrad, as the thesis does for its set
     axs[1].plot(r.time, theta * (1e3 if big else 1e6), lw=0.8)
     axs[1].set(xlabel="time [s]", ylabel="θ_B [mrad]" if big else "θ_B [µrad]")
     word = "one" if signal == "one" else "two"
     axs[0].set_title(f"Fig. {fig_no}: {word}-directional about B, {params} parameters")
-    fig.tight_layout()
-    reading = r.figure_step(periods, signal == "two")
+    fig.tight_layout(rect=(0.0, 0.04 if saturated else 0.0, 1.0, 1.0))
+    reading = r.figure_step(periods, signal == "two")  # the angle where the detector saturates
     nums: dict[str, Any] = {
-        "step_m": reading["step"],  # as the figure reads it (Eq. 4.1-4.2 from the detector)
+        "step_m": reading["step"],  # as the figure reads it (Eq. 4.1-4.2), or x = θ·R_table
+        "step_read_from": reading["source"],
         "mean_abs_step_m": r.step_size,
         "steps_m": [float(s) for s in r.steps],
         "net_rotation_rad": r.net_rotation,
         "detector_V_net": r.detector_V_net,
+        "detector_saturated": saturated,
         "wall_s": float(r.info.get("wall_s", float("nan"))),
     }
     if "return" in reading:
