@@ -197,6 +197,18 @@ def test_cli_prints_the_figure_reading(capsys):
     assert out["measured_step_um"] == pytest.approx(0.37)
 
 
+def test_cli_reads_the_thesis_sets_steps_from_the_angle(capsys):
+    """Table D.2 turns by mrad, past the detector's ±0.57 mrad: a saturated reading would
+    give a step of saturation/n; the CLI reads x = θ·R_table instead, says so, and names
+    the thesis's simulation figure (4.8), not the measured one."""
+    rc = main(["simulate", "--params", "thesis", "--signal", "one", "--periods", "3",
+               "--frequency", "2", "--json"])  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["figure"].startswith("Fig. 4.8") and out["read_from"] == "angle"
+    assert out["step_um"] == pytest.approx(out["mean_abs_step_um"], rel=1e-9)
+    assert "measured_step_um" not in out
+
+
 def test_calibrated_set_steps_as_fig_4_7(calibrated_runs):
     """`turntable simulate --params calibrated ... --signal one --periods 9`: the step as
     Fig. 4.7 reads it within 10 % of 0.374 µm (1.19 V over 9 steps, Eq. 4.1–4.2)."""

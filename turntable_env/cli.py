@@ -152,13 +152,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if fig["source"] == "detector"
         else "read from the angle, x = theta*R_table (Eq. 4.2): the detector saturates"
     )
+    lab = args.params != "thesis"  # Figs. 4.6/4.7 measured; 4.10/4.8 the thesis's simulations
+    fig_two, fig_one = ("Fig. 4.6", "Fig. 4.7") if lab else ("Fig. 4.10", "Fig. 4.8")
     out = {
         "step_um": fig["step"] * 1e6,
         "figure": (
-            f"Fig. 4.6: t1 -> t2 = the last forward block ({drive.n_periods} steps after a "
+            f"{fig_two}: t1 -> t2 = the last forward block ({drive.n_periods} steps after a "
             f"reversal when cycles > 1), {how}; return t3 - t1 over its cycle"
             if two
-            else f"Fig. 4.7: t1 -> t2 over {drive.n_periods} periods from rest, {how}"
+            else f"{fig_one}: t1 -> t2 over {drive.n_periods} periods from rest, {how}"
         ),
         "read_from": fig["source"],
         "excursion_um": fig["excursion"] * 1e6,
@@ -368,7 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     ps.add_argument(
         "--coarse-factor", type=_real(0.0, 10.0), default=0.5,
-        help="adaptive full-model step while quiet = factor/omega_max (0: fixed step)",
+        help="adaptive full-model step while quiet = factor/omega_max (default 0.5; 0: the "
+        "fixed step that simulate() takes by default)",
     )  # fmt: skip
     ps.add_argument(
         "--output-dt", type=_real(0.0, 1.0, open_lo=True), default=None,
