@@ -294,3 +294,13 @@ def test_figure_reading_from_the_angle_matches_the_detector_inside_its_range(sig
         assert ang[key] == pytest.approx(det[key], rel=1e-5, abs=1e-13)
     with pytest.raises(ValueError, match="source='laser'"):
         r.figure_step(2, signal == "two", source="laser")
+
+
+def test_cycle_minima_need_a_two_directional_drive():
+    """Fig. 4.10's cycle minima are defined per forward-and-back cycle: a one-directional
+    drive is refused before any response is read."""
+    from turntable_env.simulation import cycle_minima
+
+    drive, _ = stepping_drive("thesis", periods=2, frequency=2.0)
+    with pytest.raises(ValueError, match=r"drive\.pattern='one'"):
+        cycle_minima(None, drive)  # type: ignore[arg-type]
