@@ -224,7 +224,7 @@ def stepping_figure(params: str, signal: str, *, periods: int = 5) -> ReportFigu
     plt = _plt()
     fig, axs = plt.subplots(2, 1, sharex=True, figsize=(6, 4))
     det_v = r.detector_voltage()
-    saturated = r.detector_saturates
+    saturated = bool(np.any(ps.detector.is_saturated(det_v)))  # r.detector_saturates, once
     if saturated:  # a flat line shows nothing: draw the drive (Fig. 4.5) and say why
         axs[0].plot(r.time, r.channel_voltage[:, "ABC".index("B")], lw=0.8)
         axs[0].set_ylabel("channel B [V]")
@@ -243,7 +243,8 @@ def stepping_figure(params: str, signal: str, *, periods: int = 5) -> ReportFigu
     word = "one" if signal == "one" else "two"
     axs[0].set_title(f"Fig. {fig_no}: {word}-directional about B, {params} parameters")
     fig.tight_layout(rect=(0.0, 0.04 if saturated else 0.0, 1.0, 1.0))
-    reading = r.figure_step(periods, signal == "two")  # the angle where the detector saturates
+    source = "angle" if saturated else "detector"  # figure_step's "auto", det_v reused
+    reading = r.figure_step(periods, signal == "two", source=source)
     nums: dict[str, Any] = {
         "step_m": reading["step"],  # as the figure reads it (Eq. 4.1-4.2), or x = θ·R_table
         "step_read_from": reading["source"],
