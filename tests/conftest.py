@@ -30,3 +30,15 @@ def scan_angles(env, offsets):
         out.append((info["angle_rad"], float(obs[0])))
     return np.array(out)
 
+
+
+def experiment(name: str):
+    """The script ``experiments/<name>.py`` as a module (its functions, not its main)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

@@ -29,6 +29,8 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
     [
         (["simulate", "--amplitude", "nan"], "--amplitude"),
         (["simulate", "--amplitude", "11"], "--amplitude"),
+        (["simulate", "--amplitude", "-11"], "--amplitude"),
+        (["simulate", "--amplitude", "0"], "--amplitude"),
         (["simulate", "--frequency", "1e9"], "--frequency"),
         (["simulate", "--periods", "1e9"], "--periods"),
         (["simulate", "--periods", "0"], "--periods"),

@@ -1,21 +1,16 @@
 """docs/thesis.md's ledger is what ``experiments/thesis_reproduction.py`` prints, and its
 verdicts follow from its numbers (slow: about 25 s of full-model runs)."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from conftest import experiment
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "thesis_reproduction", ROOT / "experiments" / "thesis_reproduction.py"
-    )
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return experiment("thesis_reproduction")
 
 
 @pytest.mark.slow

@@ -36,8 +36,12 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _real(lo: float | None = None, hi: float | None = None, *, open_lo: bool = False):
-    """argparse type: a finite decimal number in [lo, hi] (lo excluded with ``open_lo``)."""
+def _real(
+    lo: float | None = None, hi: float | None = None, *, open_lo: bool = False,
+    nonzero: bool = False,
+):  # fmt: skip
+    """argparse type: a finite decimal number in [lo, hi] (lo excluded with ``open_lo``,
+    zero with ``nonzero``)."""
 
     def parse(text: str) -> float:
         try:
@@ -50,6 +54,8 @@ def _real(lo: float | None = None, hi: float | None = None, *, open_lo: bool = F
             raise argparse.ArgumentTypeError(f"{text!r}: must be {'>' if open_lo else '>='} {lo:g}")
         if hi is not None and v > hi:
             raise argparse.ArgumentTypeError(f"{text!r}: must be <= {hi:g}")
+        if nonzero and v == 0.0:
+            raise argparse.ArgumentTypeError(f"{text!r}: must not be 0")
         return v
 
     return parse
@@ -282,7 +288,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if len(summary) > 1:
         raise ValueError(f"files: one summary file at a time, got {summary}")
     if summary:
-        res = calibrate_summary(summary[0])
+        res = calibrate_summary(summary[0], seed=args.seed, workers=args.workers)
     else:
         res = calibrate(
             files, base=args.base, workers=args.workers, global_points=args.global_points,
@@ -332,8 +338,9 @@ def build_parser() -> argparse.ArgumentParser:
     ps.add_argument("--axis", choices=["A", "B", "C", "Z"], default="B")
     ps.add_argument("--signal", choices=["one", "two"], default="one")
     ps.add_argument(
-        "--amplitude", type=_real(0.0, 10.0, open_lo=True), default=2.0,
-        help="amplifier input [V] (x45), 0 < A <= 10",
+        "--amplitude", type=_real(-10.0, 10.0, nonzero=True), default=2.0,
+        help="amplifier input [V] (x45), 0 < |A| <= 10; the sign is the direction (negative: "
+        "the reverse step)",
     )  # fmt: skip
     ps.add_argument(
         "--frequency",
@@ -479,13 +486,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="parameter set the nominal factors scale (calibrated: the thesis rig's set)",
     )  # fmt: skip
     pc.add_argument(
-        "--workers", type=_int(1, 1024), default=None, help="processes of the global stage"
+        "--workers", type=_int(1, 1024), default=None,
+        help="processes of the global stage (figures: of the rig hypotheses)",
     )
     pc.add_argument(
         "--global-points", type=_int(1, 100_000), default=64, help="Sobol points (global stage)"
     )
     pc.add_argument(
-        "--seed", type=_int(0, 2**63 - 1), default=0, help="scrambling seed of the Sobol design"
+        "--seed", type=_int(0, 2**63 - 1), default=0,
+        help="scrambling seed of the Sobol design (figures: the perturbation of every start)",
     )
     pc.set_defaults(func=_cmd_calibrate)
     pr = sub.add_parser(

@@ -33,7 +33,7 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from .amplifier import Amplifier
 from .contact import ContactParams, ElasticMaterial, HertzContact
@@ -142,6 +142,13 @@ _UNLISTED_UNITS = {
 }
 
 
+@functools.lru_cache(maxsize=16)
+def _parse_toml(path: str, _mtime_ns: int, _size: int) -> dict[str, Any]:
+    """A TOML file's contents, parsed once per (path, modification time, size): every
+    parameter set rebuilt for a calibration step reads the same file."""
+    return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+
+
 def load_unlisted(
     path: str | Path | None = None, overrides: Mapping[str, float] | None = None
 ) -> UnlistedRealInputs:
@@ -153,7 +160,8 @@ def load_unlisted(
     """
     p = Path(path) if path is not None else UNLISTED_FILE
     try:
-        raw = tomllib.loads(p.read_text(encoding="utf-8"))
+        st = p.stat()
+        raw = _parse_toml(str(p), st.st_mtime_ns, st.st_size)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"{p}: cannot read parameter file: {exc}") from None
     values: dict[str, float] = {}

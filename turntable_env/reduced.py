@@ -214,12 +214,14 @@ class AxisResponse(SteppingMetrics):
         return axes
 
 
-def _ladder(mat: np.ndarray, h: float, n_rungs: int) -> np.ndarray:
-    """exp(mat·h·2^r) for r < n_rungs (expm once, then repeated squaring)."""
-    out = np.empty((n_rungs, *mat.shape))
-    e = scipy.linalg.expm(mat * h)
+def _ladders(mats: np.ndarray, h: float, n_rungs: int) -> np.ndarray:
+    """exp(matᵢ·h·2^r) for every matrix of the stack ``mats`` (k, n, n) and r < n_rungs:
+    (k, n_rungs, n, n). One batched expm (scipy's, matrix by matrix, so each equals its
+    own expm), then repeated squaring."""
+    out = np.empty((mats.shape[0], n_rungs, *mats.shape[1:]))
+    e = scipy.linalg.expm(mats * h)
     for r in range(n_rungs):
-        out[r] = e
+        out[:, r] = e
         e = e @ e
     return out
 
@@ -346,14 +348,12 @@ class ReducedModel:
             c_rel[k, 2 + 2 * k] = 1.0
             c_rel[k, 0] = -ap.lever[k]
         r_small = r_slip + 1  # rungs of the configurations with a slipping element
-        phi_s = np.empty((nl * nl, r_small, 6, 6))
-        gam_s = np.empty((nl * nl, r_small, 6, 4))
-        for i0 in range(nl):
-            for i1 in range(nl):
-                e = _ladder(self._system((levels[i0], levels[i1])), h, r_small)
-                phi_s[i0 * nl + i1] = e[:, :6, :6]
-                gam_s[i0 * nl + i1] = e[:, :6, 6:10]
-        e = _ladder(a_stick, h, MAX_RUNG + 1)
+        systems = np.stack([self._system((levels[i0], levels[i1]))
+                            for i0 in range(nl) for i1 in range(nl)])  # fmt: skip
+        small = _ladders(systems, h, r_small)  # (nl², r_small, 10, 10)
+        phi_s = np.ascontiguousarray(small[:, :, :6, :6])
+        gam_s = np.ascontiguousarray(small[:, :, :6, 6:10])
+        e = _ladders(a_stick[None], h, MAX_RUNG + 1)[0]
         amp = self.params.amplifier
         c_load = self.full.output_capacitance(self.axis)
         breakaway = min(

@@ -117,45 +117,49 @@ def fit_spec(
     max_nfev: int = 40,
     free: Sequence[int] | None = None,
     diff_step: float = 1e-2,
+    covariance: str = "scaled",
 ) -> Fit:
     """Least-squares fit of the spec's parameters on the fit portion; ``free`` limits the
-    fit to those indices (the others stay at their start values)."""
+    fit to those indices (the others stay at their start values). The standard errors are
+    the Gauss–Newton covariance (JᵀJ)⁻¹ scaled by the residual variance (``"scaled"``), or
+    unscaled where the residuals are already in units of their standard deviation
+    (``"unscaled"``: a maximum a posteriori objective).
+
+    The fit runs in coordinates normalised to each parameter's range, u = (x − low)/(high −
+    low): the finite-difference step is ``diff_step`` of the range whatever the parameter's
+    unit and value (a time constant of 1e-6 s and a factor of 1 alike, and a parameter
+    whose neutral value is 0), and the standard errors come back in its unit."""
     x_all, lo, hi = _spec_vector(spec)
     idx = np.arange(len(spec)) if free is None else np.asarray(free, dtype=int)
+    span = hi[idx] - lo[idx]
 
-    def fun(xf: np.ndarray) -> np.ndarray:
+    def to_x(u: np.ndarray) -> np.ndarray:
         x = x_all.copy()
-        x[idx] = xf
-        nominal, effects = _unpack(spec, x)
+        x[idx] = lo[idx] + u * span
+        return x
+
+    def fun(u: np.ndarray) -> np.ndarray:
+        nominal, effects = _unpack(spec, to_x(u))
         return problem.residual(nominal, effects, "fit")
 
+    u0 = (x_all[idx] - lo[idx]) / span
     res = scipy.optimize.least_squares(
-        fun, x_all[idx], bounds=(lo[idx], hi[idx]), x_scale=hi[idx] - lo[idx],
-        diff_step=diff_step, max_nfev=max_nfev,
-    )  # fmt: skip
-    x_fit = x_all.copy()
-    x_fit[idx] = res.x
+        fun, u0, bounds=(0.0, 1.0), diff_step=diff_step, max_nfev=max_nfev
+    )
+    x_fit = to_x(res.x)
     nominal, effects = _unpack(spec, x_fit)
     r = res.fun
     dof = max(r.size - idx.size, 1)
     std = np.full(len(spec), math.nan)
     try:
-        cov = np.linalg.pinv(res.jac.T @ res.jac) * float(r @ r) / dof
-        std[idx] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        cov = np.linalg.pinv(res.jac.T @ res.jac)
+        if covariance == "scaled":
+            cov *= float(r @ r) / dof
+        std[idx] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * span
     except np.linalg.LinAlgError:
         pass
     held = problem.residual(nominal, effects, "heldout")
     return Fit(spec, x_fit, std, nominal, effects, held, float(r @ r))
-
-
-def is_significant(fit: Fit, name: str) -> bool:
-    """At least one of the effect's parameters lies 3 standard errors from neutral."""
-    neutral = CATALOGUE[name].neutral()
-    for (owner, pname, *_), v, s in zip(fit.spec, fit.x, fit.std, strict=True):
-        if owner == name and abs(v - neutral[pname]) > 3.0 * (s if math.isfinite(s) else 0.0):
-            if math.isfinite(s):
-                return True
-    return False
 
 
 def spec_of(

@@ -30,6 +30,7 @@ unidentified parameters and conflicting figures; and the calibrated plant.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -38,6 +39,7 @@ from typing import Any
 
 import numpy as np
 import scipy.optimize
+import scipy.stats
 import threadpoolctl
 
 from ..amplifier import Amplifier, measure_slew_rate
@@ -50,7 +52,6 @@ from .calibrate import (
     CalibrationResult,
     Fit,
     fit_spec,
-    is_significant,
     parameter_table,
     spec_of,
 )
@@ -281,14 +282,16 @@ def predict_targets(
     return {t.name: float(p) for t, p in zip(problem.targets, pred, strict=True)}
 
 
-def _loo(problem: SummaryProblem, fit: Fit, max_nfev: int = 10) -> np.ndarray:
-    """Leave-one-out errors: refit without each target (from ``fit``), predict it."""
+def _loo(problem: Any, fit: Fit, max_nfev: int = 10, only: str | None = None) -> np.ndarray:
+    """Leave-one-out errors: refit without each target (from ``fit``; every parameter, or
+    effect ``only``'s), predict it. ``problem``: a :class:`SummaryProblem` or a wrapper."""
     spec = spec_of(fit.nominal, fit.effects)
+    free = None if only is None else [i for i, s_ in enumerate(spec) if s_[0] == only]
     out = np.empty(len(problem.targets))
     try:
         for j in range(out.size):
             problem.hold = j
-            out[j] = fit_spec(problem, spec, max_nfev=max_nfev).heldout[0]
+            out[j] = fit_spec(problem, spec, max_nfev=max_nfev, free=free).heldout[0]
     finally:
         problem.hold = None
     return out
@@ -306,35 +309,214 @@ def _nominal_starts(current: Mapping[str, float]) -> list[dict[str, float]]:
     return starts
 
 
-def _best_start(
-    problem: SummaryProblem, nominal: Mapping[str, float], effects: Mapping[str, Any], name: str
-) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
-    """Best (nominal, effects) on the training targets over :func:`_nominal_starts` and a
-    5-point grid over the first parameter of effect ``name`` (if given)."""
-    grid = [dict(effects)]
-    if name:
-        e = CATALOGUE[name]
-        p0 = e.parameters[0]
-        grid = [
-            {**effects, name: {**e.defaults(), p0.name: float(v)}}
-            for v in np.linspace(p0.low, p0.high, 5)
-        ]
-    best, out = math.inf, (dict(nominal), grid[0])
+def _best_start(problem: SummaryProblem, nominal: Mapping[str, float]) -> dict[str, float]:
+    """Best nominal factors on the training targets over :func:`_nominal_starts`."""
+    best, out = math.inf, dict(nominal)
     for nom in _nominal_starts(nominal):
-        for eff in grid:
-            r = problem.residual(nom, eff, "fit")
-            if float(r @ r) < best:
-                best, out = float(r @ r), (nom, eff)
+        r = problem.residual(nom, {}, "fit")
+        if float(r @ r) < best:
+            best, out = float(r @ r), nom
     return out
 
 
-def _candidate(problem: SummaryProblem, current: Fit, name: str) -> Fit:
-    """Fit one effect with the nominal factors on top of the current model, from the best
-    start of :func:`_best_start`."""
-    nominal, effects = _best_start(problem, current.nominal, current.effects, name)
-    spec = spec_of(nominal, effects)
-    free = [i for i, s in enumerate(spec) if s[0] in ("nominal", name)]
-    return fit_spec(problem, spec, free=free, max_nfev=30)
+PRIOR_FRACTION = 0.25  # an effect parameter's prior σ, as a fraction of its range
+
+
+class _MapProblem:
+    """The amplifier candidates' objective (stage 2): the training figures' errors in units
+    of their quoted resolution, and effect ``name``'s parameters as a prior centred on
+    neutral (the effect off), σ = :data:`PRIOR_FRACTION` of each range. The four figures fix
+    only some combinations of an effect's parameters (the adapted flyback fixes one of the
+    fast path's two); the prior settles the rest on the values nearest to neutral, so the
+    optimum is one point, not a ridge that a start or a rounding slides along.
+    ``"heldout"`` residuals stay the plain relative errors."""
+
+    def __init__(self, problem: SummaryProblem, name: str):
+        self.problem = problem
+        self.name = name
+        self.targets = problem.targets
+        self.sigma = np.array([t.resolution / abs(t.value) for t in problem.targets])
+        self.params = CATALOGUE[name].parameters
+
+    @property
+    def hold(self) -> int | None:
+        return self.problem.hold
+
+    @hold.setter
+    def hold(self, j: int | None) -> None:
+        self.problem.hold = j
+
+    def chi2(self, nominal: Mapping[str, float], effects: Mapping[str, Any]) -> float:
+        """Σ(eᵢ/σᵢ)² over the training figures (no prior)."""
+        e = self.problem.residual(nominal, effects, "fit")
+        s = self.sigma if self.hold is None else np.delete(self.sigma, self.hold)
+        return float(np.sum((e / s) ** 2))
+
+    def residual(
+        self, nominal: Mapping[str, float], effects: Mapping[str, Any], portion: str
+    ) -> np.ndarray:
+        e = self.problem.residual(nominal, effects, portion)
+        if portion != "fit":
+            return e
+        s = self.sigma if self.hold is None else np.delete(self.sigma, self.hold)
+        vals = effects.get(self.name, CATALOGUE[self.name].neutral())
+        z = [(vals[p.name] - p.neutral) / (PRIOR_FRACTION * (p.high - p.low))
+             for p in self.params]  # fmt: skip
+        return np.concatenate([e / s, z])
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One amplifier candidate fitted from several starts (module docstring, stage 2).
+
+    ``best``: the maximum a posteriori fit (:class:`_MapProblem`) over the starts;
+    ``loo``: its leave-one-out errors; ``starts``: per start, its start and fitted values
+    and objective; ``agree``: how many starts end where the best does (every parameter
+    within its posterior standard error); ``z``: the likelihood-ratio distance from
+    neutral, √(χ²(neutral) − χ²(best)) — infinite where the effect changes the model at
+    neutral, as the amplifier does on an ideal source; ``std``: the posterior standard
+    errors (Laplace)."""
+
+    name: str
+    best: Fit
+    loo: np.ndarray
+    starts: list[dict[str, Any]]
+    agree: int
+    z: float
+    std: dict[str, float]
+
+    @property
+    def heldout_rms(self) -> float:
+        return _rms(self.loo)
+
+
+def _start_points(name: str, n: int, seed: int) -> list[dict[str, float]]:
+    """``n`` starting values of effect ``name``'s parameters: the 5-point grid over its
+    first parameter (the others at their defaults) first, then scrambled-Sobol points over
+    its whole box (``seed`` picks the scramble: the perturbed starts)."""
+    e = CATALOGUE[name]
+    p0 = e.parameters[0]
+    out = [{**e.defaults(), p0.name: float(v)} for v in np.linspace(p0.low, p0.high, 5)]
+    if n > 1:
+        u = scipy.stats.qmc.Sobol(len(e.parameters), scramble=True, seed=seed).random(8)
+        for row in u[: n - 1]:
+            out.append({p.name: p.low + float(x) * (p.high - p.low)
+                        for p, x in zip(e.parameters, row, strict=True)})  # fmt: skip
+    return out
+
+
+def _fit_candidate(
+    problem: SummaryProblem, current: Fit, name: str, starts: int, seed: int
+) -> CandidateResult:
+    """Fit effect ``name`` on top of the current model from ``starts`` starts: the best
+    point of the first parameter's grid and ``starts − 1`` scrambled-Sobol points; only the
+    effect's parameters move (the amplifier figures do not depend on friction or preload)."""
+    mp = _MapProblem(problem, name)
+    points = _start_points(name, starts, seed)
+    grid, others = points[:5], points[5:]
+
+    def cost(vals: Mapping[str, float]) -> float:
+        r = mp.residual(current.nominal, {**current.effects, name: dict(vals)}, "fit")
+        return float(r @ r)
+
+    chosen = [min(grid, key=cost), *others]
+    fits = []
+    for vals in chosen:
+        spec = spec_of(current.nominal, {**current.effects, name: vals})
+        free = [i for i, s_ in enumerate(spec) if s_[0] == name]
+        fits.append(fit_spec(mp, spec, free=free, max_nfev=60, diff_step=1e-3,
+                             covariance="unscaled"))  # fmt: skip
+    # the least objective; equal ones (to 1e-9 of a χ² unit) go to the earlier start
+    order = sorted(range(len(fits)), key=lambda i: (round(fits[i].sse_fit, 9), i))
+    best = fits[order[0]]
+    params = CATALOGUE[name].parameters
+    col = {s_[1]: i for i, s_ in enumerate(best.spec) if s_[0] == name}
+    std = {p.name: float(best.std[col[p.name]]) for p in params}
+    tol = {p.name: max(std[p.name], 1e-3 * (p.high - p.low)) for p in params}
+    agree = sum(
+        all(abs(f.effects[name][p.name] - best.effects[name][p.name]) <= tol[p.name]
+            for p in params)
+        for f in fits
+    )  # fmt: skip
+    if name == "amplifier_dynamics" and "amplifier_dynamics" not in current.effects:
+        z = math.inf  # switches the amplifier on: a change at its neutral value
+    else:
+        off = {**current.effects, name: CATALOGUE[name].neutral()}
+        gain = mp.chi2(current.nominal, off) - mp.chi2(best.nominal, best.effects)
+        z = math.sqrt(max(gain, 0.0))
+    rows = [
+        {"start": dict(v), "fitted": dict(f.effects[name]), "objective": f.sse_fit}
+        for v, f in zip(chosen, fits, strict=True)
+    ]
+    return CandidateResult(name, best, _loo(mp, best, only=name), rows, agree, z, std)
+
+
+SIGNIFICANCE_Z = 3.0  # likelihood-ratio distance from neutral, √Δχ², for an effect to count
+Z_MARGIN = 1.0  # a z-score has unit noise: within this of the threshold is undecided
+HELDOUT_TOLERANCE = 0.02  # relative resolution of a held-out RMS error (rounding, refits)
+
+
+def _decide(
+    cand: CandidateResult, runner_up: CandidateResult | None, current_rms: float,
+    min_improvement: float,
+) -> dict[str, Any]:
+    """Whether the best candidate of a round is taken, with its margins: ``selected`` when
+    it improves the held-out error by more than ``min_improvement`` and its parameters sit
+    more than :data:`SIGNIFICANCE_Z` resolution standard errors from neutral, each by more
+    than its own uncertainty; ``rejected`` when either fails by more than that;
+    ``undecided`` otherwise, and also when the runner-up candidate is as good within the
+    tolerance or the starts do not agree (a choice that could flip with rounding)."""
+    tol = HELDOUT_TOLERANCE * current_rms
+    need = (1.0 - min_improvement) * current_rms
+    margin = need - cand.heldout_rms  # percentage points better than needed
+    z_margin = cand.z - SIGNIFICANCE_Z
+    rival = runner_up.heldout_rms - cand.heldout_rms if runner_up is not None else math.inf
+    reasons = []
+    if margin < -tol:
+        decision = "rejected"
+        reasons.append(f"held-out {cand.heldout_rms:.1f} % does not reach {need:.1f} %")
+    elif z_margin < -Z_MARGIN:
+        decision = "rejected"
+        reasons.append(f"{cand.z:.1f} σ from neutral (< {SIGNIFICANCE_Z:g} σ)")
+    elif margin <= tol or abs(z_margin) <= Z_MARGIN:
+        decision = "undecided"
+        reasons.append("within the uncertainty of its threshold")
+    elif rival <= tol:
+        decision = "undecided"
+        reasons.append(f"{runner_up.name} within {rival:.1f} points")  # type: ignore[union-attr]
+    elif cand.agree < 2:
+        decision = "undecided"
+        reasons.append(f"only {cand.agree} of {len(cand.starts)} starts reach the fit")
+    else:
+        decision = "selected"
+    return {
+        "effect": cand.name,
+        "decision": decision,
+        "reasons": reasons,
+        "heldout_rms": cand.heldout_rms,
+        "heldout_needed": need,
+        "heldout_margin": margin,
+        "heldout_tolerance": tol,
+        "z": cand.z,
+        "z_threshold": SIGNIFICANCE_Z,
+        "runner_up": runner_up.name if runner_up is not None else None,
+        "runner_up_margin": rival,
+        "starts_agree": cand.agree,
+        "starts": len(cand.starts),
+    }
+
+
+def _describe_decision(d: Mapping[str, Any]) -> str:
+    z = "∞" if math.isinf(d["z"]) else f"{d['z']:.1f}"
+    rival = (f"; runner-up {d['runner_up']} {d['runner_up_margin']:+.1f} points"
+             if d["runner_up"] else "")  # fmt: skip
+    why = f" ({'; '.join(d['reasons'])})" if d["reasons"] else ""
+    return (
+        f"{d['decision']} {d['effect']}{why}: held-out {d['heldout_rms']:.1f} % against "
+        f"{d['heldout_needed']:.1f} % needed (margin {d['heldout_margin']:+.1f} ± "
+        f"{d['heldout_tolerance']:.1f} points); {z} σ from neutral (√Δχ², threshold "
+        f"{d['z_threshold']:g}){rival}; {d['starts_agree']}/{d['starts']} starts agree"
+    )
 
 
 def _within_resolution(problem: SummaryProblem, pred: np.ndarray) -> np.ndarray:
@@ -353,17 +535,32 @@ def calibrate_summary(
     rig_hypotheses: Sequence[Any] | None = None,
     rig_fidelity: str = "corrected",
     progress: Callable[[str], None] | None = print,
+    starts: int = 5,
+    seed: int = 0,
+    workers: int | None = None,
 ) -> CalibrationResult:
     """The three stages on summary-level targets (module docstring). ``targets``: a list,
     or a TOML file in the format of ``data/thesis_measurements.toml`` (default: that
     file); ``candidates``: the amplifier effects that compete in stage 2 (default: the
     catalogue's ``amplifier_*``); ``rig``: run stage 3 (``rig_hypotheses`` limits it,
     ``rig_fidelity`` as :func:`~.rig.fit_rig`'s ``fidelity``).
-    Runs with one BLAS thread, as :func:`~.calibrate.calibrate` does."""
+
+    Stages 2 and 3 fit every candidate and hypothesis from ``starts`` starts (``seed``
+    perturbs them: a different seed, different starts) and report how many agree, each
+    decision's margins, and ``undecided`` where a margin lies within its own uncertainty.
+    ``workers``: processes for stage 3's hypotheses (default: the CPUs this process may
+    use; the results do not depend on it). Runs with one BLAS thread, as
+    :func:`~.calibrate.calibrate` does."""
+    if isinstance(starts, bool) or not isinstance(starts, int) or starts < 1:
+        raise ValueError(f"starts={starts!r}: must be an integer >= 1")
+    if workers is None:
+        workers = len(os.sched_getaffinity(0))
+    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers={workers!r}: must be an integer >= 1")
     with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
         return _calibrate_summary(
             targets, candidates, max_effects, min_improvement, rig, rig_hypotheses,
-            rig_fidelity, progress,
+            rig_fidelity, progress, starts, seed, workers,
         )  # fmt: skip
 
 
@@ -377,50 +574,53 @@ def _select_effects(
     max_effects: int,
     min_improvement: float,
     say: Callable[[str], None],
+    starts: int = 5,
+    seed: int = 0,
 ) -> tuple[Fit, np.ndarray, list[str], list[dict[str, Any]], list[dict[str, Any]]]:
     """The leave-one-out selection loop (module docstring, stage 2) from ``start``:
-    (fit, its held-out errors, selected, candidates tried, history)."""
+    (fit, its held-out errors, selected, candidates tried, history with every round's
+    decision and margins)."""
     current, loo_current = start, _loo(problem, start)
     selected: list[str] = []
     cands_out: list[dict[str, Any]] = []
-    history = [{"effects": [], "heldout_rms": _rms(loo_current)}]
+    history: list[dict[str, Any]] = [{"effects": [], "heldout_rms": _rms(loo_current)}]
     while len(selected) < max_effects:
         pred = problem.predict(current.nominal, current.effects)
         if _within_resolution(problem, pred).all():
             break
-        round_results = []
+        results = []
         for name in names:
             if name in selected:
                 continue
-            cand = _candidate(problem, current, name)
-            loo = _loo(problem, cand)
-            round_results.append((name, cand, loo))
+            c = _fit_candidate(problem, current, name, starts, seed)
+            results.append(c)
             cands_out.append(
                 {
                     "round": len(selected) + 1,
                     "effect": name,
-                    "heldout_error": _rms(loo),
-                    "fit_error": _rms(cand.heldout),
-                    "parameters": len(cand.spec),
+                    "heldout_error": c.heldout_rms,
+                    "fit_error": _rms(c.best.heldout),
+                    "parameters": len(c.best.spec),
+                    "z_from_neutral": c.z,
+                    "starts_agree": c.agree,
+                    "starts": c.starts,
+                    "std": c.std,
                 }
             )
-            say(f"  candidate {name:<22} held-out {_rms(loo):.1f} %")
-        if not round_results:
+            say(f"  candidate {name:<22} held-out {c.heldout_rms:.1f} % "
+                f"({c.agree}/{len(c.starts)} starts agree)")  # fmt: skip
+        if not results:
             break
-        name, best, loo = min(round_results, key=lambda r: _rms(r[2]))
-        # a parameter 3 standard errors from neutral, unless the effect changes the model
-        # at neutral (the amplifier on an ideal source)
-        significant = name == "amplifier_dynamics" or is_significant(best, name)
-        if _rms(loo) > (1.0 - min_improvement) * _rms(loo_current) or not significant:
-            say(
-                f"  no candidate helps enough (best {name}: {_rms(loo):.1f} %, "
-                f"significant {significant})"
-            )
+        results.sort(key=lambda c: c.heldout_rms)
+        best, runner_up = results[0], (results[1] if len(results) > 1 else None)
+        decision = _decide(best, runner_up, _rms(loo_current), min_improvement)
+        history[-1]["decision"] = decision
+        say(f"  {_describe_decision(decision)}")
+        if decision["decision"] != "selected":
             break
-        selected.append(name)
-        current, loo_current = best, loo
-        history.append({"effects": list(selected), "heldout_rms": _rms(loo)})
-        say(f"selected {name}: held-out error {_rms(loo):.1f} %")
+        selected.append(best.name)
+        current, loo_current = best.best, best.loo
+        history.append({"effects": list(selected), "heldout_rms": best.heldout_rms})
     return current, loo_current, selected, cands_out, history
 
 
@@ -433,6 +633,9 @@ def _calibrate_summary(
     rig_hypotheses: Sequence[Any] | None,
     rig_fidelity: str,
     progress: Callable[[str], None] | None,
+    starts: int,
+    seed: int,
+    workers: int,
 ) -> CalibrationResult:
     from .rig import calibrate_rig
 
@@ -449,7 +652,7 @@ def _calibrate_summary(
     # --- 1. the nominal model as the thesis simulated it -------------------------------
     problem = SummaryProblem(tl)
     say(f"fitting the nominal model (ideal source; friction, preload) to {len(tl)} targets")
-    start, _ = _best_start(problem, {n: x0 for n, _lo, _hi, x0 in NOMINAL}, {}, "")
+    start = _best_start(problem, {n: x0 for n, _lo, _hi, x0 in NOMINAL})
     nominal = fit_spec(problem, spec_of(start, {}), max_nfev=40)
     loo_nominal = _loo(problem, nominal)
     err_nominal = problem.errors(nominal.nominal, nominal.effects)
@@ -467,7 +670,7 @@ def _calibrate_summary(
         say(f"stage 2: the amplifier on its {len(amp_targets)} figures")
         amp_start = fit_spec(amp_problem, spec_of(nominal.nominal, {}), max_nfev=5)
         amp_fit, _loo_amp, selected, cands_out, history = _select_effects(
-            amp_problem, amp_start, names, max_effects, min_improvement, say
+            amp_problem, amp_start, names, max_effects, min_improvement, say, starts, seed
         )
         effects = {k: dict(v) for k, v in amp_fit.effects.items()}
         need = slew_scale_needed(amp_problem)
@@ -480,7 +683,7 @@ def _calibrate_summary(
         say("stage 3: the rig on the stepping figures (3-D model, corrected per-axis fits)")
         rig_result = calibrate_rig(
             tl, effects, drive_amplifier=final.params.amplifier, candidates=rig_hypotheses,
-            fidelity=rig_fidelity, progress=say,
+            fidelity=rig_fidelity, progress=say, starts=starts, seed=seed, workers=workers,
         )  # fmt: skip
         best = rig_result.best
         final = final.replace(
@@ -514,10 +717,10 @@ def _calibrate_summary(
         )
     params = parameter_table(nominal if amp_fit is None else amp_fit)
     params["nominal"] = parameter_table(nominal)["nominal"]
-    if amp_fit is not None:  # standard errors from the figures' quoted resolution
-        for name, std in _resolution_std(SummaryProblem(amp_targets), amp_fit).items():
-            eff, par = name.split(".")
-            params[eff][par]["std"] = std
+    for c in cands_out:  # the selected effects' posterior standard errors (stage 2)
+        if c["effect"] in selected and c["effect"] in params:
+            for par, std in c["std"].items():
+                params[c["effect"]][par]["std"] = std
     if rig_result is not None:
         b = rig_result.best
         est = {k: {"value": v, "std": b.std[k]} for k, v in b.values.items()}
@@ -593,6 +796,15 @@ def summary_sections(diag: Mapping[str, Any]) -> list[str]:
             ],
             "",
             "selected: " + (", ".join(diag["amplifier_selection"]["selected"]) or "none"),
+            "",
+            "Each round's decision with its margins (several starts per candidate; a margin "
+            "within its own uncertainty is undecided, not taken):",
+            "",
+            *[
+                f"- round {i + 1}: {_describe_decision(h['decision'])}"
+                for i, h in enumerate(diag["amplifier_selection"]["history"])
+                if "decision" in h
+            ],
         ]
     rig = diag.get("rig")
     if rig:
@@ -603,12 +815,22 @@ def summary_sections(diag: Mapping[str, Any]) -> list[str]:
             "",
             f"{rig['explanation']}.",
             "",
-            "| hypothesis | prior | χ² | prior penalty Σz² | log posterior | posterior |",
-            "|---|---:|---:|---:|---:|---:|",
+            f"Decision: {rig['decision_text']}." if rig.get("decision_text") else "",
+            "",
+            "Each hypothesis is fitted from several perturbed starts; its distinct optima "
+            "(modes) are scored by their log posterior, the best one reported. "
+            "χ², Σz² and the log posterior are those of its best mode (3-D model where "
+            "refined; per-axis model where it fell more than the pruning margin behind).",
+            "",
+            "| hypothesis | prior | χ² | prior penalty Σz² | log posterior | jackknife low "
+            "| posterior | modes | starts reaching the best | refined |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
             *[
                 f"| {f['hypothesis']} | {f['prior_probability']:.2f} | {f['chi2']:.2f} "
                 f"| {f['prior_penalty']:.2f} | {f['log_posterior']:.2f} "
-                f"| {rig['posterior'][f['hypothesis']]:.3f} |"
+                f"| {f['log_posterior_jackknife_low']:.2f} "
+                f"| {rig['posterior'][f['hypothesis']]:.3f} "
+                f"| {len(f['modes'])} | {f['starts_agree']}/{f['starts']} | {f['refined']} |"
                 for f in rig["fits"]
             ],
             "",
@@ -641,30 +863,6 @@ def summary_sections(diag: Mapping[str, Any]) -> list[str]:
             f"± {sr['measured_ratio_resolution']:.3f}, calibrated {sr['model_ratio']:.3f}.",
         ]
     return out
-
-
-def _resolution_std(problem: SummaryProblem, fit: Fit) -> dict[str, float]:
-    """Standard errors of a fit's effect parameters [their units] from the targets' quoted
-    resolutions: (JᵀWJ)⁻¹, J the relative errors' finite-difference Jacobian (1 % of each
-    parameter's range), W the inverse squared relative resolutions."""
-    sig = np.array([t.resolution / abs(t.value) for t in problem.targets])
-    cols, names = [], []
-    for owner, pname, lo, hi, _x0 in fit.spec:
-        if owner == "nominal":
-            continue
-        h = 0.01 * (hi - lo)
-        x = fit.effects[owner][pname]
-        up = {**fit.effects, owner: {**fit.effects[owner], pname: min(x + h, hi)}}
-        dn = {**fit.effects, owner: {**fit.effects[owner], pname: max(x - h, lo)}}
-        e_up = problem.errors(fit.nominal, up)
-        e_dn = problem.errors(fit.nominal, dn)
-        cols.append((e_up - e_dn) / (min(x + h, hi) - max(x - h, lo)) / sig)
-        names.append(f"{owner}.{pname}")
-    if not cols:
-        return {}
-    jac = np.column_stack(cols)
-    cov = np.linalg.pinv(jac.T @ jac)
-    return {n: float(np.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
 
 
 def _final_predictions(tl, amp_fit, rig_result, problem, nominal) -> np.ndarray:

@@ -304,6 +304,26 @@ def _calibration(quick: bool, progress: bool = False) -> Section:
             ],
         }
     )
+    decisions = [
+        [f"amplifier, round {i + 1}", d["decision"], d["effect"],
+         f"held-out {d['heldout_rms']:.1f} % vs {d['heldout_needed']:.1f} % needed "
+         f"(± {d['heldout_tolerance']:.1f}); {d['starts_agree']}/{d['starts']} starts agree"]
+        for i, d in enumerate(h["decision"] for h in res.history if "decision" in h)
+    ] + [
+        [f"rig, {c['choice'].replace('_', ' ')}", c["decision"], c["kept"],
+         f"{c['leader']} leads {c['runner_up']} by {c['margin_nats']:.2f} nats "
+         f"({c['margin_nats_jackknife_low']:.2f} with its best start left out; needs "
+         f"{c['needed_nats']:g})"]
+        for c in rig.get("decision", {}).get("choices", [])
+    ]  # fmt: skip
+    s.tables.append(
+        {
+            "caption": "Decisions and their margins (a margin within its uncertainty is "
+            "undecided; turntable calibrate --thesis --seed N perturbs every start)",
+            "header": ["decision", "outcome", "kept", "margin"],
+            "rows": decisions,
+        }
+    )
     rows = res.diagnosis.get("targets", [])
     s.tables.append(
         {
