@@ -38,7 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from controllers.base import SATURATION_FRACTION, ControllerContext
-from turntable_env.envs.config import OBS
+from turntable_env.envs.config import OBS, check_action
 
 __all__ = [
     "AGENT_ENV_ID",
@@ -121,9 +121,11 @@ class AgentInterface:
         )
 
     def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
-        """The env action for an agent action, given the env observation it answered."""
+        """The env action for an agent action, given the env observation it answered;
+        ValueError for anything but 3 finite real numbers (as ``PiezoTurntable-v0``'s own
+        check: :func:`~turntable_env.envs.config.check_action`)."""
         cfg, c = self.config, self.ctx
-        a = np.clip(np.asarray(action, dtype=float), -1.0, 1.0)
+        a = check_action(action, (3,))
         mag = abs(a[0])
         amp = 0.0
         if mag >= cfg.deadzone:
@@ -155,7 +157,7 @@ class RawInterface:
         return np.asarray(obs, dtype=np.float32)
 
     def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
-        return np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+        return check_action(action, (5,)).astype(np.float32)
 
 
 def make_interface(
@@ -195,7 +197,8 @@ class AgentWrapper(gym.Wrapper):
         return self.interface.features(obs), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        assert self._raw is not None, "reset() first"
+        if self._raw is None:
+            raise gym.error.ResetNeeded("PiezoTurntableAgent-v0: call reset() before step()")
         obs, r, term, trunc, info = self.env.step(self.interface.env_action(action, self._raw))
         self._raw = obs
         return self.interface.features(obs), r, term, trunc, info

@@ -136,8 +136,8 @@ def test_report_round_trip_and_legacy_reports(tmp_path):
 @pytest.mark.parametrize(
     ("content", "match"),
     [
-        (None, "cannot read"),
-        ("{not json", "cannot read"),
+        (None, "no such calibration report"),
+        ("{not json", "line 1 column 2"),
         ("[1, 2]", "not a calibration report"),
         ('{"history": []}', "not a calibration report"),
         ('{"plant": {"base": "real", "colour": "red"}}', "colour"),

@@ -14,12 +14,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
 from . import __version__
-from .files import check_writable, write_atomic
+from .files import Terminated, check_writable, terminate_cleanly, write_atomic
 from .params import PARAMETER_SETS, get_parameter_set
 from .scale import BACKENDS
 
@@ -101,7 +102,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from .model import SimulationError
     from .simulation import simulate, stepping_drive
 
-    if args.out:
+    if args.out is not None:
         check_writable("--out", args.out)
     drive, ps = stepping_drive(
         args.params,
@@ -199,7 +200,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             elif isinstance(v, float) and math.isfinite(v):
                 v = f"{v:.6g}"
             print(f"  {k:<32} {v}")
-    if args.out:  # after the summary: a failing write does not lose it
+    if args.out is not None:  # after the summary: a failing write does not lose it
         write_atomic(args.out, r.to_pandas().to_csv())
     return 0
 
@@ -282,6 +283,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     files = list(args.files) + ([str(THESIS_DATA_FILE)] if args.thesis else [])
     if not files:
         raise ValueError("files: give measurement files (CSV), a summary file (TOML) or --thesis")
+    seen: dict[str, str] = {}
+    for f in files:
+        key = os.path.realpath(f)
+        if key in seen:
+            raise ValueError(f"files: {f!r} given twice (as {seen[key]!r} too)")
+        seen[key] = f
     summary = [f for f in files if f.endswith(".toml")]
     if summary and len(summary) != len(files):
         raise ValueError(f"files: {summary} are summary-level (TOML); calibrate them apart")
@@ -517,13 +524,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     while working (one line), 130 interrupted."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        with terminate_cleanly():  # SIGTERM runs the clean-ups Ctrl-C runs
+            return int(args.func(args))
+    except Terminated:
+        print("turntable: terminated", file=sys.stderr)
+        return 143
     except ValueError as exc:
         print(f"turntable: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # `turntable params --json | head`: the reader has gone
-        import os
-
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:

@@ -252,10 +252,17 @@ CATALOGUE: dict[str, Effect] = {
 
 def check_effects(effects: Mapping[str, Mapping[str, float]]) -> dict[str, dict[str, float]]:
     """Validate {effect name: {parameter: value}} against the catalogue."""
+    if not isinstance(effects, Mapping):
+        raise ValueError(f"effects={effects!r}: must map effect names to their parameters")
     out = {}
     for name, vals in effects.items():
         if name not in CATALOGUE:
             raise ValueError(f"effect {name!r}: not in the catalogue ({', '.join(CATALOGUE)})")
+        if not isinstance(vals, Mapping):
+            raise ValueError(
+                f"effects[{name!r}]={vals!r}: must be a table of its parameters, e.g. "
+                f"{{{CATALOGUE[name].parameters[0].name!r}: value}}"
+            )
         out[name] = CATALOGUE[name].check(vals)
     return out
 

@@ -522,9 +522,11 @@ def _is_quiet(
     return True
 
 
-@njit(cache=CACHE)
-def run_full_model(state, model, drive, t0, t_end, step_p, recording):
+@njit(cache=CACHE, nogil=True)
+def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
     """Integrate from t0 to t_end [s] (see module docstring); records at recording.t_out.
+    Runs without the GIL and returns status 4 within 4096 steps of ``cancel[0]`` becoming
+    non-zero (another thread's Ctrl-C: :func:`turntable_env.interrupt.call_interruptibly`).
 
     Args (:mod:`turntable_env.kernel_types`):
         state: :class:`~turntable_env.kernel_types.FullState`, modified in place.
@@ -853,4 +855,6 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording):
             )
             if st != 0:
                 return st, t, var, i_out, n_steps, n_coarse
+        if n_steps % 4096 == 0 and cancel[0] != 0:
+            return 4, t, -1, i_out, n_steps, n_coarse
     return 0, t, -1, i_out, n_steps, n_coarse

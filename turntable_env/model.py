@@ -48,6 +48,7 @@ import scipy.optimize
 
 from .drive import DriveSignal, Waveform
 from .integrator import contact_forces, contact_kinematics, quadrant_voltages, run_full_model
+from .interrupt import call_interruptibly
 from .kernel_types import DriveArrays, FullArrays, FullRecording, FullState
 from .params import ParameterSet
 from .validation import check_finite, check_positive
@@ -558,6 +559,8 @@ class TurntableModel:
 
         Raises:
             SimulationError: a state became non-finite or diverged (names time and state).
+            KeyboardInterrupt: Ctrl-C in the main thread stops the compiled run within a
+                few milliseconds; what it had computed is discarded.
         """
         dur = check_positive("duration", duration)
         t0 = check_finite("start", start)
@@ -613,9 +616,11 @@ class TurntableModel:
             energy=np.zeros((n_out, 11)),
             xi=np.zeros((n_out, 3, 6)),
         )
-        status, t_stop, var, n_rec, n_steps, n_coarse = run_full_model(
-            state, arrays, DriveArrays(wt, wv, wn), t0, t0 + dur, step_p, rec
-        )
+        cancel = np.zeros(1, dtype=np.int64)
+        status, t_stop, var, n_rec, n_steps, n_coarse = call_interruptibly(
+            run_full_model, cancel, state, arrays, DriveArrays(wt, wv, wn), t0, t0 + dur,
+            step_p, rec, cancel,
+        )  # fmt: skip
         if status != 0:
             raise SimulationError(
                 {1: "non-finite", 2: "diverging", 3: "rim"}[int(status)],

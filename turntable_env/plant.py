@@ -78,6 +78,7 @@ from .generator import (
     grid_points_nb,
     interval_capacity,
 )
+from .inputs import Fields, load_json, show
 from .kernel_cache import CACHE
 from .kernel_types import DriveArrays
 from .model import TurntableModel
@@ -380,10 +381,7 @@ class Plant:
         p = Path(path)
         if p.is_dir():
             p = p / "report.json"
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ValueError(f"{p}: cannot read calibration report: {exc}") from None
+        data = load_json(p, "calibration report (JSON)")
         if not isinstance(data, dict):
             raise ValueError(f"{p}: not a calibration report (a JSON object expected)")
         if "plant" in data:
@@ -447,14 +445,24 @@ def calibrated_parameters(path: str | os.PathLike[str] | None = None) -> Paramet
 def _legacy_plant(data: Mapping[str, Any], src: str) -> dict[str, Any]:
     """Reports written before the plant key: nominal factors and selected effects."""
     pars = data["parameters"]
+    selected = data["selected_effects"]
+    if not isinstance(pars, Mapping):
+        raise ValueError(f"{src}: parameters = {show(pars)}: must be an object")
+    if not isinstance(selected, list) or not all(isinstance(x, str) for x in selected):
+        raise ValueError(f"{src}: selected_effects = {show(selected)}: must be a list of names")
     factors, effects, unc = {}, {}, {}
     for owner, entries in pars.items():
-        for name, v in entries.items():
-            value, std = float(v["value"]), float(v.get("std", math.nan))
+        f = Fields(entries, f"{src}: parameters.{owner}")
+        for name in f.table:
+            v = Fields(f.table[name], f"{src}: parameters.{owner}.{name}")
+            value = v.number("value")
+            raw = v.table.get("std")
+            unknown = raw is None or (isinstance(raw, float) and math.isnan(raw))
+            std = math.nan if unknown else v.number("std", low=0.0)
             key = name if owner == "nominal" else f"{owner}.{name}"
             if owner == "nominal":
                 factors[name] = value
-            elif owner in data["selected_effects"]:
+            elif owner in selected:
                 effects.setdefault(owner, {})[name] = value
             else:
                 continue

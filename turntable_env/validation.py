@@ -23,12 +23,20 @@ __all__ = [
     "check_positive_array",
     "check_sums_to_one",
     "check_time_array",
+    "describe",
 ]
 
 
-def _describe(value: object) -> str:
+def describe(value: object) -> str:
+    """A value as an error message shows it: numpy scalars as plain numbers (``0.00495``,
+    not ``np.float64(0.00495)``), at most 60 characters."""
+    if isinstance(value, np.generic) and not isinstance(value, np.bool_):
+        value = value.item()
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
+
+
+_describe = describe
 
 
 def check_finite(name: str, value: float) -> float:

@@ -32,10 +32,10 @@ is returned half-loaded.
 
 from __future__ import annotations
 
+import array
 import csv
 import math
 import re
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,7 @@ import numpy as np
 
 from ..detector import Detector
 from ..files import write_atomic
+from ..inputs import read_input
 
 __all__ = ["AXES", "Measurement", "load_measurement"]
 
@@ -178,29 +179,9 @@ def _meta_float(path: Path, line: int, key: str, text: str) -> float:
 
 def _read_text(p: Path) -> str:
     """The file's text (UTF-8, a leading BOM dropped), refused before reading when it is
-    not a regular file or larger than :data:`MAX_FILE_BYTES`."""
-    try:
-        st = p.stat()
-    except OSError as exc:
-        raise ValueError(f"{p}: cannot be read ({exc.strerror})") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ValueError(f"{p}: not a regular file")
-    if st.st_size > MAX_FILE_BYTES:
-        raise ValueError(
-            f"{p}: {st.st_size} bytes, more than the {MAX_FILE_BYTES} a measurement file may "
-            "hold (split the record)"
-        )
-    try:
-        with p.open("rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise ValueError(f"{p}: cannot be read ({exc.strerror})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ValueError(f"{p}: more than {MAX_FILE_BYTES} bytes")
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{p}: not UTF-8 ({exc.reason} at byte {exc.start})") from None
+    not a regular file or larger than :data:`MAX_FILE_BYTES`
+    (:func:`~turntable_env.inputs.read_input`)."""
+    return read_input(p, "measurement file", MAX_FILE_BYTES)
 
 
 def load_measurement(path: str | Path) -> Measurement:
@@ -254,8 +235,10 @@ def load_measurement(path: str | Path) -> Measurement:
             f"{p}:{header_line}: column 'drive_{axis}_V' missing: the watched axis "
             f"({axis}, line {ln}) must be driven"
         )
-    rows: list[list[float]] = []
     t_col = header.index("t_s")
+    buf = array.array("d")  # the samples, row by row: 8 bytes a number, no list of rows
+    n_rows = 0
+    prev_t = -math.inf
     for j in range(i + 1, len(lines)):
         if not lines[j].strip():
             continue
@@ -272,14 +255,16 @@ def load_measurement(path: str | Path) -> Measurement:
             if not math.isfinite(v):
                 raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
             row.append(v)
-        rows.append(row)
-        if len(rows) > MAX_SAMPLES:
+        if n_rows >= MAX_SAMPLES:
             raise ValueError(f"{p}:{j + 1}: more than {MAX_SAMPLES} samples")
+        buf.extend(row)
+        n_rows += 1
         rec = dict(zip(header, row, strict=True))
         if rec["t_s"] < 0.0:
             raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is negative")
-        if len(rows) > 1 and rec["t_s"] <= rows[-2][t_col]:
+        if rec["t_s"] <= prev_t:
             raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is not increasing")
+        prev_t = rec["t_s"]
         for c in drive_cols:
             if abs(rec[c]) > INPUT_LIMIT:
                 raise ValueError(
@@ -291,9 +276,9 @@ def load_measurement(path: str | Path) -> Measurement:
                 raise ValueError(
                     f"{p}:{j + 1}: column {c!r} = {rec[c]!r} V beyond ±{DETECTOR_LIMIT:g} V"
                 )
-    if len(rows) < MIN_SAMPLES:
-        raise ValueError(f"{p}: need at least {MIN_SAMPLES} samples, found {len(rows)}")
-    data = np.array(rows)
+    if n_rows < MIN_SAMPLES:
+        raise ValueError(f"{p}: need at least {MIN_SAMPLES} samples, found {n_rows}")
+    data = np.frombuffer(buf, dtype=np.float64).reshape(n_rows, len(header)).copy()
     t = data[:, t_col]
     dt = np.diff(t)
     k = int(np.argmax(dt))

@@ -21,12 +21,12 @@ Targets (SI units):
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..detector import Detector
+from ..inputs import Fields, load_toml
 
 __all__ = [
     "THESIS_DATA_FILE",
@@ -67,105 +67,122 @@ class SummaryTarget:
         return abs(self.value) if self.scale is None else abs(self.scale)
 
 
-def _load(path: Path) -> dict[str, Any]:
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+MAX_STEPS = 1000  # steps of one stepping figure (the thesis's: 5 and 9)
+AXES = ("A", "B", "C")
+AMPLIFIER_MODES = ("adapted", "unadapted")
+PATTERNS = ("one_directional", "two_directional")
+
+
+def _load(path: Path) -> Fields:
+    """The summary file as :class:`~turntable_env.inputs.Fields` (read and bounded by
+    :func:`~turntable_env.inputs.load_toml`), its tables known."""
+    f = Fields(load_toml(path, "summary file (TOML)", max_bytes=2**20), str(path))
+    return f.known("detector", "amplifier", "amplifier_step", "stepping", "observation")
 
 
 def thesis_detector(path: str | Path = THESIS_DATA_FILE) -> Detector:
     """The detector of §4.1.1 (S, L, linear range, R_table) from the data file."""
-    d = _load(Path(path))["detector"]
+    d = _load(Path(path)).sub("detector").known(
+        "source", "sensitivity_m_per_V", "linear_range_m", "distance_m", "table_radius_m"
+    )
     return Detector(
-        sensitivity=d["sensitivity_m_per_V"],
-        distance=d["distance_m"],
-        linear_range=d["linear_range_m"],
-        table_radius=d["table_radius_m"],
+        sensitivity=d.number("sensitivity_m_per_V", low=0.0, high=1.0, open_low=True),
+        distance=d.number("distance_m", low=0.0, high=100.0, open_low=True),
+        linear_range=d.number("linear_range_m", low=0.0, high=1.0, open_low=True),
+        table_radius=d.number("table_radius_m", low=0.0, high=10.0, open_low=True),
     )
 
 
 def thesis_step_sizes(path: str | Path = THESIS_DATA_FILE) -> dict[str, float]:
     """The per-step table displacements the thesis quotes (§4.1.3) [m], by input:
     ``{"one_directional": 0.37e-6, "two_directional": 0.30e-6}``."""
-    p = Path(path)
-    try:
-        return {s["name"]: s["step_um"] * 1e-6 for s in _load(p)["stepping"]}
-    except KeyError as exc:
-        raise ValueError(f"{p}: entry {exc.args[0]!r} missing") from None
+    return {
+        s.text("name", choices=PATTERNS): s.number("step_um", low=0.0, high=1e6, open_low=True)
+        * 1e-6
+        for s in _load(Path(path)).tables("stepping")
+    }
+
+
+def _drive(s: Fields, keys: tuple[str, ...]) -> dict[str, Any]:
+    """A figure's drive, each entry checked: axis, input amplitude (0, 10] V, frequency
+    (0, 100 kHz], amplifier mode, steps 1…:data:`MAX_STEPS`."""
+    out: dict[str, Any] = {}
+    for k in keys:
+        if k == "axis":
+            out[k] = s.text(k, choices=AXES)
+        elif k == "amplitude_V":
+            out[k] = s.number(k, low=0.0, high=10.0, open_low=True)
+        elif k == "frequency_Hz":
+            out[k] = s.number(k, low=0.0, high=1e5, open_low=True)
+        elif k == "amplifier":
+            out[k] = s.text(k, choices=AMPLIFIER_MODES)
+        elif k == "steps":
+            out[k] = s.integer(k, low=1, high=MAX_STEPS)
+    return out
 
 
 def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
-    """Every summary-level target of the data file (module docstring)."""
+    """Every summary-level target of the data file (module docstring); ValueError naming
+    the file, the entry, the key and the value for anything outside the format."""
     p = Path(path)
     data = _load(p)
     out: list[SummaryTarget] = []
-    try:
-        for s in data["amplifier_step"]:
-            if "output_swing_V" in s:
-                name = f"amplifier_slew_{s['output_swing_V']:.0f}V"
-                drive = {"output_swing_V": s["output_swing_V"]}
-            elif s.get("adapted", False):
-                name = "amplifier_slew_adapted"
-                drive = {"input_step_V": s["input_step_V"], "amplifier": "adapted"}
-            else:
-                name = f"amplifier_slew_{s['input_step_V']:.0f}V"
-                drive = {"input_step_V": s["input_step_V"], "amplifier": "unadapted"}
+    for s in data.tables("amplifier_step"):
+        s.known("source", "input_step_V", "output_swing_V", "adapted", "slew_V_per_us",
+                "resolution_V_per_us")  # fmt: skip
+        slew = s.number("slew_V_per_us", low=0.0, high=1e4, open_low=True) * 1e6
+        res = s.number("resolution_V_per_us", low=0.0, high=1e4, open_low=True) * 1e6
+        if "output_swing_V" in s.table:
+            swing = s.number("output_swing_V", low=0.0, high=1e4, open_low=True)
+            name = f"amplifier_slew_{swing:.0f}V"
+            drive: dict[str, Any] = {"output_swing_V": swing}
+        else:
+            step = s.number("input_step_V", low=0.0, high=10.0, open_low=True)
+            adapted = s.flag("adapted", default=False)
+            name = "amplifier_slew_adapted" if adapted else f"amplifier_slew_{step:.0f}V"
+            drive = {"input_step_V": step, "amplifier": "adapted" if adapted else "unadapted"}
+        out.append(SummaryTarget(name, "amplifier output slew rate, 10–90 %", slew, "V/s", res,
+                                 drive, s.text("source", default="")))  # fmt: skip
+    steppings = data.tables("stepping")
+    for s in steppings:
+        s.known("source", "name", "axis", "amplitude_V", "frequency_Hz", "amplifier", "steps",
+                "detector_dV", "resolution_V", "x_table_um", "step_um",
+                "returns_to_start")  # fmt: skip
+        pattern = s.text("name", choices=PATTERNS)
+        drive = _drive(s, ("axis", "amplitude_V", "frequency_Hz", "amplifier", "steps"))
+        drive["pattern"] = pattern
+        dv = s.number("detector_dV", low=-100.0, high=100.0)
+        res = s.number("resolution_V", low=0.0, high=100.0, open_low=True)
+        src = s.text("source", default="")
+        s.number("step_um", low=0.0, high=1e6, open_low=True)
+        out.append(SummaryTarget(f"detector_dV_{pattern}", "net detector voltage over the steps",
+                                 dv, "V", res, drive, src))  # fmt: skip
+        if s.flag("returns_to_start", default=False):
             out.append(
-                SummaryTarget(
-                    name,
-                    "amplifier output slew rate, 10–90 %",
-                    s["slew_V_per_us"] * 1e6,
-                    "V/s",
-                    s["resolution_V_per_us"] * 1e6,
-                    drive,
-                    s["source"],
-                )
+                SummaryTarget(f"return_{pattern}", "detector voltage after the cycle minus "
+                              "before", 0.0, "V", res, drive, src, scale=dv)
             )
-        for s in data["stepping"]:
-            drive = {k: s[k] for k in ("axis", "amplitude_V", "frequency_Hz", "amplifier", "steps")}
-            drive["pattern"] = s["name"]
-            out.append(
-                SummaryTarget(
-                    f"detector_dV_{s['name']}",
-                    "net detector voltage over the steps",
-                    s["detector_dV"],
-                    "V",
-                    s["resolution_V"],
-                    drive,
-                    s["source"],
-                )
-            )
-            if s.get("returns_to_start", False):
-                out.append(
-                    SummaryTarget(
-                        f"return_{s['name']}",
-                        "detector voltage after the cycle minus before",
-                        0.0,
-                        "V",
-                        s["resolution_V"],
-                        drive,
-                        s["source"],
-                        scale=s["detector_dV"],
-                    )
-                )
-        adapted_step = min(
-            s["step_um"] * 1e-6 / thesis_detector(p).table_radius for s in data["stepping"]
-        )
-        for s in data["observation"]:
-            drive = {k: s[k] for k in ("axis", "amplitude_V", "frequency_Hz", "amplifier")}
+    names = [t.name for t in out]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"{p}: figures {dup} appear more than once")
+    observations = data.tables("observation") if "observation" in data.table else []
+    if observations:
+        if not steppings:
+            raise ValueError(f"{p}: [[observation]] needs a [[stepping]] figure to refer to")
+        radius = thesis_detector(p).table_radius
+        adapted_step = min(s.number("step_um") * 1e-6 / radius for s in steppings)
+        for s in observations:
+            s.known("source", "name", "axis", "amplitude_V", "frequency_Hz", "amplifier", "text")
+            drive = _drive(s, ("axis", "amplitude_V", "frequency_Hz", "amplifier"))
             out.append(
                 SummaryTarget(
                     "net_rotation_unadapted",
-                    f"net rotation per period: {s['text']}",
-                    0.0,
-                    "rad",
-                    0.1 * adapted_step,
-                    drive,
-                    s["source"],
+                    f"net rotation per period: {s.text('text', default='')}",
+                    0.0, "rad", 0.1 * adapted_step, drive, s.text("source", default=""),
                     scale=adapted_step,
                 )
             )
-    except KeyError as exc:
-        raise ValueError(f"{p}: entry {exc.args[0]!r} missing") from None
+    if not out:
+        raise ValueError(f"{p}: no figure ([[amplifier_step]], [[stepping]], [[observation]])")
     return out

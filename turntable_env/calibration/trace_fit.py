@@ -110,6 +110,44 @@ class TraceData:
         return self.m.drives[self.m.axis]
 
 
+SAMPLING_RANGE = (1e-6, 1e-3)  # s: a detector sampled outside this is a unit mistake
+MIN_DRIVE_RANGE = 1e-2  # V of amplifier input: a drive that moves less steps nothing
+MIN_DETECTOR_RANGE = 1e-6  # V: below any photodiode amplifier's resolution
+MIN_SIGNAL_TO_NOISE = 10.0  # detector range over its noise floor (first differences)
+
+
+def check_information(m: Measurement) -> None:
+    """Refuse a trace that cannot inform a fit, before any work (ValueError naming the file
+    and the number): a median sampling interval outside :data:`SAMPLING_RANGE` (a time
+    column in milliseconds, say), a watched axis whose drive spans less than
+    :data:`MIN_DRIVE_RANGE`, or a detector that spans less than :data:`MIN_DETECTOR_RANGE`
+    or less than :data:`MIN_SIGNAL_TO_NOISE` times its noise."""
+    name = m.source or "trace"
+    dt = float(np.median(np.diff(m.time)))
+    lo, hi = SAMPLING_RANGE
+    if not lo <= dt <= hi:
+        raise ValueError(
+            f"{name}: median sampling interval {dt:.3g} s, outside {lo:g}…{hi:g} s — is the "
+            "time column in seconds?"
+        )
+    drive = m.drives[m.axis]
+    span = float(np.ptp(drive))
+    if not span >= MIN_DRIVE_RANGE:
+        raise ValueError(
+            f"{name}: the drive of axis {m.axis} spans {span:.3g} V (less than "
+            f"{MIN_DRIVE_RANGE:g} V): it does not move the turntable, nothing to calibrate"
+        )
+    det = m.detector_v
+    det_span = float(np.ptp(det))
+    noise = residual_sigma(det)
+    if not det_span >= MIN_DETECTOR_RANGE or not det_span >= MIN_SIGNAL_TO_NOISE * noise:
+        raise ValueError(
+            f"{name}: the detector spans {det_span:.3g} V against a noise of {noise:.3g} V "
+            f"(needs {MIN_DETECTOR_RANGE:g} V and {MIN_SIGNAL_TO_NOISE:g}× the noise): it "
+            "does not respond to the drive, nothing to calibrate"
+        )
+
+
 def _prepare(m: Measurement) -> tuple[TraceData, list[str]]:
     warnings: list[str] = []
     if m.axis not in ("A", "B", "C"):
@@ -117,6 +155,7 @@ def _prepare(m: Measurement) -> tuple[TraceData, list[str]]:
             f"{m.source}: axis {m.axis!r}: the per-axis model calibrates A, B and C (the "
             "Z axis needs the full 3-D model; run it with `turntable simulate --axis Z`)"
         )
+    check_information(m)
     reading = read_drive(m.time, m.drives[m.axis], m.meta)
     warnings += [f"{Path(m.source).name or 'trace'}: {w}" for w in reading.warnings]
     segs = split_portions(segment_trace(reading, float(m.time[-1])))

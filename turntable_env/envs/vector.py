@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -79,6 +80,7 @@ class PiezoTurntableVectorEnv(VectorEnv):
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._rngs = [np.random.default_rng() for _ in range(self.num_envs)]
         self._renderer: Any = None
+        self._reset_done = False
 
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
@@ -99,6 +101,7 @@ class PiezoTurntableVectorEnv(VectorEnv):
         for b in np.nonzero(mask)[0]:
             self.task.reset_row(int(b), self._rngs[b], opts)
         self._autoreset[mask] = False
+        self._reset_done = True
         t = self.task
         info = {
             "angle_rad": t.angle.copy(),
@@ -121,6 +124,8 @@ class PiezoTurntableVectorEnv(VectorEnv):
     def step(
         self, actions: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        if not self._reset_done:
+            raise ResetNeeded("PiezoTurntableVectorEnv: call reset() before step()")
         # simulate and observe: each row's detector noise from its own generator (none
         # drawn for a row about to be reset: its observation is discarded)
         normals = np.array(

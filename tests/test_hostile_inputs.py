@@ -1,0 +1,313 @@
+"""Reliability, second pass (issue 34): outputs never replace what they should not, report
+directories are complete or untouched, every input path is bounded, and data without
+information gets no confident answer. Each test is one of the issue's numbered items."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import turntable_env  # noqa: F401  (registers the envs)
+from turntable_env.calibration.measurement import load_measurement
+from turntable_env.calibration.thesis_data import THESIS_DATA_FILE
+from turntable_env.cli import main
+from turntable_env.files import MARKER, output_directory, write_atomic
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _one_line_exit_2(capsys, rc: int, *needles: str) -> str:
+    err = capsys.readouterr().err.strip()
+    assert rc == 2, err
+    assert "\n" not in err and "Traceback" not in err, err
+    for n in needles:
+        assert n in err, (n, err)
+    return err
+
+
+# --- 1. --out never replaces a link, a device or a FIFO -----------------------------------
+def test_out_through_a_symlink_writes_its_target_and_keeps_the_link(tmp_path, capsys):
+    target = tmp_path / "real.csv"
+    target.write_text("old\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    rc = main(["virtual-lab", "--protocol", "standard", "--out", str(link)])
+    assert rc == 0, capsys.readouterr().err
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert target.read_text().startswith("#") and load_measurement(link).time.size > 16
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "link_to_fifo", "empty"])
+def test_out_refuses_what_is_not_a_regular_file(kind, tmp_path, capsys):
+    p = tmp_path / "out.csv"
+    if kind == "fifo":
+        os.mkfifo(p)
+    elif kind == "device":
+        if os.geteuid() != 0:
+            pytest.skip("mknod of a character device needs root")
+        os.mknod(p, stat.S_IFCHR | 0o666, os.makedev(1, 3))  # a /dev/null of our own
+    elif kind == "link_to_fifo":
+        os.mkfifo(tmp_path / "pipe")
+        p.symlink_to(tmp_path / "pipe")
+    else:
+        p = Path("")
+    before = os.lstat(p).st_mode if kind != "empty" else None
+    rc = main(["simulate", "--model", "reduced", "--periods", "2", "--out", str(p)])
+    _one_line_exit_2(capsys, rc, "--out")
+    if before is not None:
+        assert os.lstat(p).st_mode == before  # still the same kind of file
+    with pytest.raises(ValueError):
+        write_atomic(p, "x")
+
+
+# --- 2. report directories: swapped in whole, or refused ---------------------------------
+def test_a_new_report_replaces_the_old_one_whole(tmp_path):
+    d = tmp_path / "rx"
+    d.mkdir()
+    (d / MARKER).write_text("")
+    (d / "residual.png").write_bytes(b"old")
+    (d / "report.md").mkdir()  # the hostile case: a file name taken by a directory
+    with output_directory(d) as tmp:
+        (tmp / "report.json").write_text("{}")
+        (tmp / "report.md").write_text("new")
+    assert sorted(p.name for p in d.iterdir()) == sorted([MARKER, "report.json", "report.md"])
+    assert (d / "report.md").read_text() == "new"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # nothing left over
+
+
+def test_a_failed_report_leaves_the_old_one_untouched(tmp_path):
+    d = tmp_path / "rx"
+    d.mkdir()
+    (d / "report.json").write_text("old")
+    with pytest.raises(RuntimeError), output_directory(d) as tmp:
+        (tmp / "report.json").write_text("half")
+        raise RuntimeError("plot failed")
+    assert [p.name for p in d.iterdir()] == ["report.json"]
+    assert (d / "report.json").read_text() == "old"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_a_directory_of_other_files_is_not_emptied(tmp_path, capsys):
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "thesis.tex").write_text("precious")
+    rc = main(["calibrate", "--thesis", "--report", str(d)])
+    _one_line_exit_2(capsys, rc, "--report", "not an earlier output")
+    assert (d / "thesis.tex").read_text() == "precious"
+
+
+def test_sigterm_while_writing_leaves_no_temporary_directory(tmp_path):
+    d = tmp_path / "rx"
+    code = (
+        "import os, signal, time\n"
+        "from turntable_env.files import output_directory\n"
+        f"with output_directory({str(d)!r}) as tmp:\n"
+        "    (tmp / 'report.json').write_text('{}')\n"
+        "    os.kill(os.getpid(), signal.SIGTERM)\n"
+        "    time.sleep(30)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=120)
+    assert r.returncode == 128 + signal.SIGTERM, r.stderr.decode()[-2000:]
+    assert not d.exists() and list(tmp_path.iterdir()) == []
+
+
+# --- 3. the summary-TOML path is validated like the CSV path ------------------------------
+def _summary(tmp_path: Path, old: str, new: str) -> Path:
+    text = THESIS_DATA_FILE.read_text(encoding="utf-8")
+    if old == "<start>":
+        text = new + "\n" + text.replace("[[stepping]]", "[[stepping_old]]")
+    else:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    p = tmp_path / "figures.toml"
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+@pytest.mark.parametrize(
+    "old, new, needle",
+    [
+        ("frequency_Hz = 100.0", "frequency_Hz = 0.0", "frequency_Hz = 0.0"),
+        ("steps = 5", "steps = 1000000000", "steps = 1000000000"),
+        ("<start>", "stepping = 5", "stepping"),
+        ("[[stepping]]  # Fig. 4.6", "stepping = 5\n[[stepping]]", "stepping is not part"),
+        ("slew_V_per_us = 0.9", 'slew_V_per_us = "fast"', "slew_V_per_us = 'fast'"),
+        ('[detector]  # §4.1.1, Fig. 4.4', 'detector = "x"\n[y]', "detector"),
+        ('amplifier = "adapted"', 'amplifier = "turbo"', "amplifier = 'turbo'"),
+    ],
+)
+def test_bad_summary_files_are_refused_naming_key_and_value(old, new, needle, tmp_path, capsys):
+    p = _summary(tmp_path, old, new)
+    rc = main(["calibrate", str(p), "--report", str(tmp_path / "out")])
+    _one_line_exit_2(capsys, rc, str(p), needle)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("kind", ["missing", "fifo", "binary"])
+def test_summary_files_that_are_not_text_files_are_refused(kind, tmp_path, capsys):
+    p = tmp_path / "figures.toml"
+    if kind == "fifo":
+        os.mkfifo(p)
+    elif kind == "binary":
+        p.write_bytes(b"\x00\xff\xfe garbage = \x80")
+    rc = main(["calibrate", str(p), "--report", str(tmp_path / "out")])
+    _one_line_exit_2(capsys, rc, str(p))
+
+
+# --- 4. plant=PATH reads only what a report can be ----------------------------------------
+def _make(path):
+    return gym.make("PiezoTurntable-v0", plant=str(path))
+
+
+def test_plant_paths_are_bounded_before_reading(tmp_path):
+    big = tmp_path / "big.json"
+    with open(big, "wb") as fh:
+        fh.truncate(2 * 2**30)  # 2 GiB, sparse: refused on its size, never read
+    fifo = tmp_path / "pipe.json"
+    os.mkfifo(fifo)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    for p, needle in ((big, "bytes"), (fifo, "regular file"), (deep, "nested")):
+        with pytest.raises(ValueError, match=needle) as e:
+            _make(p)
+        assert str(p) in str(e.value)
+
+
+@pytest.mark.parametrize(
+    "report, needle",
+    [
+        ({"parameters": [1, 2], "selected_effects": []}, "parameters"),
+        ({"parameters": {"nominal": {"friction": {"value": "x"}}}, "selected_effects": []},
+         "value = 'x'"),
+        ({"plant": {"effects": {"piezo_creep": float("nan")}}}, "must be a table"),
+        ({"plant": {"effects": {"piezo_creep": {"gamma": float("nan")}}}}, "finite"),
+    ],
+)
+def test_malformed_reports_are_refused_with_their_key(report, needle, tmp_path):
+    p = tmp_path / "report.json"
+    p.write_text(json.dumps(report))
+    with pytest.raises(ValueError, match=needle):
+        _make(p)
+
+
+# --- 5–6. no confident answer from data without information ------------------------------
+@pytest.fixture(scope="module")
+def lab_file(tmp_path_factory):
+    p = tmp_path_factory.mktemp("lab") / "lab.csv"
+    assert main(["virtual-lab", "--protocol", "standard", "--out", str(p)]) == 0
+    return p
+
+
+def _rewrite(src: Path, dst: Path, fn) -> Path:
+    """The measurement file with its data rows changed by ``fn(columns) -> columns``."""
+    lines = src.read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    header = lines[len(head)]
+    rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[len(head) + 1:]])
+    cols = dict(zip(header.split(","), rows.T, strict=True))
+    cols = fn(cols)
+    body = "\n".join(",".join(repr(float(v)) for v in r) for r in zip(*cols.values(), strict=True))
+    dst.write_text("\n".join([*head, ",".join(cols), body]) + "\n")
+    return dst
+
+
+@pytest.mark.parametrize(
+    "case",
+    ["held_drive", "zero_drive", "constant_detector", "tiny_values", "milliseconds", "short"],
+)
+def test_a_trace_without_information_is_refused_before_fitting(case, lab_file, tmp_path, capsys):
+    def change(c):
+        drive = [k for k in c if k.startswith("drive_")]
+        if case == "held_drive":
+            for k in drive:
+                c[k] = np.full_like(c[k], 0.5)
+            c["detector_V"] = np.full_like(c["detector_V"], 0.1)
+        elif case == "zero_drive":
+            for k in drive:
+                c[k] = np.zeros_like(c[k])
+        elif case == "constant_detector":
+            c["detector_V"] = np.full_like(c["detector_V"], 0.2)
+        elif case == "tiny_values":
+            for k in c:
+                if k != "t_s":
+                    c[k] = c[k] * 1e-300
+        elif case == "milliseconds":
+            c["t_s"] = c["t_s"] * 1e3
+        else:
+            c = {k: v[:16] for k, v in c.items()}
+        return c
+
+    p = _rewrite(lab_file, tmp_path / f"{case}.csv", change)
+    out = tmp_path / "report"
+    t0 = time.perf_counter()
+    rc = main(["calibrate", str(p), "--report", str(out)])
+    _one_line_exit_2(capsys, rc, str(p))
+    assert not out.exists()  # no report, no calibrated.toml
+    assert time.perf_counter() - t0 < 120  # refused up front, not after a global stage
+
+
+# --- 7. Ctrl-C stops a compiled run -------------------------------------------------------
+def test_ctrl_c_stops_a_long_3d_run(tmp_path):
+    """A 3-D run of 1000 periods (about half a minute) interrupted after it started: it
+    exits 130 and says so, long before the run would have ended."""
+    p = subprocess.Popen(
+        [sys.executable, "-m", "turntable_env.cli", "simulate", "--model", "full",
+         "--periods", "1000", "--output-dt", "1e-3"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    time.sleep(8.0)  # imports and the model's build; the kernel is running by now
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=15)
+    assert p.returncode == 130, err[-2000:]
+    assert "interrupted" in err and out == ""
+
+
+# --- 8. the agent env and the vector env check their actions and their order --------------
+@pytest.mark.parametrize(
+    "action", [np.zeros(5), [np.inf, 0, 0], [1j, 0, 0], [np.nan, 0, 0], 0.5, None, "abc"]
+)
+def test_agent_env_refuses_bad_actions(action):
+    import agents  # noqa: F401  (registers PiezoTurntableAgent-v0)
+
+    env = gym.make("PiezoTurntableAgent-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(action)
+
+
+def test_step_before_reset_is_refused():
+    from gymnasium.error import ResetNeeded
+
+    import agents  # noqa: F401
+    from agents.interface import AgentWrapper
+    from turntable_env.envs import PiezoTurntableVectorEnv
+
+    with pytest.raises(ResetNeeded):
+        AgentWrapper(gym.make("PiezoTurntable-v0").unwrapped).step(np.zeros(3))
+    venv = PiezoTurntableVectorEnv(num_envs=2)
+    with pytest.raises(ResetNeeded):
+        venv.step(np.zeros((2, 5)))
+
+
+# --- 9. smaller -----------------------------------------------------------------------------
+def test_the_same_file_twice_is_refused(lab_file, tmp_path, capsys):
+    rc = main(["calibrate", str(lab_file), str(lab_file), "--report", str(tmp_path / "r")])
+    _one_line_exit_2(capsys, rc, "twice")
+
+
+def test_messages_show_plain_numbers():
+    from turntable_env.validation import check_positive
+
+    with pytest.raises(ValueError) as e:
+        check_positive("x", np.float64(-0.00495))
+    assert "np.float64" not in str(e.value) and "-0.00495" in str(e.value)
