@@ -137,7 +137,8 @@ PLANT_SETS: dict[str, Callable[[], PlantSet]] = {
         _held_out,
     ),
     "calibrated": lambda: PlantSet(
-        "calibrated", Plant("calibrated"), "the thesis calibration's set", _same
+        "calibrated", Plant.named("calibrated").replace(fidelity="reduced"),
+        "the thesis calibration's plant (data/calibrated.toml, whole), reduced model", _same
     ),
     "full_3d": lambda: PlantSet(
         "full_3d", Plant("real", fidelity="full"), "Table D.1 on the full 3-D model", _same

@@ -5,12 +5,15 @@ calibration report, and the spread of its figures and decisions over perturbed s
         the block, from experiments/results/thesis_calibration/report.json (the run that
         wrote turntable_env/data/calibrated.toml: `turntable calibrate --thesis --report
         experiments/results/thesis_calibration`)
-    python experiments/thesis_calibration.py --seeds 1 2 --out SPREAD_MD
+    python experiments/thesis_calibration.py --seeds 1 2 3 --out SPREAD_MD
         runs `turntable calibrate --thesis --seed S` for each seed (every start perturbed
         differently), each in a fresh process with a cold numba cache, and prints how far
         each figure and decision moves from the committed report: the machine-to-machine
         spread one should expect (about 5 minutes a seed on this project's 2-core machine);
         SPREAD_MD is experiments/results/thesis_calibration/spread.md
+    python experiments/thesis_calibration.py --reports S1/report.json S2/report.json ...
+        the same table from reports already written (each `turntable calibrate --thesis
+        --seed S --report S`), in the order given; their seeds from the file names' digits
 
 The tests hold the page to this script: ``tests/test_thesis_calibration_docs.py`` checks the
 block against the committed report (default tier) and a fresh run against the committed
@@ -102,10 +105,12 @@ def block(report: Mapping[str, Any]) -> str:
         for c in rig.get("decision", {}).get("choices", []):
             kept = "" if c["decision"] == "decided" else f"; the prior's {c['kept']} kept"
             lines.append(
-                f"- Rig, {c['choice'].replace('_', ' ')}: {c['decision']} — {c['leader']} leads "
-                f"{c['runner_up']} by {c['margin_nats']:.2f} nats of log posterior "
-                f"({c['margin_nats_jackknife_low']:.2f} with its most helpful start left out; "
-                f"needs {c['needed_nats']:g}){kept}."
+                f"- Rig, {c['choice'].replace('_', ' ')}: {c['decision']} — on the 3-D model "
+                f"{c['leader']} leads {c['runner_up']} by {c['margin_nats']:.2f} nats of log "
+                f"posterior ({c['margin_nats_jackknife_low']:.2f} with its most helpful start "
+                f"left out), on the per-axis model {c['per_axis_leader']} by "
+                f"{c['per_axis_margin_nats']:.2f} ({c['per_axis_margin_nats_jackknife_low']:.2f}); "
+                f"needs {c['needed_nats']:g} on both{kept}."
             )
         best = next(f for f in rig["fits"] if f["hypothesis"] == rig["best"])
         est = ", ".join(
@@ -149,6 +154,16 @@ def compare(reference: Mapping[str, Any], other: Mapping[str, Any]) -> dict[str,
     }
 
 
+def documented_spread(path: Path | str = SPREAD) -> dict[str, float]:
+    """Per figure, the largest move [resolutions] the committed spread table records."""
+    rows = Path(path).read_text(encoding="utf-8").split("\n\n", 1)[1].splitlines()[2:]
+    out = {}
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        out[cells[0]] = max(float(c) for c in cells[1:])
+    return out
+
+
 def run_seed(seed: int, out: Path) -> dict[str, Any]:
     """`turntable calibrate --thesis --seed SEED` in a fresh process with a cold numba cache."""
     with tempfile.TemporaryDirectory() as cache:
@@ -175,7 +190,7 @@ def spread_markdown(reference: Mapping[str, Any], runs: Mapping[int, Mapping[str
         *[
             f"| {s} | {'yes' if c['same_decisions'] else 'no: ' + json.dumps(c['decisions'])} "
             f"| {c['within_10_percent']} | {max(c['figures_in_resolution_units'].values()):.2f} "
-            f"| {runs[s].get('_wall_s', float('nan')):.0f} |"
+            f"| {runs[s].get('_wall_s', runs[s].get('wall_s', float('nan'))):.0f} |"
             for s, c in cmp.items()
         ],
         "",
@@ -196,13 +211,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--report", default=str(REPORT), help="the calibration report to print")
     ap.add_argument("--seeds", type=int, nargs="*", default=[],
                     help="run the calibration with these seeds and print the spread")  # fmt: skip
+    ap.add_argument("--reports", nargs="*", default=[],
+                    help="spread from these reports instead of new runs")  # fmt: skip
     ap.add_argument("--out", default=None, help="write the spread's Markdown here too")
     args = ap.parse_args(argv)
     reference = load(args.report)
-    if not args.seeds:
+    if not args.seeds and not args.reports:
         print(block(reference))
         return 0
     runs = {}
+    for r in args.reports:
+        digits = "".join(ch for ch in Path(r).parent.name if ch.isdigit())
+        runs[int(digits) if digits else len(runs)] = load(r)
     with tempfile.TemporaryDirectory() as tmp:
         for s in args.seeds:
             runs[s] = run_seed(s, Path(tmp) / f"seed{s}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import pickle
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -321,3 +322,45 @@ def test_registered_variants():
     env = gym.make("PiezoTurntableRandomized-v0")
     _, info = env.reset(seed=0)
     assert set(info["parameter_factors"]) == set(DEFAULT_RANDOMIZATION)
+
+
+# --- the store: named plants round-trip whole (issue 33) -----------------------------------
+def test_the_calibrated_plant_round_trips_whole_through_its_file(tmp_path):
+    """data/calibrated.toml → Plant → TOML → Plant keeps everything: base, rig, factors,
+    effects, fidelity, detector noise and the calibration's uncertainties (the old road
+    through a ParameterSet dropped the last three)."""
+    from turntable_env.plant import calibrated_set_toml, parameter_set
+
+    plant = Plant.named("calibrated")
+    assert plant.fidelity == "full" and plant.uncertainty and plant.rig is not None
+    path = tmp_path / "again.toml"
+    path.write_text(calibrated_set_toml(plant, source="test"), encoding="utf-8")
+    back = Plant.from_toml(path)
+    assert back == plant
+    assert back.fidelity == plant.fidelity and back.sensor_noise == plant.sensor_noise
+    assert dict(back.uncertainty) == dict(plant.uncertainty)
+    assert back.params == replace(parameter_set("calibrated"), name=back.params.name)
+
+
+def test_the_calibrated_plants_uncertainty_reaches_sample():
+    """The benchmark's calibrated plant keeps the calibration's uncertainties, and
+    Plant.sample draws from them: the draws scatter about the estimates by their errors."""
+    from controllers.plant_sets import PLANT_SETS
+
+    plant = PLANT_SETS["calibrated"]().base
+    assert plant.uncertainty and plant.fidelity == "reduced"
+    rng = np.random.default_rng(0)
+    draws = np.array([[d[k] for k in ("friction", "preload")]
+                      for _p, d in (plant.sample(rng) for _ in range(400))])  # fmt: skip
+    for j, k in enumerate(("friction", "preload")):
+        assert draws[:, j].mean() == pytest.approx(plant.factors[k], abs=0.2 * plant.uncertainty[k])
+        assert draws[:, j].std() == pytest.approx(plant.uncertainty[k], rel=0.25)
+
+
+def test_named_plants_and_sets_are_refused_by_an_unknown_name():
+    from turntable_env.plant import parameter_set
+
+    with pytest.raises(ValueError, match="named plants: calibrated"):
+        Plant.named("wishful")
+    with pytest.raises(ValueError, match="must be one of real, thesis, calibrated"):
+        parameter_set("wishful")

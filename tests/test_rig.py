@@ -15,8 +15,8 @@ from turntable_env.calibration.thesis_data import thesis_step_sizes, thesis_targ
 from turntable_env.cli import main
 from turntable_env.detector import Detector, mirror_tilt_factor
 from turntable_env.model import TurntableModel
-from turntable_env.params import RigParams, get_parameter_set, real_parameters
-from turntable_env.plant import Plant, output_capacitance, reduced_model
+from turntable_env.params import RigParams, real_parameters
+from turntable_env.plant import Plant, output_capacitance, parameter_set, reduced_model
 from turntable_env.simulation import simulate, stepping_drive
 from turntable_env.tube import TubeParams
 
@@ -127,7 +127,7 @@ AMP_FIGURES = {t.name: t for t in thesis_targets() if t.unit == "V/s"}
 def test_calibrated_amplifier_reproduces_the_four_figures_of_4_1_2(name):
     """0.9 and 2.7 V/µs (1 V, 3 V steps), 12 V/µs (900 V swing), 8.0 V/µs (adapted): the
     fast partial response with the output's rate limit, within 3 % each."""
-    ps = get_parameter_set("calibrated")
+    ps = parameter_set("calibrated")
     c = output_capacitance(ps, "B")
     assert _slew(ps.amplifier, AMP_FIGURES[name], c) == pytest.approx(
         AMP_FIGURES[name].value, rel=0.03
@@ -243,11 +243,6 @@ def test_calibrated_set_steps_as_fig_4_6_and_returns(calibrated_runs):
     assert two["energy_closure"] < 1e-3
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known miss: 28 % of the adapted step (target < 10 %); the calibration's report.md "
-    "shows every parameter moves this figure and the one-directional step together",
-)
 def test_calibrated_set_shows_no_net_movement_unadapted(calibrated_runs):
     """§4.1.2: with the unadapted amplifier the table follows the input — net rotation per
     period below 10 % of the adapted step."""
@@ -255,7 +250,7 @@ def test_calibrated_set_shows_no_net_movement_unadapted(calibrated_runs):
 
 
 def test_calibrated_set_is_the_real_turntable_with_its_rig():
-    ps = get_parameter_set("calibrated")
+    ps = parameter_set("calibrated")
     real = real_parameters()
     assert ps.name == "calibrated" and ps.table == real.table
     assert ps.rig.drive_mode in ("asymmetric", "symmetric")

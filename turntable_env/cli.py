@@ -17,11 +17,11 @@ import math
 import os
 import sys
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from . import __version__
 from .files import Terminated, check_writable, terminate_cleanly, write_atomic
-from .params import PARAMETER_SETS, get_parameter_set
+from .plant import PARAMETER_SETS, parameter_set
 from .scale import BACKENDS
 
 __all__ = ["main"]
@@ -86,7 +86,7 @@ def _fmt(value: object) -> str:
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
-    ps = get_parameter_set(args.set)
+    ps = parameter_set(args.set)
     if args.json:
         print(ps.to_json())
         return 0
@@ -320,10 +320,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="turntable", description="piezo stick-slip turntable tools")
-    p.add_argument("--version", action="version", version=f"turntable {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
+def _add_params(sub: Any) -> None:
+    """The ``params`` subcommand."""
     pp = sub.add_parser("params", help="print a parameter set with every given and derived value")
     pp.add_argument(
         "--set",
@@ -334,6 +332,9 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--json", action="store_true", help="print JSON")
     pp.set_defaults(func=_cmd_params)
 
+
+def _add_simulate(sub: Any) -> None:
+    """The ``simulate`` subcommand."""
     ps = sub.add_parser(
         "simulate",
         help="run the full 3-D model with a stepping drive",
@@ -395,6 +396,9 @@ def build_parser() -> argparse.ArgumentParser:
     ps.add_argument("--json", action="store_true", help="print JSON")
     ps.set_defaults(func=_cmd_simulate)
 
+
+def _add_bench(sub: Any) -> None:
+    """The ``bench`` subcommand."""
     pb = sub.add_parser(
         "bench",
         help="speed and accuracy of the full, reduced, batched and SciPy paths",
@@ -414,6 +418,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pb.set_defaults(func=_cmd_bench)
 
+
+def _add_benchmark(sub: Any) -> None:
+    """The ``benchmark`` subcommand."""
     pk = sub.add_parser(
         "benchmark",
         help="every registered controller × plant set × task, seeds paired, 95 %% intervals",
@@ -453,6 +460,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pk.set_defaults(func=_cmd_benchmark)
 
+
+def _add_virtual_lab(sub: Any) -> None:
+    """The ``virtual-lab`` subcommand."""
     pv = sub.add_parser(
         "virtual-lab",
         help="write a measurement file from the simulator with effects switched on",
@@ -471,6 +481,9 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("--out", required=True, help="measurement file to write")
     pv.set_defaults(func=_cmd_virtual_lab)
 
+
+def _add_calibrate(sub: Any) -> None:
+    """The ``calibrate`` subcommand."""
     pc = sub.add_parser(
         "calibrate",
         help="fit measurement files and find the effects the model lacks",
@@ -504,6 +517,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="scrambling seed of the Sobol design (figures: the perturbation of every start)",
     )
     pc.set_defaults(func=_cmd_calibrate)
+
+
+def _add_report(sub: Any) -> None:
+    """The ``report`` subcommand."""
     pr = sub.add_parser(
         "report",
         help="the main job: thesis figures, speed, benchmark and calibration as one HTML page",
@@ -515,6 +532,16 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument("--quick", action="store_true", help="shortened run (for tests)")
     pr.add_argument("--no-progress", action="store_true", help="no progress bar")
     pr.set_defaults(func=_cmd_report)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line: one subcommand per ``_add_*`` below."""
+    p = _Parser(prog="turntable", description="piezo stick-slip turntable tools")
+    p.add_argument("--version", action="version", version=f"turntable {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    for add in (_add_params, _add_simulate, _add_bench, _add_benchmark, _add_virtual_lab,
+                _add_calibrate, _add_report):  # fmt: skip
+        add(sub)
     return p
 
 

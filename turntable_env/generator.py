@@ -28,6 +28,7 @@ Settings cross into the compiled code as rows of :data:`SETTING_FIELDS`.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -40,6 +41,7 @@ __all__ = [
     "MODE_RAMP",
     "MODE_STEP",
     "SETTING_FIELDS",
+    "GeneratorState",
     "adapted_hold",
     "capacitive_energy_nb",
     "flybacks_nb",
@@ -284,27 +286,39 @@ def interval_capacity(max_frequency: float, interval: float) -> int:
     return TEMPLATE_POINTS * (periods + 2) + 8
 
 
+class GeneratorState(NamedTuple):
+    """The free-running generator of N turntables (rows), carried from one interval to the
+    next: ``phase`` (N,) position in the running period [0, 1); ``running`` (N, 6) the
+    setting it runs (:data:`SETTING_FIELDS`); ``offset`` (N,) the scan level at the last
+    interval's end [V input]."""
+
+    phase: np.ndarray
+    running: np.ndarray
+    offset: np.ndarray
+
+
 @njit(cache=CACHE)
-def generate_interval(
-    n0, n_steps, interval, grid, phase, running, pending, offset0, offset1, amp, c_load,
-    wg, wv, wn, flybacks, energy,
-):  # fmt: skip
+def generate_interval(n0, interval, grid, gen, pending, offset1, amp, c_load, drive, flybacks,
+                      energy):  # fmt: skip
     """One control interval of the free-running generator for N turntables (module docstring).
 
     Args (row b per turntable):
-        n0: grid time of the interval start; n_steps: grid steps per interval;
-        interval: its length Δt [s]; grid: the integration grid [s];
-        phase: position in the running period [0, 1) (updated);
-        running, pending: setting rows (N, 6) (:data:`SETTING_FIELDS`): the one running and
-            the one asked for; running is replaced when pending latches; pending's k and hold
-            are filled in here for adapted flybacks (:func:`adapted_hold`);
-        offset0, offset1: scan level at the start and the end of the interval [V input]
-            (ramped linearly in between);
+        n0: grid time of the interval start; interval: its length Δt [s]; grid: the
+        integration grid [s];
+        gen: :class:`GeneratorState` (updated: the phase, the running setting when pending
+            latches; its ``offset`` is the scan level at the interval's start [V input]);
+        pending: setting rows (N, 6) asked for; its k and hold are filled in here for
+            adapted flybacks (:func:`adapted_hold`);
+        offset1: scan level at the interval's end [V input] (ramped linearly from
+            ``gen.offset``; the caller stores it as the next start);
         amp: (N, 7) amplifier rows (:meth:`~turntable_env.amplifier.Amplifier.kernel_row`);
         c_load: capacitance of the driven channel [F].
-    Outputs: wg, wv, wn: the amplifier input as grid breakpoints (grid units, V, count);
-    flybacks: steps started; energy: C∫|V dV| of the amplifier output [J].
+    Outputs: drive: :class:`~turntable_env.kernel_types.DriveArrays`, the amplifier input as
+    grid breakpoints (grid units, V, count); flybacks: steps started; energy: C∫|V dV| of
+    the amplifier output [J].
     """
+    phase, running, offset0 = gen.phase, gen.running, gen.offset
+    wg, wv, wn = drive.times, drive.values, drive.count
     nb = running.shape[0]
     cap = wg.shape[1]
     seg_t = np.empty(cap)

@@ -27,7 +27,8 @@ import control as ct
 import numpy as np
 
 from .drive import Waveform
-from .params import ParameterSet, get_parameter_set
+from .params import ParameterSet
+from .plant import parameter_set
 from .reduced import ReducedModel, simulate_batch
 from .validation import check_positive
 
@@ -183,7 +184,7 @@ def sine_sweep(
         fidelity: ``"reduced"`` (all frequencies in one batched compiled call) or
             ``"full"`` (the 3-D model, one run per frequency).
     """
-    ps = get_parameter_set(params) if isinstance(params, str) else params
+    ps = parameter_set(params) if isinstance(params, str) else params
     freqs = np.logspace(1.0, math.log10(4000.0), 12) if frequencies is None else frequencies
     freqs = np.asarray(freqs, dtype=float)
     for f in freqs:

@@ -46,6 +46,7 @@ from .tube import TubeParams, TubeStiffness
 from .validation import check_finite, check_in_open
 
 __all__ = [
+    "FACTORS",
     "PARAMETER_SETS",
     "RIG_CHOICES",
     "RIG_LIMITS",
@@ -198,16 +199,19 @@ def load_unlisted(
         raise ValueError(f"{p}: {exc}") from None
 
 
-# multiplicative factors on a set's uncertain values (ParameterSet.with_factors)
-SET_FACTORS = (
-    "friction",
-    "coulomb",
-    "stribeck_velocity",
-    "preload",
-    "contact_damping",
-    "tube_damping",
-    "amplifier",
-)
+# The one table of multiplicative factors on a set's uncertain values
+# (ParameterSet.with_factors, Plant.factors, the trace calibration's nominal model):
+# name → (low, high, what it scales), the bounds physical.
+FACTORS: dict[str, tuple[float, float, str]] = {
+    "friction": (0.1, 10.0, "μ_s and μ_c together (dry-contact scatter)"),
+    "preload": (0.1, 10.0, "normal force F_N of the preload spring (not documented)"),
+    "amplifier": (0.1, 10.0, "HVA 900 slew rate per input volt and current limit"),
+    "coulomb": (0.1, 10.0, "μ_c alone, on top of friction (μ_c ≤ μ_s)"),
+    "stribeck_velocity": (0.01, 100.0, "Stribeck velocity v_S of the contact"),
+    "contact_damping": (0.01, 1000.0, "tangential micro-slip damping β_t of the contact"),
+    "tube_damping": (0.01, 100.0, "tube loss 1/Q_m"),
+}
+SET_FACTORS = tuple(FACTORS)
 RIG_PRIORS: dict[str, tuple[float, float, float, float, str]] = {
     # name: (low, high, prior mean, prior std, source) — continuous rig parameters
     "d31_factor": (
@@ -717,20 +721,19 @@ def thesis_parameters() -> ParameterSet:
     )
 
 
-PARAMETER_SETS = ("real", "thesis", "calibrated")
+PARAMETER_SETS = ("real", "thesis")  # named sets of this layer; the plant layer adds more
 
 
 @functools.lru_cache(maxsize=8)
-def get_parameter_set(name: Literal["real", "thesis", "calibrated"]) -> ParameterSet:
-    """``"real"`` (Table D.1), ``"thesis"`` (Table D.2) or ``"calibrated"`` (the real
-    turntable with the rig the thesis's figures ask for, ``data/calibrated.toml``,
-    :func:`turntable_env.plant.calibrated_parameters`); immutable, so cached."""
+def get_parameter_set(name: Literal["real", "thesis"]) -> ParameterSet:
+    """``"real"`` (Table D.1) or ``"thesis"`` (Table D.2); immutable, so cached. Sets
+    built from a calibration (``"calibrated"``) are resolved by the plant layer:
+    :func:`turntable_env.plant.parameter_set`."""
     if name == "real":
         return real_parameters()
     if name == "thesis":
         return thesis_parameters()
-    if name == "calibrated":
-        from .plant import calibrated_parameters
-
-        return calibrated_parameters()
-    raise ValueError(f"set={name!r}: must be one of {', '.join(PARAMETER_SETS)}")
+    raise ValueError(
+        f"set={name!r}: must be one of {', '.join(PARAMETER_SETS)} (the calibrated set: "
+        "turntable_env.plant.parameter_set)"
+    )

@@ -17,7 +17,8 @@ import numpy as np
 
 from .drive import DriveSignal, Waveform
 from .model import AXES, TurntableModel
-from .params import ParameterSet, get_parameter_set
+from .params import ParameterSet
+from .plant import parameter_set
 from .response import ENERGY_TERMS, TurntableResponse
 from .validation import check_nonnegative, check_positive
 
@@ -57,7 +58,7 @@ def stepping_drive(
     of a two-directional signal default to ``TWO_DIRECTIONAL_CYCLES`` (Fig. 4.6 is read on
     the last, after a reversal: :meth:`~turntable_env.response.SteppingMetrics.figure_step`).
     """
-    ps = get_parameter_set(params) if isinstance(params, str) else params
+    ps = parameter_set(params) if isinstance(params, str) else params
     if amplifier is None:
         amplifier = "ideal" if ps.amplifier.ideal else "adapted"
     if amplifier not in AMPLIFIER_MODES:
@@ -109,7 +110,7 @@ def simulate(
         ValueError: invalid arguments (naming the field).
         SimulationError: the state diverged (naming the time and the state variable).
     """
-    ps = get_parameter_set(params) if isinstance(params, str) else params
+    ps = parameter_set(params) if isinstance(params, str) else params
     if axis not in AXES:
         raise ValueError(f"axis={axis!r}: must be one of {', '.join(AXES)}")
     drives = {axis: drive} if isinstance(drive, DriveSignal | Waveform) else dict(drive)

@@ -5,7 +5,8 @@
 * the catalogue of switchable model augmentations lives in :mod:`turntable_env.effects`;
 * :mod:`.trace` — a measured trace simulated with effects on;
 * :mod:`.virtual_lab` — drive protocols and measurement files from the simulator;
-* :mod:`.calibrate` — fit, residual diagnosis, effect selection and report on traces;
+* :mod:`.result` — the result every calibration returns and the shared fitting pieces;
+* :mod:`.calibrate` — the entry point on traces (:mod:`.trace_fit`) and the report;
 * :mod:`.summary` — the same loop on summary-level figures (the thesis's chapter 4).
 """
 

@@ -4,7 +4,8 @@ and its transients, as factors on a base plant, with priors and physical bounds.
 Every parameter is a multiplicative factor on the base plant's value (the shipped
 ``calibrated`` set by default, :mod:`turntable_env.params`), fitted as its natural
 logarithm with a normal prior N(0, σ²) — a factor e^{±σ} is one standard deviation —
-and bounds from the physics:
+and bounds from the physics — a factor's from the one factor table
+(:data:`turntable_env.params.FACTORS`), a rig field's from ``RIG_LIMITS``:
 
 =================  ===================================================  =====  ============
 name               what it scales (where)                               σ(ln)  bounds
@@ -12,16 +13,16 @@ name               what it scales (where)                               σ(ln)  
 stroke             piezo stroke per volt: large-signal d₃₁, the drive   0.3    RIG_LIMITS
                    gain and lever of the rig (rig ``d31_factor``)
 detector_gain      photodiode volts per metre of spot (rig)             0.05   RIG_LIMITS
-friction           μ_s and μ_c together (factor)                        0.5    0.1–10
-coulomb            μ_c alone, μ_c ≤ μ_s (factor)                        0.2    0.2–μ_s/μ_c
-stribeck_velocity  v_S of the Stribeck curve (factor)                   1.0    0.03–30
-preload            normal force F_N (factor; Hertz stiffness follows)   0.5    0.1–10
+friction           μ_s and μ_c together (factor)                        0.5    FACTORS
+coulomb            μ_c alone, μ_c ≤ μ_s (factor)                        0.2    FACTORS, μ_s/μ_c
+stribeck_velocity  v_S of the Stribeck curve (factor)                   1.0    FACTORS
+preload            normal force F_N (factor; Hertz stiffness follows)   0.5    FACTORS
 presliding         presliding distance, i.e. the GMS element            0.7    RIG_LIMITS
                    stiffnesses k_i = ν_iμ_sF_N/δ_i (rig)
-contact_damping    tangential micro-slip damping β_t (bristle σ₁)      1.5    0.1–300
-tube_damping       the tubes' loss 1/Q_m (factor)                       0.7    0.1–10
+contact_damping    tangential micro-slip damping β_t (bristle σ₁)      1.5    FACTORS
+tube_damping       the tubes' loss 1/Q_m (factor)                       0.7    FACTORS
 inertia            table mass and inertia, mirror and mount (rig)       0.3    RIG_LIMITS
-amplifier          slew per input volt and current limit (factor; not   0.1    0.5–2
+amplifier          slew per input volt and current limit (factor; not   0.1    FACTORS
                    freed by the trace fit, see below)
 =================  ===================================================  =====  ============
 
@@ -40,7 +41,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..params import RIG_LIMITS
+from ..params import FACTORS, RIG_LIMITS
 from ..plant import Plant
 
 __all__ = ["NOMINAL_PARAMETERS", "NominalModel", "NominalParameter"]
@@ -48,45 +49,46 @@ __all__ = ["NOMINAL_PARAMETERS", "NominalModel", "NominalParameter"]
 
 @dataclass(frozen=True)
 class NominalParameter:
-    """One nominal parameter: a factor on the base plant (module docstring).
+    """One nominal parameter: a factor on the base plant (module docstring). Its bounds are
+    not its own: a factor's are the one factor table's (:data:`~turntable_env.params.
+    FACTORS`), a rig field's the rig's limits (:data:`~turntable_env.params.RIG_LIMITS`),
+    both relative to the base plant's value.
 
     Attributes:
         name: its name in reports; target: ``"factor"`` (Plant.factors) or ``"rig"``
         (a RigParams field); key: the factor's or field's name; sigma: prior standard
-        deviation of ln(factor); low, high: bounds of the factor; meaning: text.
+        deviation of ln(factor); meaning: text.
     """
 
     name: str
     target: Literal["factor", "rig"]
     key: str
     sigma: float
-    low: float
-    high: float
     meaning: str
 
 
 NOMINAL_PARAMETERS: tuple[NominalParameter, ...] = (
-    NominalParameter("stroke", "rig", "d31_factor", 0.3, 0.2, 5.0,
+    NominalParameter("stroke", "rig", "d31_factor", 0.3,
                      "piezo stroke per volt (d31, drive gain, lever)"),
-    NominalParameter("detector_gain", "rig", "detector_gain", 0.05, 0.5, 2.0,
+    NominalParameter("detector_gain", "rig", "detector_gain", 0.05,
                      "photodiode volts per metre of spot"),
-    NominalParameter("friction", "factor", "friction", 0.5, 0.1, 10.0,
+    NominalParameter("friction", "factor", "friction", 0.5,
                      "friction coefficients mu_s and mu_c"),
-    NominalParameter("coulomb", "factor", "coulomb", 0.2, 0.2, 10.0,
+    NominalParameter("coulomb", "factor", "coulomb", 0.2,
                      "Coulomb level mu_c alone (mu_c <= mu_s)"),
-    NominalParameter("stribeck_velocity", "factor", "stribeck_velocity", 1.0, 0.03, 30.0,
+    NominalParameter("stribeck_velocity", "factor", "stribeck_velocity", 1.0,
                      "Stribeck velocity v_S"),
-    NominalParameter("preload", "factor", "preload", 0.5, 0.1, 10.0,
+    NominalParameter("preload", "factor", "preload", 0.5,
                      "normal force F_N (Hertz stiffness follows)"),
-    NominalParameter("presliding", "rig", "presliding_factor", 0.7, 0.1, 10.0,
+    NominalParameter("presliding", "rig", "presliding_factor", 0.7,
                      "presliding distance (GMS stiffness 1/delta)"),
-    NominalParameter("contact_damping", "factor", "contact_damping", 1.5, 0.1, 300.0,
+    NominalParameter("contact_damping", "factor", "contact_damping", 1.5,
                      "tangential micro-slip damping of the contact (bristle damping)"),
-    NominalParameter("tube_damping", "factor", "tube_damping", 0.7, 0.1, 10.0,
+    NominalParameter("tube_damping", "factor", "tube_damping", 0.7,
                      "tube loss 1/Q_m"),
-    NominalParameter("inertia", "rig", "inertia_factor", 0.3, 0.3, 3.0,
+    NominalParameter("inertia", "rig", "inertia_factor", 0.3,
                      "table mass and inertia (mirror and mount)"),
-    NominalParameter("amplifier", "factor", "amplifier", 0.1, 0.5, 2.0,
+    NominalParameter("amplifier", "factor", "amplifier", 0.1,
                      "amplifier slew per input volt and current limit (datasheet)"),
 )  # fmt: skip
 
@@ -111,12 +113,14 @@ class NominalModel:
         ps = base.params
         lo, hi = [], []
         for p in self.parameters:
-            low, high = p.low, p.high
             if p.target == "rig":
                 r_lo, r_hi = RIG_LIMITS[p.key]
                 v = getattr(self.base_rig, p.key)
-                low, high = max(low, r_lo / v), min(high, r_hi / v)
-            elif p.key == "coulomb" and ps.unlisted is not None:
+            else:
+                r_lo, r_hi, _ = FACTORS[p.key]
+                v = base.factors.get(p.key, 1.0)
+            low, high = r_lo / v, r_hi / v
+            if p.key == "coulomb" and ps.unlisted is not None:
                 high = min(high, ps.unlisted.mu_static / ps.unlisted.mu_coulomb)
             lo.append(math.log(low))
             hi.append(math.log(high))

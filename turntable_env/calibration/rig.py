@@ -51,7 +51,7 @@ import numpy as np
 import scipy.optimize
 
 from ..params import RIG_CHOICES, RIG_PRIORS, RigParams
-from .summary import SummaryProblem
+from .summary_problem import SummaryProblem
 from .thesis_data import SummaryTarget
 
 __all__ = [
@@ -88,9 +88,10 @@ STARTS = 5  # best grid points, perturbed, refined by least squares
 FIRST_STARTS = 2  # starts every hypothesis gets before the close ones get the rest
 PRUNE_NATS = 6.0  # a hypothesis this far behind after its first starts is not refined
 START_JITTER = 0.5  # σ of a start's perturbation in every standardised coordinate
-DECISIVE_NATS = 1.0  # a choice must lead by this much (Jeffreys: ln B > 1) to be decided
+DECISIVE_NATS = 3.0  # a choice must lead by this much (Kass & Raftery's "strong": ln B > 3)
 SAME_MODE = 0.25  # optima this close in every standardised coordinate are one mode
 POLISHED_MODES = 2  # a refined hypothesis's best modes moved onto the 3-D optimum
+FINAL_POLISHED = 4  # the kept hypothesis's best modes moved onto it before reporting
 
 
 @dataclass(frozen=True)
@@ -198,6 +199,10 @@ class RigFit:
     n_starts: int = 1
     best_low: float = math.nan
     refined: bool = True
+    axis_log_posterior: float = math.nan
+    axis_best_low: float = math.nan
+    raw_modes: list[Any] = field(repr=False, default_factory=list)
+    exploration: Any = field(repr=False, default=None)
 
     @property
     def log_posterior(self) -> float:
@@ -229,6 +234,8 @@ class RigFit:
             "starts_agree": self.starts_agree,
             "starts": self.n_starts,
             "log_posterior_jackknife_low": self.best_low,
+            "per_axis_log_posterior": self.axis_log_posterior,
+            "per_axis_log_posterior_jackknife_low": self.axis_best_low,
             "refined": self.refined,
         }
 
@@ -350,6 +357,7 @@ class _Exploration:
     start_points: list[np.ndarray]
     modes: list[_Mode]
     evals: int
+    shared: int = 0  # starts taken from another hypothesis's optimum (labelled after own)
 
     def best(self, without: int | None = None) -> float:
         """The best mode's log posterior + ln prior; ``without``: leaving that start out (a
@@ -368,6 +376,24 @@ def _explore(job: tuple) -> _Exploration:
     for k, z0 in enumerate(points[: kw["first"]]):
         _merge(modes, obj.local(z0, kw["max_nfev"], k))
     return _Exploration(h, points, modes, obj.evals)
+
+
+def _best_mode(modes: Sequence[_Mode]) -> _Mode:
+    """The best-scoring mode; equal scores (to 1e-9) go to the earliest start."""
+    return max(modes, key=lambda m: (round(m.score, 9), -min(m.starts)))
+
+
+def _cross(job: tuple) -> _Exploration:
+    """A hypothesis refitted from another one's best optimum (a
+    :func:`~turntable_env.scale.map_tasks` job): the hypotheses of one drive mode differ
+    only in the mirror's factor or the axial strain's sign, and a region one search found
+    is a start the others need not find by luck."""
+    targets, expl, effects, kw, z0 = job
+    obj = _Objective(targets, expl.hypothesis, effects, kw["drive_amplifier"], kw["fidelity"])
+    obj.evals = expl.evals
+    modes = [_Mode(m.z.copy(), m.cost, m.jac, list(m.starts)) for m in expl.modes]
+    _merge(modes, obj.local(z0, kw["max_nfev"], len(expl.start_points) + expl.shared))
+    return _Exploration(expl.hypothesis, expl.start_points, modes, obj.evals, expl.shared + 1)
 
 
 def _refine(job: tuple) -> RigFit:
@@ -390,8 +416,23 @@ def _refine(job: tuple) -> RigFit:
                 :POLISHED_MODES
             ]:
                 _polish(obj, m, kw)
-    best = max(modes, key=lambda m: (round(m.score, 9), -min(m.starts)))
-    return _rig_fit(obj, expl, modes, best, kw)
+    return _rig_fit(obj, expl, modes, _best_mode(modes), kw)
+
+
+def _finalise(job: tuple) -> RigFit:
+    """The kept hypothesis with its best :data:`FINAL_POLISHED` modes (by the 3-D score)
+    moved onto the 3-D optimum (those not polished yet), the best of them reported."""
+    targets, fit, effects, kw = job
+    obj = _Objective(targets, fit.hypothesis, effects, kw["drive_amplifier"], kw["fidelity"])
+    obj.evals = fit.n_evaluations
+    modes = fit.raw_modes
+    if obj.full is not None:
+        for m in sorted(modes, key=lambda m: (-round(m.score, 9), min(m.starts)))[
+            :FINAL_POLISHED
+        ]:
+            if m.correction is None and m.full_cost is not None:
+                _polish(obj, m, kw)
+    return _rig_fit(obj, fit.exploration, modes, _best_mode(modes), kw)
 
 
 def _polish(obj: _Objective, mode: _Mode, kw: Mapping[str, Any]) -> None:
@@ -428,7 +469,8 @@ def _rig_fit(obj: _Objective, expl: _Exploration, modes: list[_Mode], best: _Mod
     refined = bool(kw["refine"])
     pred = best.full_pred if best.full_pred is not None else obj.fit_on.predict(vals, obj.effects)
     err = pred - obj.measured
-    n_starts = len(expl.start_points) if refined else min(kw["first"], len(expl.start_points))
+    n_starts = (len(expl.start_points) if refined else min(kw["first"], len(expl.start_points))
+                ) + expl.shared  # fmt: skip
     mode_rows = sorted(
         (
             {
@@ -461,13 +503,24 @@ def _rig_fit(obj: _Objective, expl: _Exploration, modes: list[_Mode], best: _Mod
         modes=mode_rows,
         starts_agree=len(best.starts),
         n_starts=n_starts,
-        best_low=min(
-            (max((m.score for m in modes if set(m.starts) - {k}), default=-math.inf)
-             for k in range(n_starts)),
-            default=-math.inf,
-        ) + math.log(obj.hypothesis.prior),
+        best_low=_jackknife_low(modes, lambda m: m.score) + math.log(obj.hypothesis.prior),
         refined=refined,
+        axis_log_posterior=max(-m.cost for m in modes) + math.log(obj.hypothesis.prior),
+        axis_best_low=_jackknife_low(modes, lambda m: -m.cost) + math.log(obj.hypothesis.prior),
+        raw_modes=modes,
+        exploration=expl,
     )
+
+
+def _jackknife_low(modes: Sequence[_Mode], score: Callable[[_Mode], float]) -> float:
+    """The best score left when the start that helped most is left out (a mode only that
+    start reached drops out)."""
+    labels = {k for m in modes for k in m.starts}
+    return min(
+        (max((score(m) for m in modes if set(m.starts) - {k}), default=-math.inf)
+         for k in labels),
+        default=-math.inf,
+    )  # fmt: skip
 
 
 def fit_rig(
@@ -634,12 +687,29 @@ def _option_label(choice: str, value: Any) -> str:
     return str(value)
 
 
+def _margins(
+    groups: Mapping[Any, list[RigFit]],
+    best: Callable[[RigFit], float],
+    low_of: Callable[[RigFit], float],
+) -> tuple[Any, Any, float, float]:
+    """(leader, runner-up, margin, margin with one start of the leader's left out) of a
+    choice's options, each scored by its hypotheses' best ``best``."""
+    ev = {k: max(best(f) for f in g) for k, g in groups.items()}
+    leader = max(ev, key=lambda k: ev[k])
+    rival = max((k for k in ev if k != leader), key=lambda k: ev[k])
+    g = groups[leader]
+    low = min(max(best(x) if x is not f else low_of(f) for x in g) for f in g)
+    return leader, rival, ev[leader] - ev[rival], low - ev[rival]
+
+
 def _choose(fits: Sequence[RigFit]) -> tuple[RigFit, list[dict[str, Any]]]:
     """The calibrated hypothesis, one discrete choice at a time (drive mode, then the axial
     sign, then the mirror), each over the hypotheses the earlier ones left: the option
-    whose best log posterior leads by :data:`DECISIVE_NATS` even at its jackknife low is
-    *decided*; otherwise the choice is *undecided* and the option of larger prior
-    probability is kept — a rule that does not depend on which optima a machine found."""
+    whose best log posterior leads by :data:`DECISIVE_NATS` even at its jackknife low, on
+    the 3-D model the modes were scored on and on the per-axis model they were searched
+    with alike, is *decided*; otherwise the choice is *undecided* and the option of larger
+    prior probability is kept — a rule that does not depend on which optima a machine
+    found, nor on how one model's optimum lands on the other."""
     left = list(fits)
     out = []
     for name, key in CHOICES:
@@ -648,19 +718,15 @@ def _choose(fits: Sequence[RigFit]) -> tuple[RigFit, list[dict[str, Any]]]:
             groups.setdefault(key(f.hypothesis), []).append(f)
         if len(groups) < 2:
             continue
-        ev = {k: max(f.log_posterior for f in g) for k, g in groups.items()}
-
-        def low(g: list[RigFit]) -> float:  # one start left out in one hypothesis
-            return min(
-                max(x.log_posterior if x is not f else f.best_low for x in g) for f in g
-            )
-
-        leader = max(ev, key=lambda k: ev[k])
-        rival = max((k for k in ev if k != leader), key=lambda k: ev[k])
-        margin = ev[leader] - ev[rival]
-        margin_low = low(groups[leader]) - ev[rival]
+        leader, rival, margin, margin_low = _margins(
+            groups, lambda f: f.log_posterior, lambda f: f.best_low
+        )
+        a_leader, _a_rival, a_margin, a_low = _margins(
+            groups, lambda f: f.axis_log_posterior, lambda f: f.axis_best_low
+        )
         prior = {k: sum(f.hypothesis.prior for f in g) for k, g in groups.items()}
-        decided = margin_low > DECISIVE_NATS
+        decided = (margin_low > DECISIVE_NATS and a_low > DECISIVE_NATS
+                   and a_leader == leader)  # fmt: skip
         kept = leader if decided else max(prior, key=lambda k: prior[k])
         out.append(
             {
@@ -670,6 +736,9 @@ def _choose(fits: Sequence[RigFit]) -> tuple[RigFit, list[dict[str, Any]]]:
                 "runner_up": _option_label(name, rival),
                 "margin_nats": margin,
                 "margin_nats_jackknife_low": margin_low,
+                "per_axis_leader": _option_label(name, a_leader),
+                "per_axis_margin_nats": a_margin,
+                "per_axis_margin_nats_jackknife_low": a_low,
                 "needed_nats": DECISIVE_NATS,
                 "kept": _option_label(name, kept),
                 "kept_value": kept,
@@ -686,9 +755,11 @@ def describe_decision(d: Mapping[str, Any]) -> str:
     for c in d.get("choices", []):
         s = (
             f"{c['choice']} {c['decision']}: {c['leader']} leads {c['runner_up']} by "
-            f"{c['margin_nats']:.2f} nats of log posterior ({c['margin_nats_jackknife_low']:.2f} "
-            "with the most "
-            f"helpful start left out; needs {c['needed_nats']:g})"
+            f"{c['margin_nats']:.2f} nats of log posterior on the 3-D model "
+            f"({c['margin_nats_jackknife_low']:.2f} with the most helpful start left out), "
+            f"{c['per_axis_margin_nats']:.2f} ({c['per_axis_margin_nats_jackknife_low']:.2f}) "
+            f"on the per-axis model led by {c['per_axis_leader']}; needs {c['needed_nats']:g} "
+            "on both"
         )
         if c["decision"] == "undecided":
             s += f", the prior's {c['kept']} kept"
@@ -735,12 +806,25 @@ def calibrate_rig(
     say(f"  {len(hyps)} rig hypotheses, {kw['first']} starts each"
         + (f", {workers} processes" if workers > 1 else ""))  # fmt: skip
     expl = run(_explore, [(list(targets), h, eff, kw) for h in hyps])
+    # each hypothesis also starts from the best optimum its drive mode's other hypotheses
+    # found (they differ in the mirror's factor or the axial sign alone), before any pruning
+    sibling = []
+    for i, e in enumerate(expl):
+        others = [x for j, x in enumerate(expl)
+                  if j != i and x.hypothesis.drive_mode == e.hypothesis.drive_mode]  # fmt: skip
+        sibling.append(max(others, key=lambda x: x.best()) if others else None)
+    crossed = run(_cross, [(list(targets), e, eff, kw, _best_mode(o.modes).z)
+                           for e, o in zip(expl, sibling, strict=True)
+                           if o is not None])  # fmt: skip
+    it = iter(crossed)
+    expl = [next(it) if o is not None else e for e, o in zip(expl, sibling, strict=True)]
     top = max(e.best() for e in expl)
     close = [e.best() >= top - PRUNE_NATS for e in expl]
     for e, c in zip(expl, close, strict=True):
         say(f"    {e.hypothesis.label}: log posterior {e.best():.2f} after {kw['first']} "
-            f"starts" + ("" if c else f" — more than {PRUNE_NATS:g} nats behind, not refined"))
-    say(f"  refining {sum(close)} hypotheses: {starts} starts each and the 3-D correction")
+            f"starts and {e.shared} shared" + ("" if c else
+            f" — more than {PRUNE_NATS:g} nats behind, not refined"))  # fmt: skip
+    say(f"  refining {sum(close)} hypotheses: {starts} starts each and the 3-D model")
     jobs = [(list(targets), e, eff, {**kw, "refine": c}) for e, c in zip(expl, close, strict=True)]
     fits = run(_refine, jobs)
     for f in fits:
@@ -749,6 +833,11 @@ def calibrate_rig(
                 f"modes; {f.starts_agree}/{f.n_starts} starts reach the best; chi2 {f.chi2:.2f}; "
                 f"{f.n_evaluations} simulations)")  # fmt: skip
     best, choices = _choose(fits)
+    if best.refined:
+        say(f"  {best.hypothesis.label}: {FINAL_POLISHED} best modes onto the 3-D optimum")
+        kept = _finalise((list(targets), best, eff, kw))
+        fits = [kept if f is best else f for f in fits]
+        best = kept
     posterior = _posterior(fits)
     refs = {t.name: t.reference for t in _stepping_targets(targets)}
     decision = {

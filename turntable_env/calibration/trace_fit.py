@@ -58,6 +58,7 @@ from ..plant import Plant
 from .measurement import Measurement, load_measurement
 from .nominal import NominalModel
 from .residual import Anchoring, noise_floor, residual_sigma, ringing, spectral_peaks
+from .result import CalibrationResult
 from .segments import DriveReading, Segment, read_drive, segment_trace, split_portions
 from .trace import simulate_trace
 
@@ -569,7 +570,7 @@ def calibrate_traces(
     progress: Callable[[str], None] | None = print,
 ) -> Any:
     """Calibrate measurement files (module docstring); returns a
-    :class:`~turntable_env.calibration.calibrate.CalibrationResult`.
+    :class:`~turntable_env.calibration.result.CalibrationResult`.
 
     Args:
         files: measurement files or loaded :class:`Measurement` objects (fitted together).
@@ -585,8 +586,6 @@ def calibrate_traces(
         seed: the Sobol design's scrambling seed.
         progress: message sink (None: silent); tqdm bars go to stderr when given.
     """
-    from .calibrate import CalibrationResult
-
     t0 = time.perf_counter()
     if not 0.0 <= min_improvement < 1.0:
         raise ValueError(f"min_improvement={min_improvement!r}: must be in [0, 1)")
@@ -639,91 +638,17 @@ def calibrate_traces(
     )
     say(f"prior model: held-out error {before:.3g} {ERROR_UNIT}")
 
-    # global stage → local fits from the best points and the prior
-    starts_x = [x_prior]
-    if global_points > 0:
-        say(f"global stage: {global_points} Sobol points on {n_workers} process(es)")
-        pts, vals = global_stage(problem, global_points, n_workers, seed, bar)
-        for i in np.argsort(vals)[:starts]:
-            if np.isfinite(vals[i]):
-                starts_x.append(pts[i])
-    fits: list[LocalFit] = []
-    for k, xs in enumerate(starts_x):
-        f1 = local_fit(problem, xs, {}, max_nfev=15)
-        fits.append(f1)
-        say(f"  start {k}: held-out {f1.heldout_rms:.3g} {ERROR_UNIT} (cost {f1.cost:.4g})")
-    best = min(fits, key=lambda f: f.cost)
-    # re-weight at the optimum (σ_r, correlation length), polish; honest standard errors
-    r_fit = problem.residual(best.x, {}, "fit")
-    problem.weight = 1.0 / (max(best.fit_rms, floor) * math.sqrt(correlation_length(r_fit)))
-    nominal = local_fit(problem, best.x, {}, max_nfev=10)
-    if nominal.heldout_rms > best.heldout_rms:
-        nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
-    spread = _start_spread(fits, nominal)
-    say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
-
-    # effects, only after the nominal model fits
-    current = nominal
-    selected: list[str] = []
-    history = [{"effects": [], "heldout_rms": nominal.heldout_rms}]
-    candidates_out: list[dict[str, Any]] = []
-    considered = [n for n in names if not ident.get(n)]
+    nominal, spread = _fit_nominal(problem, x_prior, floor, global_points, starts, n_workers,
+                                   seed, bar, say)  # fmt: skip
     for n in names:
         if ident.get(n):
             warnings.append(f"{n}: not identifiable from this protocol ({ident[n]})")
+    considered = [n for n in names if not ident.get(n)]
     if base_plant.params.amplifier.fast_fraction > 0 and "amplifier_fast_path" in considered:
         considered.remove("amplifier_fast_path")  # the base plant has one already
-    while len(selected) < max_effects and considered:
-        if current.heldout_rms <= FLOOR_REACHED * floor:
-            say("  residual at the noise floor: no effect searched")
-            break
-        screened = []
-        for n in considered:
-            if n in selected:
-                continue
-            try:
-                c = screen_effect(problem, current, n)
-            except Exception as exc:  # a candidate that cannot run is reported, not fatal
-                warnings.append(f"{n}: screening failed ({exc})")
-                continue
-            screened.append((n, c))
-            candidates_out.append(
-                {"round": len(selected) + 1, "effect": n, "heldout_error": c.heldout_rms}
-            )
-            say(f"  candidate {n:<22} held-out {c.heldout_rms:.3g} {ERROR_UNIT}")
-        if not screened:
-            break
-        top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
-        refit_nom = local_fit(problem, current.x, current.effects,
-                              free_effects=selected, max_nfev=6)  # fmt: skip
-        baseline = min(current.heldout_rms, refit_nom.heldout_rms)
-        accepted = None
-        for n, c in top:
-            joint = local_fit(problem, c.x, c.effects, free_effects=[*selected, n], max_nfev=6)
-            cand = joint if joint.heldout_rms < c.heldout_rms else c
-            if cand is c:  # standard errors with the nominal free too
-                cand = replace(c, std_effects={**c.std_effects, **joint.std_effects})
-            gain = 1.0 - cand.heldout_rms / baseline
-            sig = is_significant(cand, n)
-            ok, note = consistent(problem, cand, n) if sig else (False, "")
-            at_bound = _at_bounds_effect(cand, n)
-            say(
-                f"  {n}: held-out {cand.heldout_rms:.3g} vs nominal refit {baseline:.3g} "
-                f"{ERROR_UNIT} ({gain:+.1%}), 3σ {sig}, consistent {ok} {note}"
-            )
-            if at_bound:
-                warnings.append(f"{n}: {', '.join(at_bound)} at its bound")
-            if gain >= min_improvement and sig and ok:
-                accepted = (n, cand)
-                break
-        if accepted is None:
-            say("  no effect beats the nominal model on held-out data")
-            break
-        n, current = accepted
-        selected.append(n)
-        history.append({"effects": list(selected), "heldout_rms": current.heldout_rms})
-        say(f"selected {n}: held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
-
+    current, selected, history, candidates_out = _select_effects(
+        problem, nominal, considered, floor, max_effects, min_improvement, warnings, say
+    )
     diag = diagnose(problem, current, floor)
     diag.update(
         noise_floor=floor, noise_floor_source=traces[0].floor_source, rms_motion=motion,
@@ -732,22 +657,7 @@ def calibrate_traces(
         error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
         drive_recording=[td.reading.recording for td in traces],
     )  # fmt: skip
-    params = _parameter_table(model, current)
-    for owner, ps in params.items():
-        for p, v in ps.items():
-            if v.get("at_bound"):
-                warnings.append(f"{owner}.{p} = {v['value']:.4g} at its bound")
-            if owner == "nominal" and not v.get("identified", True):
-                warnings.append(f"nominal.{p}: not identified by the data (held at its prior)")
-    plant = model.plant(current.x, current.effects)
-    unc = {}
-    for i, p in enumerate(model.parameters):  # factor σ = factor · σ(ln factor)
-        if p.target == "factor" and p.key in plant.factors:
-            unc[p.key] = float(plant.factors[p.key] * current.std_x[i])
-    for name in selected:
-        for k, s in current.std_effects.get(name, {}).items():
-            unc[f"{name}.{k}"] = float(s)
-    plant = plant.replace(uncertainty=unc)
+    params, plant = _fitted(model, current, selected, warnings)
     diag["warnings"] = warnings
     overlay = _overlay(problem, current)
     return CalibrationResult(
@@ -764,6 +674,144 @@ def calibrate_traces(
         wall_s=time.perf_counter() - t0,
         plant=plant,
     )
+
+
+def _fit_nominal(
+    problem: TraceProblem, x_prior: np.ndarray, floor: float, global_points: int, starts: int,
+    n_workers: int, seed: int, bar: Any, say: Callable[[str], None],
+) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
+    """The nominal model: the global stage's best points and the prior, each refined by
+    least squares; the best re-weighted at its optimum (σ_r, correlation length) and
+    polished (honest standard errors); with the spread of the starts' optima."""
+    starts_x = [x_prior]
+    if global_points > 0:
+        say(f"global stage: {global_points} Sobol points on {n_workers} process(es)")
+        pts, vals = global_stage(problem, global_points, n_workers, seed, bar)
+        for i in np.argsort(vals)[:starts]:
+            if np.isfinite(vals[i]):
+                starts_x.append(pts[i])
+    fits: list[LocalFit] = []
+    for k, xs in enumerate(starts_x):
+        f1 = local_fit(problem, xs, {}, max_nfev=15)
+        fits.append(f1)
+        say(f"  start {k}: held-out {f1.heldout_rms:.3g} {ERROR_UNIT} (cost {f1.cost:.4g})")
+    best = min(fits, key=lambda f: f.cost)
+    r_fit = problem.residual(best.x, {}, "fit")
+    problem.weight = 1.0 / (max(best.fit_rms, floor) * math.sqrt(correlation_length(r_fit)))
+    nominal = local_fit(problem, best.x, {}, max_nfev=10)
+    if nominal.heldout_rms > best.heldout_rms:
+        nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
+    spread = _start_spread(fits, nominal)
+    say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
+    return nominal, spread
+
+
+def _screen(
+    problem: TraceProblem, current: LocalFit, considered: Sequence[str], selected: list[str],
+    warnings: list[str], say: Callable[[str], None],
+) -> list[tuple[str, LocalFit]]:  # fmt: skip
+    """Every candidate not yet selected screened on the current model (a candidate that
+    cannot run is reported, not fatal)."""
+    screened = []
+    for n in considered:
+        if n in selected:
+            continue
+        try:
+            c = screen_effect(problem, current, n)
+        except Exception as exc:
+            warnings.append(f"{n}: screening failed ({exc})")
+            continue
+        screened.append((n, c))
+        say(f"  candidate {n:<22} held-out {c.heldout_rms:.3g} {ERROR_UNIT}")
+    return screened
+
+
+def _accept_one(
+    problem: TraceProblem, current: LocalFit, top: Sequence[tuple[str, LocalFit]],
+    selected: list[str], min_improvement: float, warnings: list[str],
+    say: Callable[[str], None],
+) -> tuple[str, LocalFit] | None:  # fmt: skip
+    """The first of the best screened candidates, refitted jointly with the nominal model,
+    that beats the nominal model refitted with the same budget by ``min_improvement`` on
+    held-out data, lies 3 σ from neutral and agrees between portions; None if none does."""
+    refit_nom = local_fit(problem, current.x, current.effects,
+                          free_effects=selected, max_nfev=6)  # fmt: skip
+    baseline = min(current.heldout_rms, refit_nom.heldout_rms)
+    for n, c in top:
+        joint = local_fit(problem, c.x, c.effects, free_effects=[*selected, n], max_nfev=6)
+        cand = joint if joint.heldout_rms < c.heldout_rms else c
+        if cand is c:  # standard errors with the nominal free too
+            cand = replace(c, std_effects={**c.std_effects, **joint.std_effects})
+        gain = 1.0 - cand.heldout_rms / baseline
+        sig = is_significant(cand, n)
+        ok, note = consistent(problem, cand, n) if sig else (False, "")
+        at_bound = _at_bounds_effect(cand, n)
+        say(
+            f"  {n}: held-out {cand.heldout_rms:.3g} vs nominal refit {baseline:.3g} "
+            f"{ERROR_UNIT} ({gain:+.1%}), 3σ {sig}, consistent {ok} {note}"
+        )
+        if at_bound:
+            warnings.append(f"{n}: {', '.join(at_bound)} at its bound")
+        if gain >= min_improvement and sig and ok:
+            return n, cand
+    return None
+
+
+def _select_effects(
+    problem: TraceProblem, nominal: LocalFit, considered: Sequence[str], floor: float,
+    max_effects: int, min_improvement: float, warnings: list[str], say: Callable[[str], None],
+) -> tuple[LocalFit, list[str], list[dict[str, Any]], list[dict[str, Any]]]:  # fmt: skip
+    """Effects, only after the nominal model fits: rounds of screening and acceptance until
+    none helps, the residual reaches the floor or ``max_effects`` are in; (the final fit,
+    the effects selected, the history, every candidate screened)."""
+    current = nominal
+    selected: list[str] = []
+    history = [{"effects": [], "heldout_rms": nominal.heldout_rms}]
+    candidates_out: list[dict[str, Any]] = []
+    while len(selected) < max_effects and considered:
+        if current.heldout_rms <= FLOOR_REACHED * floor:
+            say("  residual at the noise floor: no effect searched")
+            break
+        screened = _screen(problem, current, considered, selected, warnings, say)
+        candidates_out += [
+            {"round": len(selected) + 1, "effect": n, "heldout_error": c.heldout_rms}
+            for n, c in screened
+        ]
+        if not screened:
+            break
+        top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
+        accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say)
+        if accepted is None:
+            say("  no effect beats the nominal model on held-out data")
+            break
+        n, current = accepted
+        selected.append(n)
+        history.append({"effects": list(selected), "heldout_rms": current.heldout_rms})
+        say(f"selected {n}: held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
+    return current, selected, history, candidates_out
+
+
+def _fitted(
+    model: NominalModel, current: LocalFit, selected: Sequence[str], warnings: list[str]
+) -> tuple[dict[str, Any], Plant]:
+    """The parameter table (bound and identification flags into ``warnings``) and the
+    calibrated plant with the fit's standard errors as its uncertainty."""
+    params = _parameter_table(model, current)
+    for owner, ps in params.items():
+        for p, v in ps.items():
+            if v.get("at_bound"):
+                warnings.append(f"{owner}.{p} = {v['value']:.4g} at its bound")
+            if owner == "nominal" and not v.get("identified", True):
+                warnings.append(f"nominal.{p}: not identified by the data (held at its prior)")
+    plant = model.plant(current.x, current.effects)
+    unc = {}
+    for i, p in enumerate(model.parameters):  # factor σ = factor · σ(ln factor)
+        if p.target == "factor" and p.key in plant.factors:
+            unc[p.key] = float(plant.factors[p.key] * current.std_x[i])
+    for name in selected:
+        for k, s in current.std_effects.get(name, {}).items():
+            unc[f"{name}.{k}"] = float(s)
+    return params, plant.replace(uncertainty=unc)
 
 
 def _at_bounds_effect(fit: LocalFit, name: str) -> list[str]:

@@ -8,6 +8,7 @@ input, Fig. 3.14 / Fig. 4.3 waveforms); :data:`OBS` names the observation's comp
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -16,8 +17,8 @@ from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
-from ..params import PARAMETER_SETS, ParameterSet
-from ..plant import DEFAULT_RANDOMIZATION, Plant
+from ..params import ParameterSet
+from ..plant import DEFAULT_RANDOMIZATION, PARAMETER_SETS, Plant
 from ..validation import check_nonnegative, check_positive
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "EnvConfig",
     "ObservationIndex",
     "check_action",
+    "make_config",
 ]
 
 ACTION_NAMES = ("amplitude", "frequency", "ramp_ratio", "slew_adaptation", "scan_offset")
@@ -119,6 +121,16 @@ class ActionScaling:
             i = int(bad[0])
             raise ValueError(f"{ACTION_NAMES[i]}: {x[i]:.4g} outside the action range [-1, 1]")
         return np.clip(x, -1.0, 1.0).astype(np.float32)
+
+
+def make_config(options: Mapping[str, Any]) -> EnvConfig:
+    """An :class:`EnvConfig` from keyword options (``gym.make``'s); an unknown option is a
+    ValueError naming it and the ones there are."""
+    known = {f.name for f in dataclasses.fields(EnvConfig)}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise ValueError(f"{unknown[0]}: not an option of the env ({', '.join(sorted(known))})")
+    return EnvConfig(**options)
 
 
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import os
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..params import ParameterSet
 from ..plant import Plant
-from .config import ACTION_NAMES, OBSERVATION_NAMES, EnvConfig, check_action
+from .config import ACTION_NAMES, OBSERVATION_NAMES, check_action, make_config
 from .core import TurntableTask
 
 __all__ = ["PiezoTurntableEnv", "action_space", "observation_space"]
@@ -174,40 +172,12 @@ class PiezoTurntableEnv(gym.Env):
         "render_fps": 100,
     }
 
-    def __init__(
-        self,
-        plant: Plant | str | os.PathLike[str] | None = None,
-        params: str | ParameterSet | None = None,
-        fidelity: Literal["reduced", "full"] | None = None,
-        axis: str = "B",
-        control_interval: float = 0.01,
-        randomize: bool | dict[str, tuple[float, float]] = False,
-        noise: bool = True,
-        sensor_noise: float | None = None,
-        tolerance: float = 1e-6,
-        terminate_on_success: bool = True,
-        energy_weight: float = 0.01,
-        start_range: float = 0.8,
-        target_range: float = 0.8,
-        angle_limit: float = 0.05,
-        move_range: tuple[float, float] | None = None,
-        reward: Literal["linear", "log"] = "linear",
-        success_bonus: float = 0.0,
-        render_mode: str | None = None,
-    ) -> None:
-        self.config = EnvConfig(
-            plant=plant, params=params, fidelity=fidelity, axis=axis,
-            control_interval=control_interval,
-            randomize=randomize, noise=noise, sensor_noise=sensor_noise, tolerance=tolerance,
-            terminate_on_success=terminate_on_success, energy_weight=energy_weight,
-            start_range=start_range, target_range=target_range,
-            angle_limit=angle_limit, move_range=move_range, reward=reward,
-            success_bonus=success_bonus,
-        )  # fmt: skip
+    def __init__(self, render_mode: str | None = None, **config: Any) -> None:
+        self.config = make_config(config)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r}: must be None, 'human' or 'rgb_array'")
         self.render_mode = render_mode
-        self.metadata = {**self.metadata, "render_fps": 1.0 / control_interval}
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self.config.control_interval}
         self.task = TurntableTask(self.config, 1)
         self.action_space = action_space()
         self.observation_space = observation_space(self.task)

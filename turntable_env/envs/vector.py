@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..validation import check_int
-from .config import EnvConfig
+from .config import make_config
 from .core import TurntableTask
 from .piezo_turntable import action_space, observation_space
 
@@ -67,7 +67,7 @@ class PiezoTurntableVectorEnv(VectorEnv):
             check_int("max_episode_steps", max_episode_steps, 1)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r}: must be None or 'rgb_array'")
-        self.config = EnvConfig(**kwargs)
+        self.config = make_config(kwargs)
         self.num_envs = int(num_envs)
         self.max_episode_steps = max_episode_steps
         self.render_mode = render_mode

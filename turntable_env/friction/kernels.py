@@ -37,6 +37,7 @@ __all__ = [
     "LEUVEN",
     "LUGRE",
     "STRIBECK",
+    "gms_element_step",
     "kernel_force",
     "kernel_rates",
     "kernel_update",
@@ -65,6 +66,23 @@ def stribeck_magnitude(speed, fn, mu_s, mu_c, v_s, delta):
     r = abs(speed) / v_s
     p = r * r if delta == 2.0 else r**delta  # the Gaussian case without a pow call
     return f_c + (f_s - f_c) * math.exp(-p)
+
+
+@njit(cache=CACHE)
+def gms_element_step(f, stuck, k, dx, target, decay):
+    """One GMS element over a step in which the contact's relative displacement changes
+    by dx [m] (the per-axis model's exact step): stuck, F + k·dx (Eq. 2.24); slipping, the
+    exact relaxation toward ``target`` = ν_i s(v̄) sgn(v̄) [N] of Eq. 2.25 over the step,
+    F = target + (F − target)·decay (decay = exp(−C h/|s(v̄)|)), loading no faster than
+    the element spring (k·dx) — the same cap as the 2-D law's (:mod:`.gms2d`)."""
+    if stuck == 1:
+        return f + k * dx
+    fnew = target + (f - target) * decay
+    d = fnew - f
+    lim = k * dx
+    if f != 0.0 and d * f > 0.0 and d * f > lim * f:
+        fnew = f + lim  # loading no faster than the element spring
+    return fnew
 
 
 @njit(cache=CACHE)

@@ -515,12 +515,7 @@ class GMS(FrictionModel):
             fn,
             np.asarray(self.nu, dtype=float),
             np.asarray(self.k, dtype=float),
-            self.C,
-            s.mu_s,
-            s.mu_c,
-            s.v_s,
-            s.delta,
-            s.sigma2,
+            np.array([self.C, s.mu_s, s.mu_c, s.v_s, s.delta, s.sigma2, 0.0]),
         )
 
     def describe(self, prefix: str = "friction") -> list[Quantity]:

@@ -5,7 +5,8 @@
 * :mod:`.html` — the self-contained page.
 """
 
-from .build import Section, build_report
+from .build import build_report
 from .figures import ReportFigure
+from .section import Section
 
 __all__ = ["ReportFigure", "Section", "build_report"]

@@ -21,7 +21,6 @@ import math
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +28,6 @@ import numpy as np
 
 from ..files import check_writable, output_directory
 from .figures import (
-    ReportFigure,
     amplifier_figure,
     drift_figure,
     hysteresis_figure,
@@ -38,40 +36,9 @@ from .figures import (
     stribeck_figure,
 )
 from .html import render_html
+from .section import Section
 
 __all__ = ["Section", "build_report"]
-
-
-@dataclass
-class Section:
-    """One part of the report: id, title, introduction, images (name, PNG/GIF bytes,
-    caption, thesis text), tables (Markdown-like rows) and numbers for summary.json."""
-
-    id: str
-    title: str
-    intro: str
-    images: list[dict[str, Any]] = field(default_factory=list)
-    tables: list[dict[str, Any]] = field(default_factory=list)
-    numbers: dict[str, Any] = field(default_factory=dict)
-    wall_s: float = 0.0
-
-    def add_figure(self, f: ReportFigure) -> None:
-        buf = io.BytesIO()
-        f.fig.savefig(buf, format="png", dpi=90)
-        import matplotlib.pyplot as plt
-
-        plt.close(f.fig)
-        self.images.append(
-            {
-                "name": f.key,
-                "mime": "image/png",
-                "data": buf.getvalue(),
-                "caption": f.title,
-                "thesis": f.thesis,
-                "numbers": f.numbers,
-            }
-        )
-        self.numbers[f.key] = f.numbers
 
 
 def _friction(quick: bool) -> Section:

@@ -11,10 +11,9 @@ import base64
 import html
 import re
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from .build import Section
+from .section import Section
 
 __all__ = ["render_html"]
 

@@ -1,0 +1,376 @@
+"""The plant value: :class:`Plant`, a turntable as every consumer runs it (see
+:mod:`turntable_env.plant`), its factor table and the named parameter sets it resolves.
+
+Immutable, hashable and picklable. Base sets ``"real"`` and ``"thesis"`` come from the
+parameter layer; named plants (``"calibrated"``) from the store (:mod:`.store`), whole
+(:meth:`Plant.named`) or as a parameter set (:func:`parameter_set`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from ..effects import CATALOGUE, apply_parameters, check_effects, pack_effects
+from ..params import FACTORS, ParameterSet, RigParams, get_parameter_set
+from ..params import PARAMETER_SETS as BASE_SETS
+from ..validation import check_finite, check_nonnegative
+from .store import NAMED_PLANTS, named_plant_dict, report_plant_dict
+
+__all__ = [
+    "DEFAULT_RANDOMIZATION",
+    "FACTORS",
+    "FIDELITIES",
+    "PARAMETER_SETS",
+    "SENSOR_NOISE",
+    "Plant",
+    "calibrated_parameters",
+    "parameter_set",
+]
+
+FIDELITIES = ("reduced", "full")
+# Domain randomisation: multiplicative factors drawn uniformly per episode.
+DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
+    "friction": (0.8, 1.2),  # µ_s and µ_c together (dry-contact scatter, ±20 %)
+    "preload": (0.8, 1.2),  # normal force F_N of the preload spring (unmeasured, ±20 %)
+    "amplifier": (0.9, 1.1),  # slew rate per input volt and current limit (±10 %)
+    "sensor_noise": (0.5, 2.0),  # detector noise standard deviation
+}
+SENSOR_NOISE = 1e-3  # V, default detector noise (the env's; the thesis gives none)
+
+
+class _Frozen(Mapping):
+    """An immutable, hashable mapping (sorted items); nested mappings are frozen too."""
+
+    __slots__ = ("_items",)
+
+    def __init__(self, data: Mapping[str, Any] | None = None) -> None:
+        items = []
+        for k, v in dict(data or {}).items():
+            items.append((str(k), _Frozen(v) if isinstance(v, Mapping) else float(v)))
+        self._items = tuple(sorted(items))
+
+    def __getitem__(self, key: str) -> Any:
+        for k, v in self._items:
+            if k == key:
+                return v
+        raise KeyError(key)
+
+    def __iter__(self) -> Iterator[str]:
+        return (k for k, _ in self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __hash__(self) -> int:
+        return hash(self._items)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Mapping) and dict(self) == dict(other)
+
+    def __repr__(self) -> str:
+        return "{" + ", ".join(f"{k!r}: {v!r}" for k, v in self._items) + "}"
+
+    def __reduce__(self) -> tuple:
+        return (_Frozen, (self.to_dict(),))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: (v.to_dict() if isinstance(v, _Frozen) else v) for k, v in self._items}
+
+
+@dataclass(frozen=True)
+class Plant:
+    """A turntable as a consumer runs it (see the module docstring).
+
+    Args:
+        base: the parameter set, ``"real"`` (Table D.1), ``"thesis"`` (Table D.2) or a
+            :class:`~turntable_env.params.ParameterSet`.
+        factors: multiplicative factors on the base's uncertain values (:data:`FACTORS`):
+            ``friction`` (μ_s, μ_c), ``preload`` (F_N), ``amplifier`` (slew, current limit).
+        effects: catalogue effect name → {parameter: value} (validated; missing parameters
+            take their typical values).
+        fidelity: ``"reduced"`` (per-axis model) or ``"full"`` (3-D model).
+        sensor_noise: detector voltage noise standard deviation [V].
+        ideal_amplifier: run an instant source V = G·u instead of the set's amplifier model
+            (the thesis's simulations, §3.4).
+        uncertainty: standard deviations of factors (``"friction"``) and effect parameters
+            (``"piezo_creep.gamma"``) from a calibration; :meth:`sample` draws from them.
+        rig: the laboratory rig's properties (:class:`~turntable_env.params.RigParams`:
+            large-signal d₃₁, drive mode, mirror tilt, ...) the base set is built for;
+            None keeps the base set's own.
+        source: where the plant came from (a report path), for the record.
+    """
+
+    base: str | ParameterSet = "real"
+    factors: Mapping[str, float] = field(default_factory=dict)
+    effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
+    fidelity: Literal["reduced", "full"] = "reduced"
+    sensor_noise: float = SENSOR_NOISE
+    ideal_amplifier: bool = False
+    uncertainty: Mapping[str, float] = field(default_factory=dict)
+    rig: RigParams | None = None
+    source: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.base, str):
+            if self.base not in PARAMETER_SETS:
+                raise ValueError(
+                    f"base={self.base!r}: must be one of {', '.join(PARAMETER_SETS)} or a "
+                    "ParameterSet"
+                )
+        elif not isinstance(self.base, ParameterSet):
+            raise ValueError(f"base={self.base!r}: must be 'real', 'thesis' or a ParameterSet")
+        if self.fidelity not in FIDELITIES:
+            raise ValueError(f"fidelity={self.fidelity!r}: must be 'reduced' or 'full'")
+        if not isinstance(self.ideal_amplifier, bool):
+            raise ValueError(f"ideal_amplifier={self.ideal_amplifier!r}: must be a bool")
+        check_nonnegative("sensor_noise", self.sensor_noise)
+        if isinstance(self.rig, Mapping):
+            try:
+                object.__setattr__(self, "rig", RigParams(**self.rig))
+            except TypeError as exc:
+                raise ValueError(f"rig={dict(self.rig)!r}: {exc}") from None
+        elif self.rig is not None and not isinstance(self.rig, RigParams):
+            raise ValueError(f"rig={self.rig!r}: must be a RigParams, a mapping or None")
+        factors = _check_factors(self.factors)
+        effects = check_effects(_mapping("effects", self.effects))
+        unc = {}
+        for name, std in _mapping("uncertainty", self.uncertainty).items():
+            if name not in FACTORS and _effect_parameter(name) is None:
+                raise ValueError(f"uncertainty[{name!r}]: not a factor or an effect parameter")
+            s = check_finite(f"uncertainty[{name!r}]", std)
+            if s < 0.0:
+                raise ValueError(f"uncertainty[{name!r}]={std!r}: must be >= 0")
+            unc[name] = s
+        object.__setattr__(self, "factors", _Frozen(factors))
+        object.__setattr__(self, "effects", _Frozen(effects))
+        object.__setattr__(self, "uncertainty", _Frozen(unc))
+        object.__setattr__(self, "sensor_noise", float(self.sensor_noise))
+
+    def __repr__(self) -> str:
+        base = self.base if isinstance(self.base, str) else f"<ParameterSet {self.base.name!r}>"
+        parts = [f"base={base!r}", f"fidelity={self.fidelity!r}"]
+        if self.factors:
+            parts.append(f"factors={self.factors!r}")
+        if self.effects:
+            parts.append(f"effects={self.effects!r}")
+        parts.append(f"sensor_noise={self.sensor_noise:g}")
+        if self.ideal_amplifier:
+            parts.append("ideal_amplifier=True")
+        if self.uncertainty:
+            parts.append(f"uncertainty={self.uncertainty!r}")
+        if self.rig is not None:
+            parts.append(f"rig={self.rig!r}")
+        return f"Plant({', '.join(parts)})"
+
+    # --- derived -------------------------------------------------------------------------
+    @property
+    def base_parameters(self) -> ParameterSet:
+        """The base parameter set (built for ``rig`` when given), before factors and effects."""
+        ps = parameter_set(self.base) if isinstance(self.base, str) else self.base
+        return ps if self.rig is None else ps.with_rig(self.rig)
+
+    @functools.cached_property
+    def params(self) -> ParameterSet:
+        """The parameter set the physics runs: base × factors, parameter-stage effects,
+        then the amplifier setting."""
+        ps = self.base_parameters.with_factors(self.factors)
+        ps = apply_parameters(ps, self.effects)
+        if self.ideal_amplifier and not ps.amplifier.ideal:
+            ps = replace(ps, amplifier=replace(ps.amplifier, ideal=True))
+        return ps
+
+    @functools.cached_property
+    def effect_row(self) -> np.ndarray:
+        """The effects as one row of :data:`~turntable_env.effects.EFFECT_FIELDS`."""
+        row = pack_effects(self.effects)
+        row.setflags(write=False)
+        return row
+
+    @property
+    def nominal(self) -> Plant:
+        """This plant without effects, factors or uncertainty (the base set as it is)."""
+        return replace(self, factors={}, effects={}, uncertainty={})
+
+    def replace(self, **changes: Any) -> Plant:
+        """A copy with fields changed (dataclasses.replace)."""
+        return replace(self, **changes)
+
+    # --- randomisation -------------------------------------------------------------------
+    def sample(
+        self,
+        rng: np.random.Generator,
+        spread: float = 1.0,
+        ranges: Mapping[str, tuple[float, float]] | None = None,
+    ) -> tuple[Plant, dict[str, float]]:
+        """A randomised plant and the values drawn.
+
+        From the calibration's uncertainties when the plant has them and no ``ranges`` are
+        given: every factor and effect parameter with a standard error σ is drawn from
+        N(estimate, (spread·σ)²), clipped to its bounds. Otherwise factors are drawn
+        uniformly from ``ranges`` (default :data:`DEFAULT_RANDOMIZATION`; keys
+        ``friction``, ``preload``, ``amplifier``, ``sensor_noise``), widened about 1 by
+        ``spread``, and multiply the plant's own factors and noise.
+        """
+        s = check_nonnegative("spread", spread)
+        if ranges is None and self.uncertainty:
+            return self._sample_posterior(rng, s)
+        r = DEFAULT_RANDOMIZATION if ranges is None else ranges
+        draw: dict[str, float] = {}
+        for key, (lo, hi) in r.items():
+            if key not in DEFAULT_RANDOMIZATION:
+                raise ValueError(
+                    f"ranges[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
+                )
+            if s != 1.0:
+                lo, hi = 1.0 + s * (lo - 1.0), 1.0 + s * (hi - 1.0)
+            draw[key] = float(rng.uniform(lo, hi))
+        factors = dict(self.factors)
+        for key in FACTORS:
+            if key in draw:
+                factors[key] = factors.get(key, 1.0) * draw[key]
+        noise = self.sensor_noise * draw.get("sensor_noise", 1.0)
+        return replace(self, factors=factors, sensor_noise=noise, uncertainty={}), draw
+
+    def _sample_posterior(self, rng: np.random.Generator, spread: float) -> tuple[Plant, dict]:
+        factors = dict(self.factors)
+        effects = {k: dict(v) for k, v in self.effects.items()}
+        draw: dict[str, float] = {}
+        for name in sorted(self.uncertainty):
+            std = spread * self.uncertainty[name]
+            if name in FACTORS:
+                lo, hi, _ = FACTORS[name]
+                x = float(np.clip(rng.normal(factors.get(name, 1.0), std), lo, hi))
+                factors[name] = x
+            else:
+                eff, par = name.split(".")
+                p = _effect_parameter(name)
+                assert p is not None
+                mean = effects.get(eff, CATALOGUE[eff].neutral()).get(par, p.neutral)
+                x = float(np.clip(rng.normal(mean, std), p.low, p.high))
+                if eff in effects:
+                    effects[eff][par] = x
+            draw[name] = x
+        return replace(self, factors=factors, effects=effects, uncertainty={}), draw
+
+    # --- serialisation -------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (base by name); :meth:`from_dict` reads it back."""
+        if not isinstance(self.base, str):
+            raise ValueError(
+                f"base: a custom ParameterSet ({self.base.name!r}) cannot be written by name"
+            )
+        return {
+            "base": self.base,
+            "fidelity": self.fidelity,
+            "factors": dict(self.factors),
+            "effects": self.effects.to_dict(),  # type: ignore[attr-defined]
+            "sensor_noise": self.sensor_noise,
+            "ideal_amplifier": self.ideal_amplifier,
+            "uncertainty": dict(self.uncertainty),
+            "rig": None if self.rig is None else dataclasses.asdict(self.rig),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "") -> Plant:
+        """The plant of :meth:`to_dict`'s output; ValueError naming the bad key."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"{source or 'plant'}: must be a mapping, got {type(data).__name__}")
+        names = {f.name for f in fields(cls)} - {"source"}
+        unknown = set(data) - names
+        if unknown:
+            raise ValueError(f"{source or 'plant'}: unknown key(s) {sorted(unknown)}")
+        try:
+            return cls(**dict(data), source=source)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{source or 'plant'}: {exc}") from None
+
+    @classmethod
+    def from_report(cls, path: str | os.PathLike[str]) -> Plant:
+        """The plant a calibration ``report.json`` (or its directory) describes: its
+        nominal estimates, its selected effects with their parameters, their standard
+        errors (for :meth:`sample`). Raises ValueError naming the file when it cannot be
+        read or does not describe one (:func:`.store.report_plant_dict`)."""
+        p = Path(path)
+        p = p / "report.json" if p.is_dir() else p
+        return cls.from_dict(report_plant_dict(p), source=str(p))
+
+    @classmethod
+    def named(cls, name: str) -> Plant:
+        """A named plant of the store, whole — base set, rig, factors, effects, fidelity,
+        detector noise and the calibration's uncertainties (``"calibrated"``:
+        ``data/calibrated.toml``). ValueError for an unknown name or a bad file."""
+        if name not in NAMED_PLANTS:
+            raise ValueError(f"plant {name!r}: unknown (named plants: {', '.join(NAMED_PLANTS)})")
+        return _named_plant(name)
+
+    @classmethod
+    def from_toml(cls, path: str | os.PathLike[str]) -> Plant:
+        """The plant of a named-plant file (:func:`.store.plant_toml`'s format)."""
+        _name, data = named_plant_dict(path)
+        return cls.from_dict(data, source=str(path))
+
+
+@functools.lru_cache(maxsize=8)
+def _named_plant(name: str) -> Plant:
+    _n, data = named_plant_dict(NAMED_PLANTS[name])
+    return Plant.from_dict(data, source=str(NAMED_PLANTS[name]))
+
+
+PARAMETER_SETS = (*BASE_SETS, *NAMED_PLANTS)
+
+
+@functools.lru_cache(maxsize=8)
+def parameter_set(name: str) -> ParameterSet:
+    """A named parameter set: ``"real"`` (Table D.1), ``"thesis"`` (Table D.2)
+    (:func:`turntable_env.params.get_parameter_set`), or a named plant of the store
+    (``"calibrated"``) with its factors and parameter-stage effects applied; cached."""
+    if name in BASE_SETS:
+        return get_parameter_set(name)  # type: ignore[arg-type]
+    if name in NAMED_PLANTS:
+        return replace(_named_plant(name).params, name=name)
+    raise ValueError(f"set={name!r}: must be one of {', '.join(PARAMETER_SETS)}")
+
+
+def calibrated_parameters(path: str | os.PathLike[str] | None = None) -> ParameterSet:
+    """The calibrated parameter set of a named-plant file (default: the shipped
+    ``data/calibrated.toml``). Raises ValueError naming the file."""
+    if path is None:
+        return parameter_set("calibrated")
+    name, data = named_plant_dict(path)
+    return replace(Plant.from_dict(data, source=str(path)).params, name=name)
+
+
+def _mapping(name: str, value: Any) -> Mapping:
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{name}={value!r}: must be a mapping")
+    return value
+
+
+def _check_factors(factors: Any) -> dict[str, float]:
+    out = {}
+    for key, value in _mapping("factors", factors).items():
+        if key not in FACTORS:
+            raise ValueError(f"factors[{key!r}]: unknown (choose from {', '.join(FACTORS)})")
+        x = check_finite(f"factors[{key!r}]", value)
+        lo, hi, _ = FACTORS[key]
+        if not lo <= x <= hi:
+            raise ValueError(f"factors[{key!r}]={value!r}: must be within {lo:g}…{hi:g}")
+        out[key] = x
+    return out
+
+
+def _effect_parameter(name: str) -> Any:
+    eff, _, par = name.partition(".")
+    if eff not in CATALOGUE:
+        return None
+    return next((p for p in CATALOGUE[eff].parameters if p.name == par), None)
+
+
