@@ -41,7 +41,7 @@ import numpy as np
 
 from turntable_env.envs.config import OBS, EnvConfig
 from turntable_env.envs.core import TurntableTask
-from turntable_env.files import output_directory, write_atomic
+from turntable_env.files import output_directory, plain_json, write_atomic
 from turntable_env.scale import map_tasks, resolve_backend
 
 from .base import ControllerContext
@@ -158,7 +158,7 @@ class BenchmarkResult:
 
     def to_json(self) -> dict[str, Any]:
         """The benchmark.json document (non-finite numbers as null)."""
-        return _jsonable({
+        return plain_json({
             "version": BENCHMARK_VERSION,
             "settings": self.settings,
             "metrics": {m.name: {"unit": m.unit, "lower_is_better": m.lower_is_better,
@@ -535,15 +535,3 @@ def plot_trajectories(result: BenchmarkResult, out: Path) -> dict[str, Path]:
         plt.close(fig)
         paths[f"trajectories_{ps}"] = p
     return paths
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x

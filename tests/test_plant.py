@@ -17,10 +17,7 @@ from turntable_env.effects import (
     CATALOGUE,
     CREEP_TAUS,
     N_PLAY,
-    input_capacity,
-    input_rest,
-    input_stage_nb,
-    pack_effects,
+    apply_input,
 )
 from turntable_env.envs import ActionScaling, PiezoTurntableVectorEnv
 from turntable_env.params import real_parameters
@@ -156,12 +153,7 @@ def test_bad_reports_name_the_file(tmp_path, content, match):
 
 # --- input stage: exact operators ---------------------------------------------------------
 def _input_stage(t, u, effects):
-    row = pack_effects(effects)
-    plays, creep, ref = input_rest(np.array([u[0]]), 1)
-    cap = input_capacity(t.size, float(t[-1] - t[0]), row)
-    ot, ov = np.empty(cap), np.empty(cap)
-    m = input_stage_nb(t, u, t.size, 1.0, row, plays[0], creep[0], ref, ot, ov)
-    return ot[:m], ov[:m]
+    return apply_input(t, u, effects)
 
 
 def test_hysteresis_breakpoints_are_exact_between_the_input_breakpoints():

@@ -100,12 +100,14 @@ def _cmd_params(args: argparse.Namespace) -> int:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .model import SimulationError
-    from .simulation import simulate, stepping_drive
+    from .plant import as_plant
+    from .simulation import simulate, simulate_axes, stepping_drive
 
     if args.out is not None:
         check_writable("--out", args.out)
+    named = as_plant(args.params)  # a named plant whole: factors, rig and every effect
     drive, ps = stepping_drive(
-        args.params,
+        parameter_set(args.params),  # = named.params, under the plant's name
         amplitude=args.amplitude,
         frequency=args.frequency,
         periods=args.periods,
@@ -114,6 +116,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         a=args.a,
         cycles=args.cycles,
     )
+    plant = named.on_parameters(ps)  # with the amplifier mode of --amplifier
     settle = args.settle if args.settle is not None else 0.0
     output_dt = args.output_dt if args.output_dt is not None else min(1e-5, 0.01 / drive.frequency)
     duration = drive.duration + settle  # s simulated
@@ -129,9 +132,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         )
     try:
         if args.model == "reduced":
-            from .reduced import simulate_reduced
-
-            r = simulate_reduced(ps, drive, axis=args.axis, settle=settle, output_dt=output_dt)
+            (r,) = simulate_axes([plant], [drive], axis=args.axis, settle=settle,
+                                 output_dt=output_dt)  # fmt: skip
             wall = r.info["wall_s"]
             out = {
                 "model": "reduced",
@@ -144,7 +146,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             }
         else:
             r = simulate(
-                ps, drive, axis=args.axis, settle=settle, dt_factor=args.dt_factor,
+                plant, drive, axis=args.axis, settle=settle, dt_factor=args.dt_factor,
                 coarse_factor=args.coarse_factor or None, output_dt=output_dt,
             )  # fmt: skip
             out = {"model": "full", **r.summary()}

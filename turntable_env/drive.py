@@ -418,6 +418,12 @@ class DriveSignal:
         """Number of drive periods in the whole signal."""
         return self.n_periods * (2 * self.n_cycles if self.pattern == "two" else 1)
 
+    def period_starts(self, until: float) -> np.ndarray:
+        """Start times of the drive's periods up to ``until`` [s] (the last period's end
+        included): where a response reads its steps."""
+        starts = self.start + np.arange(self.total_periods + 1) / self.frequency
+        return starts[starts <= until + 1e-12]
+
     def setting(
         self, amplifier: Amplifier | None = None, load_capacitance: float = 0.0, sign: float = 1.0
     ) -> StepSetting:

@@ -75,6 +75,7 @@ __all__ = [
     "N_PLAY",
     "Effect",
     "EffectParameter",
+    "apply_input",
     "apply_output",
     "apply_parameters",
     "check_effects",
@@ -467,6 +468,24 @@ def input_stage_nb(t, u, n, seconds, row, plays, creep, ref, out_t, out_v):
             if f >= 1.0:
                 break
     return m
+
+
+def apply_input(
+    t: np.ndarray, u: np.ndarray, effects: Mapping[str, Mapping[str, float]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Input-stage effects of one plant on a piecewise-linear input from rest at its first
+    value: breakpoints (t [s], u [V]) in, breakpoints out (:func:`input_stage_nb`); the
+    input returned unchanged where no input-stage effect is on."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    u = np.asarray(u, dtype=float).reshape(-1)
+    row = pack_effects(effects)
+    if not bool(input_active(row)):
+        return t.copy(), u.copy()
+    plays, creep, ref = input_rest(u[:1], 1)
+    cap = input_capacity(t.size, float(t[-1] - t[0]), row)
+    out_t, out_v = np.empty(cap), np.empty(cap)
+    m = input_stage_nb(t, u, t.size, 1.0, row, plays[0], creep[0], ref, out_t, out_v)
+    return out_t[:m].copy(), out_v[:m].copy()
 
 
 def input_capacity(n: int, span_s: float, row: np.ndarray) -> int:

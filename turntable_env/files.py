@@ -32,12 +32,14 @@ import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, Literal
 
 __all__ = [
     "MARKER",
     "Terminated",
     "check_writable",
     "output_directory",
+    "plain_json",
     "terminate_cleanly",
     "write_atomic",
     "write_target",
@@ -45,6 +47,26 @@ __all__ = [
 
 MARKER = ".turntable-output"  # written into every output directory: "ours to replace"
 REPORT_FILES = ("report.json", "summary.json", "benchmark.json", "index.html")
+
+
+def plain_json(x: Any, nonfinite: Literal["null", "string"] = "null") -> Any:
+    """``x`` in plain JSON types: mappings with string keys, lists for tuples and arrays,
+    Python numbers for NumPy scalars; NaN and infinities as null or as their string."""
+    import math
+
+    import numpy as np
+
+    if isinstance(x, dict):
+        return {str(k): plain_json(v, nonfinite) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [plain_json(v, nonfinite) for v in x]
+    if isinstance(x, np.ndarray):
+        return plain_json(x.tolist(), nonfinite)
+    if isinstance(x, np.generic):
+        return plain_json(x.item(), nonfinite)
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if nonfinite == "null" else str(x)
+    return x
 
 
 def write_target(name: str, path: str | Path) -> Path:

@@ -173,6 +173,7 @@ class AxisResponse(SteppingMetrics):
     table_radius: float
     period_starts: np.ndarray
     info: dict = field(default_factory=dict)
+    effect_row: np.ndarray | None = None  # output-stage effects (SteppingMetrics), or None
 
     def angle(self, axis: str | None = None) -> np.ndarray:
         """Rotation about the model's axis [rad] (``axis`` must be it or None)."""
@@ -663,11 +664,7 @@ def simulate_batch(
     out = []
     for b, (m, d) in enumerate(zip(models, drives, strict=True)):
         r = rec[b, : n_rec[b]]
-        if isinstance(d, DriveSignal):
-            starts = d.start + np.arange(d.total_periods + 1) / d.frequency
-            starts = starts[starts <= r[-1, 0] + 1e-12]
-        else:
-            starts = np.empty(0)
+        starts = d.period_starts(r[-1, 0]) if isinstance(d, DriveSignal) else np.empty(0)
         out.append(
             AxisResponse(
                 time=r[:, 0].copy(),

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .detector import Detector
+from .effects import detector_stage
 
 __all__ = ["ENERGY_TERMS", "SteppingMetrics", "TurntableResponse"]
 
@@ -53,8 +54,16 @@ class SteppingMetrics:
 
     def detector_voltage(self, rng: np.random.Generator | None = None) -> np.ndarray:
         """Detector output about the axis under test [V] (Eq. 4.1 inverted, saturation,
-        noise if ``rng`` is given)."""
-        return self.detector.voltage(self.angle(), rng)
+        noise if ``rng`` is given), with the plant's output-stage effects where the response
+        carries them (``effect_row``, :func:`~turntable_env.effects.detector_stage`)."""
+        row = getattr(self, "effect_row", None)
+        if row is None:
+            return self.detector.voltage(self.angle(), rng)
+        x, _y = detector_stage(self.angle(), self.time - self.time[0], row, self.detector)
+        if rng is not None and self.detector.noise_std > 0.0:
+            x = x + rng.normal(0.0, self.detector.noise_std, size=x.shape)
+        vs = self.detector.saturation_voltage
+        return np.clip(x, -vs, vs)
 
     @property
     def detector_V_net(self) -> float:
@@ -167,7 +176,9 @@ class TurntableResponse(SteppingMetrics):
         detector: the detector model.
         table_radius: R_table [m] (Eq. 4.2).
         period_starts: start times of the drive periods [s] (for step detection).
-        info: run metadata (parameter set, drive, step size, steps, wall time).
+        info: run metadata (parameter set, plant, drive, step size, steps, wall time).
+        effect_row: the plant's effects (:data:`~turntable_env.effects.EFFECT_FIELDS`) where
+            it has output-stage ones, read by :meth:`detector_voltage`; else None.
     """
 
     time: np.ndarray
@@ -188,6 +199,7 @@ class TurntableResponse(SteppingMetrics):
     table_radius: float
     period_starts: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+    effect_row: np.ndarray | None = None
 
     # --- angles and detector ----------------------------------------------------------
     def angle(self, axis: str | None = None) -> np.ndarray:

@@ -9,16 +9,18 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 
 from .drive import DriveSignal, Waveform
+from .effects import CATALOGUE, apply_input, input_active
 from .model import AXES, TurntableModel
 from .params import ParameterSet
-from .plant import parameter_set
+from .plant import Plant, as_plant, parameter_set, reduced_model
+from .reduced import REDUCED_AXES, AxisResponse, simulate_batch
 from .response import ENERGY_TERMS, TurntableResponse
 from .validation import check_nonnegative, check_positive
 
@@ -27,6 +29,7 @@ __all__ = [
     "TWO_DIRECTIONAL_CYCLES",
     "cycle_minima",
     "simulate",
+    "simulate_axes",
     "stepping_drive",
 ]
 
@@ -79,7 +82,7 @@ def stepping_drive(
 
 
 def simulate(
-    params: ParameterSet | Literal["real", "thesis"],
+    plant: Plant | ParameterSet | str,
     drive: Mapping[str, DriveSignal | Waveform] | DriveSignal,
     duration: float | None = None,
     *,
@@ -91,10 +94,19 @@ def simulate(
     output_dt: float = 1e-5,
     model: TurntableModel | None = None,
 ) -> TurntableResponse:
-    """Run the full 3-D model from static equilibrium.
+    """Run the full 3-D model of a plant from static equilibrium.
+
+    The plant's stages run as in :class:`~turntable_env.plant.PlantStepper`: its parameter
+    set (base × factors, parameter-stage effects), the input stage (piezo hysteresis and
+    creep, :func:`~turntable_env.effects.apply_input`) on each channel's input, and the
+    output stage (:func:`~turntable_env.effects.detector_stage`) in the response's
+    detector voltage. The friction stage updates μ from the motion segment by segment,
+    which only the stepper does: a plant with such an effect is refused here.
 
     Args:
-        params: parameter set or its name.
+        plant: a :class:`~turntable_env.plant.Plant`, a parameter set (the plant on it,
+            :func:`~turntable_env.plant.as_plant`) or a name (``"calibrated"``: the
+            store's plant, whole).
         drive: channel → signal, or one :class:`DriveSignal` applied to ``axis``.
         duration: simulated time [s]; default: the drive's duration plus ``settle``.
         axis: the axis under test (A, B, C or Z): detector and steps refer to it.
@@ -104,13 +116,14 @@ def simulate(
         coarse_factor: adaptive step — coarse_factor/ω_max while the turntable is quiet,
             the fine step otherwise (see :meth:`TurntableModel.run`); None: fixed step.
         output_dt: sample interval of the response [s].
-        model: a prebuilt :class:`TurntableModel` for ``params`` (saves the packing).
+        model: a prebuilt :class:`TurntableModel` for the plant's parameter set.
 
     Raises:
         ValueError: invalid arguments (naming the field).
         SimulationError: the state diverged (naming the time and the state variable).
     """
-    ps = parameter_set(params) if isinstance(params, str) else params
+    pl = _runnable(plant)
+    ps = pl.params
     if axis not in AXES:
         raise ValueError(f"axis={axis!r}: must be one of {', '.join(AXES)}")
     drives = {axis: drive} if isinstance(drive, DriveSignal | Waveform) else dict(drive)
@@ -124,6 +137,11 @@ def simulate(
     mdl = model if model is not None else TurntableModel(ps)
     if mdl.params is not ps and model is not None:
         raise ValueError("model: was built for another parameter set")
+    given = drives  # the drive as commanded (its periods give the step detection)
+    if bool(input_active(pl.effect_row)):  # the piezo's input stage on each channel's input
+        drives = {
+            k: _input_staged(w, pl, dur) for k, w in mdl.drive_waveforms(drives).items()
+        }
     wall0 = time.perf_counter()
     raw = mdl.run(
         drives, dur, dt_factor=dt_factor, dt_max=dt, coarse_factor=coarse_factor,
@@ -131,13 +149,8 @@ def simulate(
     )  # fmt: skip
     wall = time.perf_counter() - wall0
     st, ct, en = raw["state"], raw["contact"], raw["energy"]
-    main = drives.get(axis)
-    if isinstance(main, DriveSignal):
-        n_total = main.total_periods
-        starts = main.start + np.arange(n_total + 1) / main.frequency
-        starts = starts[starts <= st[-1, 0] + 1e-12]
-    else:
-        starts = np.empty(0)
+    main = given.get(axis)
+    starts = main.period_starts(st[-1, 0]) if isinstance(main, DriveSignal) else np.empty(0)
     return TurntableResponse(
         time=st[:, 0].copy(),
         centre_displacement=st[:, 1:4].copy(),
@@ -156,15 +169,95 @@ def simulate(
         detector=ps.detector,
         table_radius=ps.table.radius,
         period_starts=starts,
+        effect_row=pl.effect_row if _output_effects(pl) else None,
         info={
             "params": ps.name,
-            "drive": {k: repr(v) for k, v in drives.items()},
+            "plant": repr(pl),
+            "drive": {k: repr(v) for k, v in given.items()},
             "dt": raw["dt"],
             "n_steps": raw["n_steps"],
             "n_coarse": raw["n_coarse"],
             "wall_s": wall,
         },
     )
+
+
+def simulate_axes(
+    plants: Sequence[Plant | ParameterSet | str],
+    drives: Sequence[DriveSignal | Waveform],
+    duration: float | None = None,
+    *,
+    axis: str = "B",
+    settle: float = 0.0,
+    output_dt: float = 1e-5,
+) -> list[AxisResponse]:
+    """Run N plants' reduced models about ``axis`` together, from rest, in one compiled call
+    (:func:`~turntable_env.reduced.simulate_batch`): the batched form of :func:`simulate`,
+    with the plants' stages as there (parameters, input stage on the drive, output stage in
+    each response's detector voltage; friction-stage effects refused).
+
+    Args:
+        plants: one plant per turntable (:func:`~turntable_env.plant.as_plant`).
+        drives: one channel input per turntable (DriveSignal or Waveform, starting at 0).
+        duration: simulated time [s]; default: the longest drive plus ``settle``.
+        axis: A, B or C.
+        settle: extra time after the drives when ``duration`` is not given [s].
+        output_dt: sample interval [s], a multiple of the reduced model's grid.
+
+    Raises:
+        ValueError: mismatched lengths, a bad plant or axis (naming it).
+    """
+    if len(plants) != len(drives) or not plants:
+        raise ValueError(
+            f"plants/drives: need equal, non-zero lengths ({len(plants)}, {len(drives)})"
+        )
+    if axis not in REDUCED_AXES:
+        raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
+    resolved = [_runnable(p) for p in plants]
+    check_nonnegative("settle", settle)
+    if duration is None:
+        ends = [d.start + d.duration if isinstance(d, DriveSignal) else d.end for d in drives]
+        duration = max([*ends, 0.0]) + settle
+    models = [reduced_model(p.params, axis) for p in resolved]
+    inputs: list[DriveSignal | Waveform] = []
+    for p, m, d in zip(resolved, models, drives, strict=True):
+        if bool(input_active(p.effect_row)):  # the piezo's input stage on the channel input
+            inputs.append(_input_staged(m.full.drive_waveforms({axis: d})[axis], p, duration))
+        else:
+            inputs.append(d)
+    runs = simulate_batch(models, inputs, check_positive("duration", duration), output_dt=output_dt)
+    out = []
+    for p, d, r in zip(resolved, drives, runs, strict=True):
+        starts = d.period_starts(r.time[-1]) if isinstance(d, DriveSignal) else r.period_starts
+        row = p.effect_row if _output_effects(p) else None
+        info = {**r.info, "plant": repr(p)}
+        out.append(replace(r, period_starts=starts, effect_row=row, info=info))
+    return out
+
+
+def _input_staged(wave: Waveform, plant: Plant, end: float) -> Waveform:
+    """The plant's input stage on a channel's input, held to ``end`` [s] so that states
+    with memory (creep) go on after the last breakpoint."""
+    t, u = wave.times, wave.values
+    if t[-1] < end:
+        t, u = np.append(t, end), np.append(u, u[-1])
+    return Waveform(*apply_input(t, u, plant.effects))
+
+
+def _runnable(plant: Plant | ParameterSet | str) -> Plant:
+    """The plant, refused where it has a friction-stage effect (only the stepper runs it)."""
+    pl = as_plant(plant)
+    for name in pl.effects:
+        if CATALOGUE[name].stage == "friction":
+            raise ValueError(
+                f"plant.effects[{name!r}]: a friction-stage effect runs only through "
+                "PlantStepper (the env), not simulate()"
+            )
+    return pl
+
+
+def _output_effects(plant: Plant) -> bool:
+    return any(CATALOGUE[name].stage == "output" for name in plant.effects)
 
 
 def cycle_minima(response: TurntableResponse, drive: DriveSignal) -> tuple[list[float], float]:

@@ -55,6 +55,7 @@ from .value import (
     PARAMETER_SETS,
     SENSOR_NOISE,
     Plant,
+    as_plant,
     calibrated_parameters,
     parameter_set,
 )
@@ -72,6 +73,7 @@ __all__ = [
     "Plant",
     "PlantStepper",
     "Records",
+    "as_plant",
     "calibrated_parameters",
     "calibrated_set_toml",
     "load_capacitance",

@@ -31,6 +31,7 @@ __all__ = [
     "PARAMETER_SETS",
     "SENSOR_NOISE",
     "Plant",
+    "as_plant",
     "calibrated_parameters",
     "parameter_set",
 ]
@@ -199,6 +200,15 @@ class Plant:
         """This plant without effects, factors or uncertainty (the base set as it is)."""
         return replace(self, factors={}, effects={}, uncertainty={})
 
+    def on_parameters(self, ps: ParameterSet) -> Plant:
+        """This plant's other stages (input, friction and output effects, detector noise,
+        fidelity) on the parameter set ``ps``, which stands for base, rig, factors and
+        parameter-stage effects — e.g. ``self.params`` with another amplifier mode
+        (:func:`~turntable_env.simulation.stepping_drive`)."""
+        kept = {k: v for k, v in self.effects.items() if CATALOGUE[k].stage != "parameters"}
+        return replace(self, base=ps, rig=None, factors={}, effects=kept,
+                       ideal_amplifier=False, uncertainty={})  # fmt: skip
+
     def replace(self, **changes: Any) -> Plant:
         """A copy with fields changed (dataclasses.replace)."""
         return replace(self, **changes)
@@ -337,6 +347,24 @@ def parameter_set(name: str) -> ParameterSet:
     if name in NAMED_PLANTS:
         return replace(_named_plant(name).params, name=name)
     raise ValueError(f"set={name!r}: must be one of {', '.join(PARAMETER_SETS)}")
+
+
+def as_plant(plant: Plant | ParameterSet | str) -> Plant:
+    """The plant a simulation runs: a :class:`Plant` as it is; a name as the store's named
+    plant, whole (``"calibrated"``), or as the base set (``"real"``, ``"thesis"``); a
+    :class:`~turntable_env.params.ParameterSet` as the plant on it, without factors or
+    effects (``Plant(base=ps).params`` is ``ps``). ValueError for anything else."""
+    if isinstance(plant, Plant):
+        return plant
+    if isinstance(plant, ParameterSet):
+        return Plant(base=plant)
+    if isinstance(plant, str):
+        if plant in NAMED_PLANTS:
+            return Plant.named(plant)
+        if plant in BASE_SETS:
+            return Plant(plant)
+        raise ValueError(f"plant={plant!r}: must be one of {', '.join(PARAMETER_SETS)}")
+    raise ValueError(f"plant={plant!r}: must be a Plant, a ParameterSet or a set name")
 
 
 def calibrated_parameters(path: str | os.PathLike[str] | None = None) -> ParameterSet:

@@ -17,16 +17,13 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..files import check_writable, output_directory
+from ..files import check_writable, output_directory, plain_json
 from .figures import (
     amplifier_figure,
     drift_figure,
@@ -187,7 +184,7 @@ def _speed(quick: bool) -> Section:
         "time), step error against a converged reference, peak memory.",
     )
     s.tables.append({"caption": "turntable bench", "text": format_table(res)})
-    s.numbers = _jsonable(res)
+    s.numbers = _json(res)
     return s
 
 
@@ -210,7 +207,7 @@ def _benchmark(quick: bool, progress: bool = False) -> Section:
         "metric, mean [95 % bootstrap interval] over paired seeds.",
     )
     s.tables.append({"caption": "turntable benchmark", "text": res.leaderboard()})
-    s.numbers = _jsonable(res.to_json()["results"])
+    s.numbers = _json(res.to_json()["results"])
     with tempfile.TemporaryDirectory() as tmp:
         paths = plot_trajectories(res, Path(tmp))
         for name, p in sorted(paths.items()):
@@ -328,23 +325,8 @@ def _calibration(quick: bool, progress: bool = False) -> Section:
             "thesis": "The thesis found the amplifier's slew rate too low (§4.1.2).",
         }
     )
-    s.numbers = _jsonable(res.to_json())
+    s.numbers = _json(res.to_json())
     return s
-
-
-def _jsonable(x: Any) -> Any:
-    """Plain JSON types (NaN and infinities become strings)."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        return _jsonable(x.item())
-    if isinstance(x, float) and not math.isfinite(x):
-        return str(x)
-    return x
 
 
 def _machine() -> str:
@@ -389,7 +371,7 @@ def build_report(out: str | Path, *, quick: bool = False, progress: bool = True)
         "wall_s": wall,
         "machine": _machine(),
         "sections": {
-            s.id: {"title": s.title, "wall_s": s.wall_s, **_jsonable(s.numbers)} for s in sections
+            s.id: {"title": s.title, "wall_s": s.wall_s, **_json(s.numbers)} for s in sections
         },
     }
     html = render_html(sections, summary)
@@ -397,3 +379,8 @@ def build_report(out: str | Path, *, quick: bool = False, progress: bool = True)
         (tmp / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
         (tmp / "index.html").write_text(html, encoding="utf-8")
     return {"html": d / "index.html", "json": d / "summary.json"}
+
+
+def _json(x: Any) -> Any:
+    """Plain JSON types (NaN and infinities as strings)."""
+    return plain_json(x, "string")
