@@ -33,53 +33,24 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
-from .amplifier import (
-    AMP_FAST,
-    AMP_GAIN,
-    AMP_IDEAL,
-    AMP_LIMIT,
-    AMP_T_FAST,
-    AMP_TAU,
-    amplifier_hold_step,
-)
+from .amplifier import amplifier_hold_step
 from .friction.gms2d import gms2d_rates, gms2d_update
 from .friction.kernels import stribeck_magnitude
 from .kernel_cache import CACHE
-from .kernel_types import (
-    ACC_D_CONTACT,
-    ACC_D_TUBE,
-    ACC_W_ELEC,
-    ACC_W_GROSS,
-    ACC_W_INTERFACE,
-    GMS_BETA_T,
-    GMS_DELTA,
-    GMS_MU_C,
-    GMS_MU_S,
-    GMS_SIGMA2,
-    GMS_V_S,
-    TP_BOUND_DELTA,
-    TP_BOUND_U,
-    TP_D_C,
-    TP_EXPONENT,
-    TP_G,
-    TP_K_C,
-    TP_MASS,
-    TP_PRELOAD,
-    TP_R_BALL,
-    TP_R_NOM,
-    TP_W_BALL,
-    TP_W_TABLE,
-)
 from .screw import log_so3_nb, rotate_left_inplace
 
 __all__ = ["STATUS_NAMES", "run_full_model"]
 
 STATUS_NAMES = {0: "ok", 1: "non-finite", 2: "diverging", 3: "rim"}
 
-# packed rows are read through the named columns of turntable_env.kernel_types (table_p,
-# gms_p, acc) and turntable_env.amplifier (amp_p: Amplifier.kernel_row's layout)
+# layout of the packed scalar arrays (documented here, filled by turntable_env.model)
+# table_p: [m, g, P, R_table, R_ball, r_nom, k_c, e, d_c, w_ball, w_table, bound_u, bound_delta]
+# gms_p:   [C, mu_s, mu_c, v_s, delta, sigma2, beta_t]
+# amp_p:   [gain, tau, ideal, input_limit, fast_fraction, fast_time]
+# energy accumulators acc: [W_elec, W_interface, D_tube, D_contact, gross |W_elec|]
 
 
 @njit(cache=CACHE)
@@ -112,23 +83,20 @@ def _cross(a, b, out):
 
 
 @njit(cache=CACHE)
-def contact_kinematics(model, xi, xid, w):
-    """Contact geometry and velocities at the tube-top twists ``xi`` and rates ``xid``,
-    the table-centre displacement ``w.pt_disp``, velocity ``w.vt`` and rotation rate
-    ``w.omega`` (Eq. 3.24–3.26).
+def contact_kinematics(
+    xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt, scr
+):
+    """Contact geometry and velocities at the current positions.
 
-    Fills per contact k: w.cinfo[k] = (overlap δ [m], δ̇ [m/s], v_x, v_y in the plane [m/s],
-    table lever ρ [m]); w.cn[k] = normal n (table centre → ball); w.cx, w.cy = plane basis
-    (Eq. 3.26); w.crc[k] = tube-top → contact point; w.crt[k] = table centre → contact point.
-    Scratch rows 0–3 of ``w.scr``.
+    Fills per contact k: cinfo[k] = (overlap δ [m], δ̇ [m/s], v_x, v_y in the plane [m/s],
+    table lever ρ [m]); cn[k] = normal n (table centre → ball); cx, cy = plane basis
+    (Eq. 3.26); crc[k] = tube-top → contact point; crt[k] = table centre → contact point.
+    ``scr`` is scratch (rows 0–3 used), so no step allocates.
     """
-    table_p, d_nom, r0, basis_ref = model.table_p, model.d_nom, model.r0, model.basis_ref
-    pt_disp, vt, omega = w.pt_disp, w.vt, w.omega
-    cinfo, cn, cx, cy, crc, crt, scr = w.cinfo, w.cn, w.cx, w.cy, w.crc, w.crt, w.scr
-    r_ball = table_p[TP_R_BALL]
-    r_nom = table_p[TP_R_NOM]
-    w_ball = table_p[TP_W_BALL]
-    w_table = table_p[TP_W_TABLE]
+    r_ball = table_p[4]
+    r_nom = table_p[5]
+    w_ball = table_p[9]
+    w_table = table_p[10]
     wb = w_table / (w_ball + w_table)  # p_c = p1 + wb·δ·n  (Eq. 3.24)
     th_x_r = scr[0]
     e = scr[1]
@@ -193,42 +161,47 @@ def _normal_force(table_p, overlap, rate):
     """(total, elastic, damping) normal force [N]; zero when separated, never pulling."""
     if overlap <= 0.0:
         return 0.0, 0.0, 0.0
-    fe = table_p[TP_K_C] * overlap ** table_p[TP_EXPONENT]
-    fd = table_p[TP_D_C] * rate
+    fe = table_p[6] * overlap ** table_p[7]
+    fd = table_p[8] * rate
     if fe + fd < 0.0:
         fd = -fe
     return fe + fd, fe, fd
 
 
 @njit(cache=CACHE)
-def _tube_wrenches(model, xi, xid, w):
-    """Spring, damper and piezo wrenches on the tube tops (Eq. 2.11), before the contacts."""
-    ktop, dtop, bcoup = model.ktop, model.dtop, model.bcoup
-    for k in range(3):
-        for a in range(6):
-            s = 0.0
-            for b in range(6):
-                s -= ktop[k, a, b] * xi[k, b] + dtop[k, a, b] * xid[k, b]
-            for q in range(4):
-                s += bcoup[k, a, q] * w.vq[k, q]
-            w.w_tube[k, a] = s
-
-
-@njit(cache=CACHE)
-def contact_forces(model, xi, xid, gf, gst, rot, w):
+def contact_forces(
+    xi,
+    xid,
+    vq,
+    ktop,
+    dtop,
+    bcoup,
+    cinfo,
+    cn,
+    cx,
+    cy,
+    crc,
+    crt,
+    gf,
+    gst,
+    gk,
+    table_p,
+    gms_p,
+    rot,
+    c_body,
+    w_tube,
+    f_table,
+    tau_com,
+    fn_out,
+    ff_out,
+    scr,
+):
     """Wrenches on the tube tops (world, about the top) and force / torque (about the CoM)
-    on the table, from the contacts of :func:`contact_kinematics` (normal force, Hertz with
-    damping; friction, the GMS elements ``gf``, ``gst`` plus viscous and micro-slip damping,
-    Eq. 2.24–2.26) and the quadrant voltages ``w.vq`` [V]; scratch rows 4–8 of ``w.scr``."""
-    table_p, gms_p, gk, c_body = model.table_p, model.gms_p, model.gk, model.c_body
-    cinfo, cn, cx, cy, crc, crt = w.cinfo, w.cn, w.cx, w.cy, w.crc, w.crt
-    w_tube, f_table, tau_com, fn_out, ff_out, scr = (
-        w.w_tube, w.f_table, w.tau_com, w.fn, w.ff, w.scr
-    )  # fmt: skip
-    m = table_p[TP_MASS]
-    g = table_p[TP_G]
-    preload = table_p[TP_PRELOAD]
-    sigma2 = gms_p[GMS_SIGMA2]
+    on the table. ``vq[k, q]`` are the quadrant voltages [V]; ``scr`` scratch rows 4–8."""
+    m = table_p[0]
+    g = table_p[1]
+    preload = table_p[2]
+    sigma2 = gms_p[5]
     tmp = scr[4]
     fw = scr[5]
     tau_c = scr[6]  # torque about the table centre
@@ -236,15 +209,21 @@ def contact_forces(model, xi, xid, gf, gst, rot, w):
         tau_c[j] = 0.0
         f_table[j] = 0.0
     f_table[2] = -m * g - preload
-    _tube_wrenches(model, xi, xid, w)
     for k in range(3):
+        for a in range(6):
+            s = 0.0
+            for b in range(6):
+                s -= ktop[k, a, b] * xi[k, b] + dtop[k, a, b] * xid[k, b]
+            for q in range(4):
+                s += bcoup[k, a, q] * vq[k, q]
+            w_tube[k, a] = s
         fn, _fe, _fd = _normal_force(table_p, cinfo[k, 0], cinfo[k, 1])
         fn_out[k] = fn
         # friction force on the table, in the plane (sum of GMS elements + viscous)
         c_t = sigma2  # viscous + micro-damping of the sticking elements [N·s/m]
         for i in range(gf.shape[1]):
             if gst[k, i] == 1:
-                c_t += gms_p[GMS_BETA_T] * gk[i]
+                c_t += gms_p[6] * gk[i]
         fx = c_t * cinfo[k, 2]
         fy = c_t * cinfo[k, 3]
         for i in range(gf.shape[1]):
@@ -309,9 +288,8 @@ def _charges(xi, vq, bcoup, cs, out):
 
 
 @njit(cache=CACHE)
-def _omega(model, state, w):
-    """ω = R J⁻¹ Rᵀ L (world) into ``w.omega``; scratch rows 9–10."""
-    rot, lam, jinv, out, scr = state.rot, state.lam, model.jinv, w.omega, w.scr
+def _omega(rot, jinv, lam, out, scr):
+    """ω = R J⁻¹ Rᵀ L (world); ``scr`` scratch rows 9–10."""
     lb = scr[9]
     for a in range(3):
         lb[a] = rot[0, a] * lam[0] + rot[1, a] * lam[1] + rot[2, a] * lam[2]
@@ -332,50 +310,61 @@ def _table_centre(pc_disp, rot, c_body, out):
 
 
 @njit(cache=CACHE)
-def _kinematics(model, state, w):
+def _kinematics(
+    pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt, cinfo,
+    cn, cx, cy, crc, crt, scr,
+):  # fmt: skip
     """Table-centre displacement and velocity, then the contacts (:func:`contact_kinematics`);
-    scratch rows 0–3 and 11–12 of ``w.scr``."""
-    rot, c_body, omega, scr = state.rot, model.c_body, w.omega, w.scr
+    ``scr`` scratch rows 0–3 and 11–12."""
     rc = scr[11]
     tmp = scr[12]
-    _table_centre(state.pc_disp, rot, c_body, w.pt_disp)
+    _table_centre(pc_disp, rot, c_body, pt_disp)
     for j in range(3):
         rc[j] = rot[j, 0] * c_body[0] + rot[j, 1] * c_body[1] + rot[j, 2] * c_body[2]
     _cross(omega, rc, tmp)
     for j in range(3):
-        w.vt[j] = state.vc[j] - tmp[j]  # v_centre = v_CoM + ω × (p_centre − p_CoM)
-    contact_kinematics(model, state.xi, state.xid, w)
+        vt[j] = vc[j] - tmp[j]  # v_centre = v_CoM + ω × (p_centre − p_CoM)
+    contact_kinematics(
+        xi, pt_disp, d_nom, r0, basis_ref, table_p, xid, vt, omega, cinfo, cn, cx, cy, crc, crt,
+        scr,
+    )  # fmt: skip
 
 
 @njit(cache=CACHE)
-def _forces(model, state, w):
-    """Forces on every body at the present state (:func:`contact_forces`)."""
-    contact_forces(model, state.xi, state.xid, state.gf, state.gst, state.rot, w)
-
-
-@njit(cache=CACHE)
-def _kick(model, state, w, h):
+def _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid):
     """Half kick over h [s]: table momentum and angular momentum, tube-top velocities."""
-    m, minv, vc, lam, xid = model.table_p[TP_MASS], model.minv, state.vc, state.lam, state.xid
     for j in range(3):
-        vc[j] += h * w.f_table[j] / m
-        lam[j] += h * w.tau_com[j]
+        vc[j] += h * f_table[j] / m
+        lam[j] += h * tau_com[j]
     for k in range(3):
         for a in range(6):
             s = 0.0
             for b in range(6):
-                s += minv[k, a, b] * w.w_tube[k, b]
+                s += minv[k, a, b] * w_tube[k, b]
             xid[k, a] += h * s
 
 
 @njit(cache=CACHE)
-def _stored_energies(model, state, w):
-    """w.energies = (kinetic, tube elastic, piezo electric, contact normal, GMS,
-    gravity+preload) [J]."""
-    table_p, mtube, ktop, cs, gk = model.table_p, model.mtube, model.ktop, model.cs, model.gk
-    vc, lam, omega, xi, xid, gf = state.vc, state.lam, w.omega, state.xi, state.xid, state.gf
-    vq, cinfo, out = w.vq, w.cinfo, w.energies
-    m = table_p[TP_MASS]
+def _stored_energies(
+    pc_disp,
+    vc,
+    lam,
+    omega,
+    xi,
+    xid,
+    vq,
+    mtube,
+    ktop,
+    cs,
+    cinfo,
+    gf,
+    gk,
+    table_p,
+    pt_disp,
+    out,
+):
+    """out = (kinetic, tube elastic, piezo electric, contact normal, GMS, gravity+preload) [J]."""
+    m = table_p[0]
     ke = 0.5 * m * (vc[0] ** 2 + vc[1] ** 2 + vc[2] ** 2)
     ke += 0.5 * (omega[0] * lam[0] + omega[1] * lam[1] + omega[2] * lam[2])
     el = 0.0
@@ -394,14 +383,14 @@ def _stored_energies(model, state, w):
                 pz += 0.5 * vq[k, q] * cs[k, q, p] * vq[k, p]
     ec = 0.0
     eg = 0.0
-    e_exp = table_p[TP_EXPONENT]
+    e_exp = table_p[7]
     for k in range(3):
         d = cinfo[k, 0]
         if d > 0.0:
-            ec += table_p[TP_K_C] * d ** (e_exp + 1.0) / (e_exp + 1.0)
+            ec += table_p[6] * d ** (e_exp + 1.0) / (e_exp + 1.0)
         for i in range(gf.shape[1]):
             eg += (gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2) / (2.0 * gk[i])
-    pot = m * table_p[TP_G] * state.pc_disp[2] + table_p[TP_PRELOAD] * w.pt_disp[2]
+    pot = m * table_p[1] * pc_disp[2] + table_p[2] * pt_disp[2]
     out[0] = ke
     out[1] = el
     out[2] = pz
@@ -411,16 +400,14 @@ def _stored_energies(model, state, w):
 
 
 @njit(cache=CACHE)
-def _first_bad(model, state, w):
+def _first_bad(pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, d_rim):
     """(status, variable index) of the first non-finite or out-of-bound state, or (0, -1).
 
     Variable indices: 0–2 table CoM displacement, 3–5 table velocity, 6–8 angular
     momentum, 9 + 12k + a tube k displacement (a < 6) / velocity (a ≥ 6),
     45 + k contact k GMS forces, 48 + c amplifier channel c, 52 + k contact k overlap,
-    55 + k contact k at the rim (the nominal contact directions).
+    55 + k contact k at the rim.
     """
-    pc_disp, vc, lam, xi, xid = state.pc_disp, state.vc, state.lam, state.xi, state.xid
-    gf, table_p, cinfo, rot, d_rim = state.gf, model.table_p, w.cinfo, state.rot, model.d_nom
     for j in range(3):
         if not math.isfinite(pc_disp[j]):
             return 1, j
@@ -438,9 +425,9 @@ def _first_bad(model, state, w):
             if not (math.isfinite(gf[k, i, 0]) and math.isfinite(gf[k, i, 1])):
                 return 1, 45 + k
     for c in range(4):
-        if not math.isfinite(state.vch[c]):
+        if not math.isfinite(vch[c]):
             return 1, 48 + c
-    bu = table_p[TP_BOUND_U]
+    bu = table_p[11]
     for j in range(3):
         if abs(pc_disp[j]) > bu:
             return 2, j
@@ -448,7 +435,7 @@ def _first_bad(model, state, w):
         for a in range(3, 6):
             if abs(xi[k, a]) > bu:
                 return 2, 9 + 12 * k + a
-        if cinfo[k, 0] > table_p[TP_BOUND_DELTA]:
+        if cinfo[k, 0] > table_p[12]:
             return 2, 52 + k
     # rim: the contact direction in the body frame must stay below the flat face
     for k in range(3):
@@ -461,18 +448,22 @@ def _first_bad(model, state, w):
 
 
 @njit(cache=CACHE)
-def _contacts_stick(model, state, w, ctl):
-    """Every GMS element sticks with a margin to its static capacity ν_i μ_s F_N that
-    lasts ``ctl.quiet_load`` coarse steps at its present loading rate k_i|v|."""
-    table_p, gms_p, gnu, gk = model.table_p, model.gms_p, model.gnu, model.gk
-    gf, gst, cinfo, fn = state.gf, state.gst, w.cinfo, w.fn
-    mu_s = gms_p[GMS_MU_S]
-    kn_tangent = table_p[TP_K_C] * table_p[TP_EXPONENT]  # × δ^(e−1) below: normal stiffness
+def _is_quiet(
+    t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst, gnu, gk, fn,
+    cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load,
+    quiet_volt, dt_coarse, scr,
+):  # fmt: skip
+    """True if a coarse step is safe now: every GMS element sticks with a margin to its static
+    capacity ν_i μ_s F_N that lasts ``quiet_load`` coarse steps at its present loading rate
+    k_i|v|, no body accelerates faster than ``quiet_acc`` [m/s²]
+    (table rotation and tube-top rotation times their levers), and no amplifier channel
+    would move more than ``quiet_volt`` [V] in a coarse step, nor its fast path still be
+    settling by more than that."""
+    mu_s = gms_p[1]
+    kn_tangent = table_p[6] * table_p[7]  # × δ^(e−1) below: normal stiffness [N/m]
     for k in range(3):
-        if table_p[TP_EXPONENT] != 1.0 and cinfo[k, 0] > 0.0:
-            kn_tangent = table_p[TP_K_C] * table_p[TP_EXPONENT] * cinfo[k, 0] ** (
-                table_p[TP_EXPONENT] - 1.0
-            )  # fmt: skip
+        if table_p[7] != 1.0 and cinfo[k, 0] > 0.0:
+            kn_tangent = table_p[6] * table_p[7] * cinfo[k, 0] ** (table_p[7] - 1.0)
         vrel = math.sqrt(cinfo[k, 2] ** 2 + cinfo[k, 3] ** 2)
         fn_rate = abs(kn_tangent * cinfo[k, 1])  # |dF_N/dt| [N/s]
         for i in range(gf.shape[1]):
@@ -482,30 +473,20 @@ def _contacts_stick(model, state, w, ctl):
             # of the element's load (k_i|v|) and of its capacity (ν_i μ_s |dF_N/dt|)
             margin = gnu[i] * mu_s * fn[k] - math.sqrt(gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2)
             rate = gk[i] * vrel + gnu[i] * mu_s * fn_rate
-            if margin < ctl.quiet_load * rate * ctl.dt_coarse:
+            if margin < quiet_load * rate * dt_coarse:
                 return False
-    return True
-
-
-@njit(cache=CACHE)
-def _bodies_calm(model, state, w, ctl):
-    """No body accelerates faster than ``ctl.quiet_acc`` [m/s²]: the table, its rotation
-    times its radius, each tube top's translation and rotation times its lever."""
-    m, jinv, minv, rot = model.table_p[TP_MASS], model.jinv, model.minv, state.rot
-    f_table, tau_com, w_tube = w.f_table, w.tau_com, w.w_tube
-    quiet_acc = ctl.quiet_acc
     a2 = (f_table[0] ** 2 + f_table[1] ** 2 + f_table[2] ** 2) / (m * m)
     if a2 > quiet_acc * quiet_acc:
         return False
     # angular acceleration of the table: R J⁻¹ Rᵀ τ (body inverse inertia), times the radius
-    tb = w.scr[13]
+    tb = scr[13]
     for a in range(3):
         tb[a] = rot[0, a] * tau_com[0] + rot[1, a] * tau_com[1] + rot[2, a] * tau_com[2]
     al2 = 0.0
     for a in range(3):
         s = jinv[a, 0] * tb[0] + jinv[a, 1] * tb[1] + jinv[a, 2] * tb[2]
         al2 += s * s
-    if al2 * ctl.lever_table * ctl.lever_table > quiet_acc * quiet_acc:
+    if al2 * lever_t * lever_t > quiet_acc * quiet_acc:
         return False
     for k in range(3):
         ar2 = 0.0
@@ -518,21 +499,12 @@ def _bodies_calm(model, state, w, ctl):
                 ar2 += s * s
             else:
                 at2 += s * s
-        if math.sqrt(at2) + math.sqrt(ar2) * ctl.lever_ball > quiet_acc:
+        if math.sqrt(at2) + math.sqrt(ar2) * lever_b > quiet_acc:
             return False
-    return True
-
-
-@njit(cache=CACHE)
-def _amplifier_calm(model, state, w, drive, t, ctl):
-    """No amplifier channel would move more than ``ctl.quiet_volt`` [V] in a coarse step,
-    nor its fast path still be settling by more than that."""
-    amp_p, wt, wv, wn, widx = model.amp_p, drive.times, drive.values, drive.count, w.widx
-    gain = amp_p[AMP_GAIN]
-    tau = amp_p[AMP_TAU]
-    ideal = amp_p[AMP_IDEAL] > 0.5
-    ulim = amp_p[AMP_LIMIT]
-    dt_coarse, quiet_volt = ctl.dt_coarse, ctl.quiet_volt
+    gain = amp_p[0]
+    tau = amp_p[1]
+    ideal = amp_p[2] > 0.5
+    ulim = amp_p[3]
     for c in range(4):
         i = widx[c]
         u = pwl_value(wt[c], wv[c], wn[c], i, t)
@@ -543,233 +515,15 @@ def _amplifier_calm(model, state, w, drive, t, ctl):
             if gain * abs(u1 - u) > quiet_volt:
                 return False
         u = min(ulim, max(-ulim, u))
-        if not ideal and abs(gain * u - state.vch[c]) * dt_coarse / tau > quiet_volt:
+        if not ideal and abs(gain * u - vch[c]) * dt_coarse / tau > quiet_volt:
             return False
-        if not ideal and abs(amp_p[AMP_FAST] * gain * u - state.amp_fast[c]) > quiet_volt:
+        if not ideal and abs(amp_p[4] * gain * u - vfast[c]) > quiet_volt:
             return False
     return True
 
 
-@njit(cache=CACHE)
-def _is_quiet(model, state, w, drive, t, ctl):
-    """True if a coarse step is safe now (the adaptive step of the module docstring):
-    :func:`_contacts_stick`, :func:`_bodies_calm` and :func:`_amplifier_calm`."""
-    if not _contacts_stick(model, state, w, ctl):
-        return False
-    if not _bodies_calm(model, state, w, ctl):
-        return False
-    return _amplifier_calm(model, state, w, drive, t, ctl)
-
-
-@njit(cache=CACHE)
-def _record(model, state, w, rec, i, t):
-    """Row i of the recording at time t [s] (:class:`~.kernel_types.FullRecording`)."""
-    _stored_energies(model, state, w)
-    energies, acc, gst, xi, cinfo = w.energies, state.acc, state.gst, state.xi, w.cinfo
-    rv = log_so3_nb(state.rot)
-    rec.state[i, 0] = t
-    for j in range(3):
-        rec.state[i, 1 + j] = w.pt_disp[j]
-        rec.state[i, 4 + j] = rv[j]
-        rec.state[i, 7 + j] = w.omega[j]
-    for c in range(4):
-        rec.state[i, 10 + c] = state.vch[c]
-    for k in range(3):
-        nst = 0
-        for e in range(gst.shape[1]):
-            nst += gst[k, e]
-        rec.contact[i, k, 0] = w.fn[k]
-        rec.contact[i, k, 1] = w.ff[k, 0]
-        rec.contact[i, k, 2] = w.ff[k, 1]
-        rec.contact[i, k, 3] = math.sqrt(cinfo[k, 2] ** 2 + cinfo[k, 3] ** 2)
-        rec.contact[i, k, 4] = nst
-        rec.contact[i, k, 5] = cinfo[k, 0]
-        for a in range(6):
-            rec.xi[i, k, a] = xi[k, a]
-    for a in range(6):
-        rec.energy[i, a] = energies[a]
-    e_gms = energies[4]
-    rec.energy[i, 6] = acc[ACC_W_ELEC]
-    rec.energy[i, 7] = acc[ACC_W_INTERFACE] - e_gms  # interface work − stored = dissipated
-    rec.energy[i, 8] = acc[ACC_D_TUBE]
-    rec.energy[i, 9] = acc[ACC_D_CONTACT]
-    rec.energy[i, 10] = acc[ACC_W_GROSS]
-
-
-@njit(cache=CACHE)
-def _step_end(drive, w, t, t_end, dt_max, t_out, i_out):
-    """The next step's end: t + dt_max, cut at t_end, at the next output time and at the
-    next drive breakpoint (steps land on them)."""
-    wt, wn, widx = drive.times, drive.count, w.widx
-    t_next = min(t + dt_max, t_end)
-    if i_out < t_out.shape[0] and t_out[i_out] < t_next:
-        t_next = t_out[i_out]
-    for c in range(4):
-        i = widx[c]
-        if i + 1 < wn[c] and wt[c, i + 1] < t_next and wt[c, i + 1] > t:
-            t_next = wt[c, i + 1]
-    if t_next - t > 0.0:
-        return t_next
-    # a jump sits exactly at t: step past it by moving the indices
-    for c in range(4):
-        widx[c] = advance_index(wt[c], wn[c], widx[c], t)
-    t_next = min(t + dt_max, t_end)
-    if i_out < t_out.shape[0] and t_out[i_out] < t_next:
-        t_next = t_out[i_out]
-    for c in range(4):
-        i = widx[c]
-        if i + 1 < wn[c] and wt[c, i + 1] < t_next:
-            t_next = wt[c, i + 1]
-    return t_next
-
-
-@njit(cache=CACHE)
-def _drift(model, state, w, dt):
-    """Phase 2: positions with the half-step velocities, the table orientation by the
-    exponential map R ← exp(Δt ω̃)R, and the tube dampers' dissipation."""
-    pc_disp, vc, xi, xid, acc, dtop = (
-        state.pc_disp, state.vc, state.xi, state.xid, state.acc, model.dtop
-    )  # fmt: skip
-    _omega(model, state, w)
-    for j in range(3):
-        pc_disp[j] += dt * vc[j]
-        w.tmp[j] = dt * w.omega[j]
-    rotate_left_inplace(state.rot, w.tmp, w.rot_scr)
-    _omega(model, state, w)
-    for k in range(3):
-        for a in range(6):
-            xi[k, a] += dt * xid[k, a]
-    # dissipation in the tube dampers with the half-step velocities
-    for k in range(3):
-        for a in range(6):
-            s = 0.0
-            for b in range(6):
-                s += dtop[k, a, b] * xid[k, b]
-            acc[ACC_D_TUBE] += dt * xid[k, a] * s
-
-
-@njit(cache=CACHE)
-def _gms_contact(model, state, w, k, fn_k, dt):
-    """One contact's GMS elements over dt [s] with the half-step slip velocity (Eq.
-    2.24–2.26; stick: F_i += k_i Δx exactly), the transitions, the elements' caps; returns
-    the interface work F̄·Δx [J]."""
-    gms_p, gnu, gk = model.gms_p, model.gnu, model.gk
-    gf, gst, df, was = state.gf, state.gst, w.df, w.was
-    ne = gf.shape[1]
-    vx = w.cinfo[k, 2]
-    vy = w.cinfo[k, 3]
-    # interface work with the old element forces (first half of F̄·Δx)
-    fx_old = 0.0
-    fy_old = 0.0
-    c_t = gms_p[GMS_SIGMA2]
-    for i in range(ne):
-        fx_old += gf[k, i, 0]
-        fy_old += gf[k, i, 1]
-        if gst[k, i] == 1:
-            c_t += gms_p[GMS_BETA_T] * gk[i]
-    if fn_k <= 0.0:
-        for i in range(ne):  # contact lost: the elements let go
-            gf[k, i, 0] = 0.0
-            gf[k, i, 1] = 0.0
-            gst[k, i] = 1
-    else:
-        gms2d_rates(gf[k], gst[k], vx, vy, fn_k, gnu, gk, gms_p, df)
-        for i in range(ne):
-            gf[k, i, 0] += dt * df[i, 0]
-            gf[k, i, 1] += dt * df[i, 1]
-        for i in range(ne):
-            was[i] = gst[k, i]
-        gms2d_update(gf[k], gst[k], vx, vy, fn_k, gnu, gms_p)
-        # no element holds more than its share ν_i|s(v)|: a sticking one when F_N
-        # drops, and one that broke away inside this step (its overshoot k_i v Δt
-        # past the breakaway instant would be a first-order error in Δt)
-        smag = stribeck_magnitude(
-            math.sqrt(vx * vx + vy * vy), fn_k, gms_p[GMS_MU_S], gms_p[GMS_MU_C],
-            gms_p[GMS_V_S], gms_p[GMS_DELTA],
-        )  # fmt: skip
-        for i in range(ne):
-            if gst[k, i] == 1 or was[i] == 1:
-                fm = math.sqrt(gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2)
-                cap = gnu[i] * smag
-                if fm > cap:
-                    gf[k, i, 0] *= cap / fm
-                    gf[k, i, 1] *= cap / fm
-    fx_new = 0.0
-    fy_new = 0.0
-    for i in range(ne):
-        fx_new += gf[k, i, 0]
-        fy_new += gf[k, i, 1]
-    return dt * (
-        (0.5 * (fx_old + fx_new) + c_t * vx) * vx + (0.5 * (fy_old + fy_new) + c_t * vy) * vy
-    )
-
-
-@njit(cache=CACHE)
-def _contacts(model, state, w, dt):
-    """Phase 3: the contacts at t_{n+1} with the half-step velocities — kinematics, the
-    normal damping's dissipation and every contact's GMS elements (:func:`_gms_contact`)."""
-    _kinematics(model, state, w)
-    acc, cinfo = state.acc, w.cinfo
-    for k in range(3):
-        fn_k, _fe_k, fd_k = _normal_force(model.table_p, cinfo[k, 0], cinfo[k, 1])
-        acc[ACC_D_CONTACT] += dt * fd_k * cinfo[k, 1]
-        acc[ACC_W_INTERFACE] += _gms_contact(model, state, w, k, fn_k, dt)
-
-
-@njit(cache=CACHE)
-def _amplifier(model, state, w, drive, t, dt, t_next):
-    """Phase 4: each channel advanced exactly with its input at mid-step (first-order stage
-    with its fast path and the slew limit, §4.1.2; the instant source takes the input at
-    the step's end), the quadrant voltages and charges, and the electrical work Σ V̄ Δq."""
-    amp_p, wt, wv, wn, widx = model.amp_p, drive.times, drive.values, drive.count, w.widx
-    vch, vslow, vfast, acc = state.vch, state.amp_slow, state.amp_fast, state.acc
-    gain = amp_p[AMP_GAIN]
-    ideal = amp_p[AMP_IDEAL] > 0.5
-    ulim = amp_p[AMP_LIMIT]
-    t_mid = t + 0.5 * dt
-    for c in range(4):
-        widx[c] = advance_index(wt[c], wn[c], widx[c], t_mid)
-        u = pwl_value(wt[c], wv[c], wn[c], widx[c], t_mid)
-        if ideal:
-            ie = advance_index(wt[c], wn[c], widx[c], t_next)
-            u = pwl_value(wt[c], wv[c], wn[c], ie, t_next)
-        u = min(ulim, max(-ulim, u))
-        if ideal:
-            vch[c] = gain * u
-        else:
-            vch[c], vslow[c], vfast[c] = amplifier_hold_step(
-                vch[c], vslow[c], vfast[c], u, dt, gain, amp_p[AMP_TAU], model.amp_rate[c],
-                amp_p[AMP_FAST], amp_p[AMP_T_FAST],
-            )  # fmt: skip
-    quadrant_voltages(vch, model.qchan, model.qsign, w.vq_new)
-    _charges(state.xi, w.vq_new, model.bcoup, model.cs, w.qch_new)
-    for k in range(3):
-        for q in range(4):
-            dw = 0.5 * (w.vq[k, q] + w.vq_new[k, q]) * (w.qch_new[k, q] - w.qch[k, q])
-            acc[ACC_W_ELEC] += dw
-            acc[ACC_W_GROSS] += abs(dw)
-            w.vq[k, q] = w.vq_new[k, q]
-            w.qch[k, q] = w.qch_new[k, q]
-
-
-@njit(cache=CACHE)
-def _diverged(state, n_steps, t, t_end):
-    """Whether the state needs the full check now: a NaN/inf anywhere (they propagate into
-    one sum, a cheap test every step), every 64th step, and at the end."""
-    chk = 0.0
-    for j in range(3):
-        chk += state.vc[j] + state.lam[j] + state.pc_disp[j]
-    gf = state.gf
-    for k in range(3):
-        for a in range(6):
-            chk += state.xid[k, a] + state.xi[k, a]
-        for i in range(gf.shape[1]):
-            chk += gf[k, i, 0] + gf[k, i, 1]
-    return not math.isfinite(chk) or n_steps % 64 == 0 or t >= t_end - 1e-15
-
-
 @njit(cache=CACHE, nogil=True)
-def run_full_model(state, model, drive, t0, t_end, ctl, recording, w, cancel):
+def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
     """Integrate from t0 to t_end [s] (see module docstring); records at recording.t_out.
     Runs without the GIL and returns status 4 within 4096 steps of ``cancel[0]`` becoming
     non-zero (another thread's Ctrl-C: :func:`turntable_env.interrupt.call_interruptibly`).
@@ -779,8 +533,8 @@ def run_full_model(state, model, drive, t0, t_end, ctl, recording, w, cancel):
         model: :class:`~turntable_env.kernel_types.FullArrays`.
         drive: :class:`~turntable_env.kernel_types.DriveArrays`, one row per channel
             (A, B, C, Z), breakpoint times in s.
-        ctl: :class:`~turntable_env.kernel_types.StepControl` (see "Adaptive step" in the
-            module docstring).
+        step_p: (dt_fine, dt_coarse, quiet_len, quiet_load, quiet_volt, hold) selects the
+            step (see "Adaptive step" in the module docstring).
         recording: :class:`~turntable_env.kernel_types.FullRecording`:
 
             state[i]   = (t, table-centre displacement (3), rotation vector (3), ω (3),
@@ -790,58 +544,315 @@ def run_full_model(state, model, drive, t0, t_end, ctl, recording, w, cancel):
             energy[i]  = (kinetic, tube elastic, piezo, contact, GMS, gravity+preload,
                           W_elec, D_friction, D_tube, D_contact, gross electrical |W|)
             xi[i]      = tube-top displacements (3, 6)
-        w: :class:`~turntable_env.kernel_types.FullWork` (zeroed).
-        cancel: (1,) int64, non-zero to stop.
 
     Returns (status, t, variable index, records written, steps taken, coarse steps).
     """
-    wt, wn, widx, t_out = drive.times, drive.count, w.widx, recording.t_out
+    pc_disp, vc, rot, lam, xi, xid = (
+        state.pc_disp, state.vc, state.rot, state.lam, state.xi, state.xid
+    )  # fmt: skip
+    gf, gst, vch, acc = state.gf, state.gst, state.vch, state.acc
+    vslow, vfast = state.amp_slow, state.amp_fast
+    table_p, jinv, c_body = model.table_p, model.jinv, model.c_body
+    d_nom, r0 = model.d_nom, model.r0
+    basis_ref, mtube, minv, ktop, dtop = (
+        model.basis_ref, model.mtube, model.minv, model.ktop, model.dtop
+    )  # fmt: skip
+    bcoup, cs, qchan, gnu, gk = model.bcoup, model.cs, model.qchan, model.gnu, model.gk
+    qsign = model.qsign
+    gms_p, amp_p, amp_rate = model.gms_p, model.amp_p, model.amp_rate
+    wt, wv, wn = drive.times, drive.values, drive.count
+    t_out, rec_state, rec_contact = recording.t_out, recording.state, recording.contact
+    rec_energy, rec_xi = recording.energy, recording.xi
+    ne = gf.shape[1]
+    n_out = t_out.shape[0]
+    omega = np.empty(3)
+    pt_disp = np.empty(3)
+    vt = np.empty(3)
+    tmp = np.empty(3)
+    scr = np.zeros((16, 3))  # scratch rows of the helpers (no allocation per step)
+    rot_scr = np.empty((3, 3))
+    cinfo = np.zeros((3, 5))
+    cn = np.zeros((3, 3))
+    cx = np.zeros((3, 3))
+    cy = np.zeros((3, 3))
+    crc = np.zeros((3, 3))
+    crt = np.zeros((3, 3))
+    w_tube = np.zeros((3, 6))
+    f_table = np.zeros(3)
+    tau_com = np.zeros(3)
+    fn = np.zeros(3)
+    ff = np.zeros((3, 2))
+    vq = np.zeros((3, 4))
+    qch = np.zeros((3, 4))
+    qch_new = np.zeros((3, 4))
+    vq_new = np.zeros((3, 4))
+    df = np.zeros((ne, 2))
+    was = np.zeros(ne, dtype=np.int64)
+    energies = np.zeros(6)
+    widx = np.zeros(4, dtype=np.int64)
+    m = table_p[0]
+    tau_amp = amp_p[1]
+    gain = amp_p[0]
+    ideal = amp_p[2] > 0.5
+    ulim = amp_p[3]
+    a_fast = amp_p[4]
+    t_fast = amp_p[5]
+    d_rim = d_nom  # the rim check uses the nominal contact directions
+    dt_fine = step_p[0]
+    dt_coarse = step_p[1]
+    quiet_acc = step_p[2] / (dt_coarse * dt_coarse)  # largest quiet acceleration [m/s²]
+    quiet_load = step_p[3]
+    quiet_volt = step_p[4]
+    hold = step_p[5]
+    lever_t = table_p[3]  # table radius: angular → contact acceleration [m]
+    lever_b = 0.0  # tube top → ball centre (seat height) [m]
+    for j in range(3):
+        lever_b += r0[0, j] * r0[0, j]
+    lever_b = math.sqrt(lever_b)
     fine_until = t0
     n_coarse = 0
+
     t = t0
     for c in range(4):
         widx[c] = advance_index(wt[c], wn[c], 0, t)
-    quadrant_voltages(state.vch, model.qchan, model.qsign, w.vq)
-    _charges(state.xi, w.vq, model.bcoup, model.cs, w.qch)
+    quadrant_voltages(vch, qchan, qsign, vq)
+    _charges(xi, vq, bcoup, cs, qch)
+
     # kinematics and forces at t0
-    _omega(model, state, w)
-    _kinematics(model, state, w)
-    _forces(model, state, w)
+    _omega(rot, jinv, lam, omega, scr)
+    _kinematics(
+        pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
+        cinfo, cn, cx, cy, crc, crt, scr,
+    )  # fmt: skip
+    contact_forces(
+        xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
+        gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff, scr,
+    )  # fmt: skip
     i_out = 0
     n_steps = 0
     while True:
-        # ---- record -------------------------------------------------------------------
-        while i_out < t_out.shape[0] and t_out[i_out] <= t + 1e-15:
-            _record(model, state, w, recording, i_out, t)
+        # ---- record ------------------------------------------------------------------
+        while i_out < n_out and t_out[i_out] <= t + 1e-15:
+            _stored_energies(
+                pc_disp,
+                vc,
+                lam,
+                omega,
+                xi,
+                xid,
+                vq,
+                mtube,
+                ktop,
+                cs,
+                cinfo,
+                gf,
+                gk,
+                table_p,
+                pt_disp,
+                energies,
+            )
+            rv = log_so3_nb(rot)
+            rec_state[i_out, 0] = t
+            for j in range(3):
+                rec_state[i_out, 1 + j] = pt_disp[j]
+                rec_state[i_out, 4 + j] = rv[j]
+                rec_state[i_out, 7 + j] = omega[j]
+            for c in range(4):
+                rec_state[i_out, 10 + c] = vch[c]
+            for k in range(3):
+                nst = 0
+                for i in range(ne):
+                    nst += gst[k, i]
+                rec_contact[i_out, k, 0] = fn[k]
+                rec_contact[i_out, k, 1] = ff[k, 0]
+                rec_contact[i_out, k, 2] = ff[k, 1]
+                rec_contact[i_out, k, 3] = math.sqrt(cinfo[k, 2] ** 2 + cinfo[k, 3] ** 2)
+                rec_contact[i_out, k, 4] = nst
+                rec_contact[i_out, k, 5] = cinfo[k, 0]
+                for a in range(6):
+                    rec_xi[i_out, k, a] = xi[k, a]
+            for a in range(6):
+                rec_energy[i_out, a] = energies[a]
+            e_gms = energies[4]
+            rec_energy[i_out, 6] = acc[0]
+            rec_energy[i_out, 7] = acc[1] - e_gms  # interface work − stored = dissipated
+            rec_energy[i_out, 8] = acc[2]
+            rec_energy[i_out, 9] = acc[3]
+            rec_energy[i_out, 10] = acc[4]
             i_out += 1
         if t >= t_end - 1e-15:
             break
-        # ---- step size: coarse while quiet, fine otherwise; land on breakpoints --------
-        quiet = ctl.dt_coarse > ctl.dt_fine and t >= fine_until
+        # ---- step size: coarse while quiet, fine otherwise; land on breakpoints -------
+        quiet = dt_coarse > dt_fine and t >= fine_until
         if quiet:
-            quiet = _is_quiet(model, state, w, drive, t, ctl)
+            quiet = _is_quiet(
+                t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst,
+                gnu, gk, fn, cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p,
+                quiet_acc, quiet_load, quiet_volt, dt_coarse, scr,
+            )  # fmt: skip
             if not quiet:
-                fine_until = t + ctl.hold
-        dt_max = ctl.dt_coarse if quiet else ctl.dt_fine
+                fine_until = t + hold
+        dt_max = dt_coarse if quiet else dt_fine
         n_coarse += 1 if quiet else 0
-        t_next = _step_end(drive, w, t, t_end, dt_max, t_out, i_out)
+        t_next = min(t + dt_max, t_end)
+        if i_out < n_out and t_out[i_out] < t_next:
+            t_next = t_out[i_out]
+        for c in range(4):
+            i = widx[c]
+            if i + 1 < wn[c] and wt[c, i + 1] < t_next and wt[c, i + 1] > t:
+                t_next = wt[c, i + 1]
         dt = t_next - t
         if dt <= 0.0:
-            break
+            # a jump sits exactly at t: step past it by moving the indices
+            for c in range(4):
+                widx[c] = advance_index(wt[c], wn[c], widx[c], t)
+            t_next = min(t + dt_max, t_end)
+            if i_out < n_out and t_out[i_out] < t_next:
+                t_next = t_out[i_out]
+            for c in range(4):
+                i = widx[c]
+                if i + 1 < wn[c] and wt[c, i + 1] < t_next:
+                    t_next = wt[c, i + 1]
+            dt = t_next - t
+            if dt <= 0.0:
+                break
         h = 0.5 * dt
-        _kick(model, state, w, h)  # ---- 1. half kick
-        _drift(model, state, w, dt)  # ---- 2. drift
-        _contacts(model, state, w, dt)  # ---- 3. contacts at t_{n+1}, half-step velocities
-        _amplifier(model, state, w, drive, t, dt, t_next)  # ---- 4. amplifier
-        _forces(model, state, w)  # ---- 5. forces at t_{n+1}, second half kick
-        _kick(model, state, w, h)
-        _omega(model, state, w)
+        # ---- 1. half kick ---------------------------------------------------------------
+        _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid)
+        # ---- 2. drift -------------------------------------------------------------------
+        _omega(rot, jinv, lam, omega, scr)
+        for j in range(3):
+            pc_disp[j] += dt * vc[j]
+            tmp[j] = dt * omega[j]
+        rotate_left_inplace(rot, tmp, rot_scr)
+        _omega(rot, jinv, lam, omega, scr)
+        for k in range(3):
+            for a in range(6):
+                xi[k, a] += dt * xid[k, a]
+        # dissipation in the tube dampers with the half-step velocities
+        for k in range(3):
+            for a in range(6):
+                s = 0.0
+                for b in range(6):
+                    s += dtop[k, a, b] * xid[k, b]
+                acc[2] += dt * xid[k, a] * s
+        # ---- 3. contacts at t_{n+1} with half-step velocities ------------------------
+        _kinematics(
+            pc_disp, vc, rot, omega, c_body, xi, xid, d_nom, r0, basis_ref, table_p, pt_disp, vt,
+            cinfo, cn, cx, cy, crc, crt, scr,
+        )  # fmt: skip
+        for k in range(3):
+            vx = cinfo[k, 2]
+            vy = cinfo[k, 3]
+            fn_k, _fe_k, fd_k = _normal_force(table_p, cinfo[k, 0], cinfo[k, 1])
+            acc[3] += dt * fd_k * cinfo[k, 1]
+            # interface work with the old element forces (first half of F̄·Δx)
+            fx_old = 0.0
+            fy_old = 0.0
+            c_t = gms_p[5]
+            for i in range(ne):
+                fx_old += gf[k, i, 0]
+                fy_old += gf[k, i, 1]
+                if gst[k, i] == 1:
+                    c_t += gms_p[6] * gk[i]
+            if fn_k <= 0.0:
+                for i in range(ne):  # contact lost: the elements let go
+                    gf[k, i, 0] = 0.0
+                    gf[k, i, 1] = 0.0
+                    gst[k, i] = 1
+            else:
+                gms2d_rates(
+                    gf[k],
+                    gst[k],
+                    vx,
+                    vy,
+                    fn_k,
+                    gnu,
+                    gk,
+                    gms_p[0],
+                    gms_p[1],
+                    gms_p[2],
+                    gms_p[3],
+                    gms_p[4],
+                    df,
+                )
+                for i in range(ne):
+                    gf[k, i, 0] += dt * df[i, 0]
+                    gf[k, i, 1] += dt * df[i, 1]
+                for i in range(ne):
+                    was[i] = gst[k, i]
+                gms2d_update(
+                    gf[k], gst[k], vx, vy, fn_k, gnu, gms_p[1], gms_p[2], gms_p[3], gms_p[4]
+                )
+                # no element holds more than its share ν_i|s(v)|: a sticking one when F_N
+                # drops, and one that broke away inside this step (its overshoot k_i v Δt
+                # past the breakaway instant would be a first-order error in Δt)
+                smag = stribeck_magnitude(
+                    math.sqrt(vx * vx + vy * vy), fn_k, gms_p[1], gms_p[2], gms_p[3], gms_p[4]
+                )
+                for i in range(ne):
+                    if gst[k, i] == 1 or was[i] == 1:
+                        fm = math.sqrt(gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2)
+                        cap = gnu[i] * smag
+                        if fm > cap:
+                            gf[k, i, 0] *= cap / fm
+                            gf[k, i, 1] *= cap / fm
+            fx_new = 0.0
+            fy_new = 0.0
+            for i in range(ne):
+                fx_new += gf[k, i, 0]
+                fy_new += gf[k, i, 1]
+            acc[1] += dt * (
+                (0.5 * (fx_old + fx_new) + c_t * vx) * vx
+                + (0.5 * (fy_old + fy_new) + c_t * vy) * vy
+            )
+        # ---- 4. amplifier ---------------------------------------------------------------
+        t_mid = t + h
+        for c in range(4):
+            widx[c] = advance_index(wt[c], wn[c], widx[c], t_mid)
+            u = pwl_value(wt[c], wv[c], wn[c], widx[c], t_mid)
+            if ideal:
+                ie = advance_index(wt[c], wn[c], widx[c], t_next)
+                u = pwl_value(wt[c], wv[c], wn[c], ie, t_next)
+            u = min(ulim, max(-ulim, u))
+            if ideal:
+                vch[c] = gain * u
+            else:
+                vch[c], vslow[c], vfast[c] = amplifier_hold_step(
+                    vch[c], vslow[c], vfast[c], u, dt, gain, tau_amp, amp_rate[c], a_fast, t_fast
+                )
+        quadrant_voltages(vch, qchan, qsign, vq_new)
+        _charges(xi, vq_new, bcoup, cs, qch_new)
+        for k in range(3):
+            for q in range(4):
+                dw = 0.5 * (vq[k, q] + vq_new[k, q]) * (qch_new[k, q] - qch[k, q])
+                acc[0] += dw
+                acc[4] += abs(dw)
+                vq[k, q] = vq_new[k, q]
+                qch[k, q] = qch_new[k, q]
+        # ---- 5. forces at t_{n+1}, second half kick -------------------------------------
+        contact_forces(
+            xi, xid, vq, ktop, dtop, bcoup, cinfo, cn, cx, cy, crc, crt, gf, gst, gk, table_p,
+            gms_p, rot, c_body, w_tube, f_table, tau_com, fn, ff, scr,
+        )  # fmt: skip
+        _kick(h, m, f_table, tau_com, minv, w_tube, vc, lam, xid)
+        _omega(rot, jinv, lam, omega, scr)
         t = t_next
         n_steps += 1
         for c in range(4):
             widx[c] = advance_index(wt[c], wn[c], widx[c], t)
-        if _diverged(state, n_steps, t, t_end):
-            st, var = _first_bad(model, state, w)
+        chk = 0.0  # NaN/inf propagate into this sum: a cheap test every step
+        for j in range(3):
+            chk += vc[j] + lam[j] + pc_disp[j]
+        for k in range(3):
+            for a in range(6):
+                chk += xid[k, a] + xi[k, a]
+            for i in range(ne):
+                chk += gf[k, i, 0] + gf[k, i, 1]
+        if not math.isfinite(chk) or n_steps % 64 == 0 or t >= t_end - 1e-15:
+            st, var = _first_bad(
+                pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, d_rim
+            )
             if st != 0:
                 return st, t, var, i_out, n_steps, n_coarse
         if n_steps % 4096 == 0 and cancel[0] != 0:

@@ -22,141 +22,14 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = [
-    "ACC_D_CONTACT",
-    "ACC_D_TUBE",
-    "ACC_W_ELEC",
-    "ACC_W_GROSS",
-    "ACC_W_INTERFACE",
-    "GMS_BETA_T",
-    "GMS_C",
-    "GMS_DELTA",
-    "GMS_MU_C",
-    "GMS_MU_S",
-    "GMS_SIGMA2",
-    "GMS_V_S",
-    "TP_BOUND_DELTA",
-    "TP_BOUND_U",
-    "TP_D_C",
-    "TP_EXPONENT",
-    "TP_G",
-    "TP_K_C",
-    "TP_MASS",
-    "TP_PRELOAD",
-    "TP_R_BALL",
-    "TP_R_NOM",
-    "TP_R_TABLE",
-    "TP_W_BALL",
-    "TP_W_TABLE",
     "DriveArrays",
     "FullArrays",
     "FullRecording",
     "FullState",
-    "FullWork",
     "ReducedArrays",
     "ReducedRecording",
     "ReducedState",
-    "StepControl",
 ]
-
-
-# --- packed rows, read by name (the kernels see these as compile-time constants) --------
-# table_p of the 3-D model (filled by turntable_env.model.TurntableModel)
-TP_MASS = 0  # table mass m [kg]
-TP_G = 1  # gravity g [m/s²]
-TP_PRELOAD = 2  # preload spring force P [N]
-TP_R_TABLE = 3  # table radius R_table [m]
-TP_R_BALL = 4  # ball radius R_ball [m]
-TP_R_NOM = 5  # nominal distance table centre → ball centre [m]
-TP_K_C = 6  # Hertz stiffness k_c [N/m^e]
-TP_EXPONENT = 7  # Hertz exponent e
-TP_D_C = 8  # normal contact damping d_c [N·s/m]
-TP_W_BALL = 9  # ball's compliance weight (Eq. 3.24)
-TP_W_TABLE = 10  # table's compliance weight
-TP_BOUND_U = 11  # bound on translations [m] (divergence check)
-TP_BOUND_DELTA = 12  # bound on the overlap [m]
-# gms_p, the GMS contact of both fidelities (ReducedArrays.gms, FullArrays.gms_p)
-GMS_C = 0  # attraction rate C [1/s] (Eq. 2.25)
-GMS_MU_S = 1  # static friction coefficient μ_s
-GMS_MU_C = 2  # Coulomb coefficient μ_c
-GMS_V_S = 3  # Stribeck velocity v_S [m/s]
-GMS_DELTA = 4  # Stribeck exponent δ
-GMS_SIGMA2 = 5  # viscous coefficient σ2 [N·s/m]
-GMS_BETA_T = 6  # micro-slip damping of sticking elements β_t [s] (× k_i)
-# energy accumulators FullState.acc [J]
-ACC_W_ELEC = 0  # electrical work Σ V̄ Δq
-ACC_W_INTERFACE = 1  # contact-interface work F̄·Δx (GMS dissipation + stored)
-ACC_D_TUBE = 2  # tube damper dissipation
-ACC_D_CONTACT = 3  # normal contact damping dissipation
-ACC_W_GROSS = 4  # gross electrical |W|
-
-
-class StepControl(NamedTuple):
-    """The 3-D integrator's adaptive step (:meth:`turntable_env.model.TurntableModel.
-    _step_control`): fine and coarse steps [s], the largest quiet acceleration [m/s²], the
-    coarse steps an element's breakaway margin must last, the volts a channel may move in
-    a coarse step, the time at the fine step after a disturbance [s], and the levers of
-    the table's and the tubes' rotations [m]."""
-
-    dt_fine: float
-    dt_coarse: float
-    quiet_acc: float
-    quiet_load: float
-    quiet_volt: float
-    hold: float
-    lever_table: float
-    lever_ball: float
-
-
-class FullWork(NamedTuple):
-    """Per-step quantities and scratch of the 3-D integrator, allocated once per run so no
-    step allocates: ω (3), table-centre displacement and velocity (3), a spare vector
-    (3), scratch rows (16, 3), a spare rotation (3, 3); per contact: ``cinfo`` (3, 5)
-    (overlap δ, δ̇, in-plane slip velocity x, y, lever ρ), normal ``cn``, plane basis
-    ``cx``, ``cy``, tube-top → contact ``crc`` and centre → contact ``crt`` (3, 3); wrenches
-    on the tube tops ``w_tube`` (3, 6), force and torque on the table ``f_table``,
-    ``tau_com`` (3); normal and friction forces ``fn`` (3), ``ff`` (3, 2); quadrant voltages
-    and charges now and next (3, 4); GMS rates ``df`` (n_e, 2) and stick flags before an
-    update ``was`` (n_e,); the stored energies (6) and the drive's breakpoint indices (4)."""
-
-    omega: np.ndarray
-    pt_disp: np.ndarray
-    vt: np.ndarray
-    tmp: np.ndarray
-    scr: np.ndarray
-    rot_scr: np.ndarray
-    cinfo: np.ndarray
-    cn: np.ndarray
-    cx: np.ndarray
-    cy: np.ndarray
-    crc: np.ndarray
-    crt: np.ndarray
-    w_tube: np.ndarray
-    f_table: np.ndarray
-    tau_com: np.ndarray
-    fn: np.ndarray
-    ff: np.ndarray
-    vq: np.ndarray
-    qch: np.ndarray
-    vq_new: np.ndarray
-    qch_new: np.ndarray
-    df: np.ndarray
-    was: np.ndarray
-    energies: np.ndarray
-    widx: np.ndarray
-
-    @staticmethod
-    def allocate(n_elements: int) -> FullWork:
-        """Zeroed work arrays for a model with ``n_elements`` GMS elements per contact."""
-        v3 = (3,)
-        m33 = (3, 3)
-        return FullWork(
-            np.zeros(v3), np.zeros(v3), np.zeros(v3), np.zeros(v3), np.zeros((16, 3)),
-            np.zeros(m33), np.zeros((3, 5)), np.zeros(m33), np.zeros(m33), np.zeros(m33),
-            np.zeros(m33), np.zeros(m33), np.zeros((3, 6)), np.zeros(v3), np.zeros(v3),
-            np.zeros(v3), np.zeros((3, 2)), np.zeros((3, 4)), np.zeros((3, 4)),
-            np.zeros((3, 4)), np.zeros((3, 4)), np.zeros((n_elements, 2)),
-            np.zeros(n_elements, dtype=np.int64), np.zeros(6), np.zeros(4, dtype=np.int64),
-        )  # fmt: skip
 
 
 class DriveArrays(NamedTuple):

@@ -49,7 +49,7 @@ import scipy.optimize
 from .drive import DriveSignal, Waveform
 from .integrator import contact_forces, contact_kinematics, quadrant_voltages, run_full_model
 from .interrupt import call_interruptibly
-from .kernel_types import DriveArrays, FullArrays, FullRecording, FullState, FullWork, StepControl
+from .kernel_types import DriveArrays, FullArrays, FullRecording, FullState
 from .params import ParameterSet
 from .validation import check_finite, check_positive
 
@@ -253,10 +253,15 @@ class TurntableModel:
     def _contact_geometry(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Contacts at rest at positions ``x`` (see :meth:`static_equilibrium`):
         (cinfo, n, x_c, y_c, tube-top → contact, centre → contact), as the kernel fills them."""
-        w = FullWork.allocate(self.packed["gnu"].size)
-        w.pt_disp[:] = x[:3]  # at rest: velocities and ω zero
-        contact_kinematics(self.kernel_arrays, x[3:].reshape(3, 6).copy(), np.zeros((3, 6)), w)
-        return w.cinfo, w.cn, w.cx, w.cy, w.crc, w.crt, w
+        ar = self.packed
+        cinfo = np.zeros((3, 5))
+        cn, cx, cy, crc, crt = (np.zeros((3, 3)) for _ in range(5))
+        z3 = np.zeros(3)
+        contact_kinematics(
+            x[3:].reshape(3, 6).copy(), x[:3].copy(), ar["d_nom"], ar["r0"], ar["basis_ref"],
+            ar["table_p"], np.zeros((3, 6)), z3, z3, cinfo, cn, cx, cy, crc, crt, np.zeros((16, 3)),
+        )  # fmt: skip
+        return cinfo, cn, cx, cy, crc, crt
 
     def _normal_forces(self, x: np.ndarray) -> np.ndarray:
         """Normal forces [N] of the three contacts at rest positions ``x``."""
@@ -368,8 +373,11 @@ class TurntableModel:
             ]
         )
         amp = ps.amplifier
+        amp_p = np.array(
+            [amp.gain, amp.tau, 1.0 if amp.ideal else 0.0, amp.input_limit, amp.fast_fraction,
+             amp.fast_time]
+        )  # fmt: skip
         c_free = tube.quadrant.capacitance
-        amp_p = amp.kernel_row(c_free)  # the rate column unused: amp_rate is per channel
         per_output = (lay.quadrant_sign > 0.0)  # quadrants on each channel's +V output
         amp_rate = np.array(
             [
@@ -434,13 +442,16 @@ class TurntableModel:
 
         def residual(y: np.ndarray) -> np.ndarray:
             x = y * scale
-            w = self._contact_geometry(x)[-1]
-            w.vq[:] = vq
+            cinfo, cn, cx, cy, crc, crt = self._contact_geometry(x)
+            w = np.zeros((3, 6))
+            f = np.zeros(3)
             contact_forces(
-                self.kernel_arrays, x[3:].reshape(3, 6).copy(), np.zeros((3, 6)),
-                np.zeros((3, ne, 2)), np.ones((3, ne), dtype=np.int64), rot, w,
+                x[3:].reshape(3, 6).copy(), np.zeros((3, 6)), vq, ar["ktop"], ar["dtop"],
+                ar["bcoup"], cinfo, cn, cx, cy, crc, crt, np.zeros((3, ne, 2)),
+                np.ones((3, ne), dtype=np.int64), ar["gk"], ar["table_p"], ar["gms_p"], rot,
+                ar["c_body"], w, f, np.zeros(3), np.zeros(3), np.zeros((3, 2)), np.zeros((16, 3)),
             )  # fmt: skip
-            return np.concatenate([w.f_table, w.w_tube.reshape(-1)]) / f_scale
+            return np.concatenate([f, w.reshape(-1)]) / f_scale
 
         # start: table lowered along z by the static overlap and the tubes' compression
         contact = self.params.contact
@@ -456,16 +467,14 @@ class TurntableModel:
             )
         return sol.x * scale
 
-    def _step_control(self, h_fine: float, h_coarse: float) -> StepControl:
-        """The kernel's :class:`~turntable_env.kernel_types.StepControl`: fine and coarse
-        steps [s], the largest quiet acceleration [m/s²], the load fraction, the volts per
-        coarse step, the hold time after a disturbance [s] and the levers [m].
+    def _step_control(self, h_fine: float, h_coarse: float) -> np.ndarray:
+        """The kernel's step_p: (fine step, coarse step [s], quiet length [m], load fraction,
+        volts per coarse step, hold time after a disturbance [s]).
 
-        Quiet acceleration: one that moves a body QUIET_LENGTH × the breakaway displacement
-        ν_i μ_s F_N / k_i of the weakest GMS element in a coarse step; faster keeps the fine
-        step. Hold: after anything not quiet, HOLD_PERIODS periods of the highest mode pass
-        at the fine step before the coarse one returns. Levers: the table radius (angular →
-        contact acceleration) and the tube top → ball centre distance.
+        Quiet length: QUIET_LENGTH × the breakaway displacement ν_i μ_s F_N / k_i of the
+        weakest GMS element — a body whose acceleration would move it farther than that in a
+        coarse step keeps the fine step. Hold: after anything not quiet, HOLD_PERIODS periods
+        of the highest mode pass at the fine step before the coarse one returns.
         """
         fr = self.params.friction
         c = self.params.contact
@@ -474,20 +483,7 @@ class TurntableModel:
             nu * fr.stribeck.mu_s * c.preload / k for nu, k in zip(fr.nu, fr.k, strict=True)
         )
         hold = HOLD_PERIODS * 2.0 * math.pi / self.omega_max
-        r0 = self.packed["r0"]
-        lever_ball = 0.0
-        for j in range(3):
-            lever_ball += r0[0, j] * r0[0, j]
-        return StepControl(
-            dt_fine=h_fine,
-            dt_coarse=h_coarse,
-            quiet_acc=QUIET_LENGTH * breakaway / (h_coarse * h_coarse),
-            quiet_load=QUIET_LOAD,
-            quiet_volt=QUIET_VOLT,
-            hold=hold,
-            lever_table=float(self.packed["table_p"][3]),
-            lever_ball=math.sqrt(lever_ball),
-        )
+        return np.array([h_fine, h_coarse, QUIET_LENGTH * breakaway, QUIET_LOAD, QUIET_VOLT, hold])
 
     def drive_waveforms(self, drive: Mapping[str, DriveSignal | Waveform]) -> dict[str, Waveform]:
         """Channel → input breakpoints (slew-adapted hold time from the channel's load)."""
@@ -621,10 +617,9 @@ class TurntableModel:
             xi=np.zeros((n_out, 3, 6)),
         )
         cancel = np.zeros(1, dtype=np.int64)
-        work = FullWork.allocate(self.packed["gnu"].size)
         status, t_stop, var, n_rec, n_steps, n_coarse = call_interruptibly(
             run_full_model, cancel, state, arrays, DriveArrays(wt, wv, wn), t0, t0 + dur,
-            step_p, rec, work, cancel,
+            step_p, rec, cancel,
         )  # fmt: skip
         if status != 0:
             raise SimulationError(

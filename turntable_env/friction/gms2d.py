@@ -14,9 +14,7 @@ stick when the relative velocity reverses against it (F_i·v ≤ 0). As in the
 1-D kernel, the radial loading rate of a slipping element is capped at
 k_i (F̂_i·v), which keeps every element passive.
 
-Arrays: ``f`` has shape (n, 2) [N], ``stick`` shape (n,) int (1 stick, 0 slip); ``gms``
-is the contact's packed row [C, μ_s, μ_c, v_S, δ, σ₂, β_t] read through the named columns
-``GMS_*`` of :mod:`turntable_env.kernel_types` — the row both fidelities' kernels use.
+Arrays: ``f`` has shape (n, 2) [N], ``stick`` shape (n,) int (1 stick, 0 slip).
 """
 
 from __future__ import annotations
@@ -27,7 +25,6 @@ import numpy as np
 from numba import njit
 
 from ..kernel_cache import CACHE
-from ..kernel_types import GMS_C, GMS_DELTA, GMS_MU_C, GMS_MU_S, GMS_SIGMA2, GMS_V_S
 from .kernels import stribeck_magnitude
 
 __all__ = ["gms2d_force", "gms2d_rates", "gms2d_update", "run_gms2d_velocity_driven"]
@@ -45,13 +42,10 @@ def gms2d_force(f, vx, vy, sigma2):
 
 
 @njit(cache=CACHE)
-def gms2d_rates(f, stick, vx, vy, fn, nu, k, gms, df):
-    """Write dF_i/dt [N/s] of every element into ``df`` (shape (n, 2)): Eq. 2.24 in stick,
-    Eq. 2.25 in slip, the radial loading rate capped at k_i (F̂_i·v)."""
-    c = gms[GMS_C]
+def gms2d_rates(f, stick, vx, vy, fn, nu, k, c, mu_s, mu_c, v_s, delta, df):
+    """Write dF_i/dt [N/s] of every element into ``df`` (shape (n, 2))."""
     speed = math.sqrt(vx * vx + vy * vy)
-    smag = stribeck_magnitude(speed, fn, gms[GMS_MU_S], gms[GMS_MU_C], gms[GMS_V_S],
-                              gms[GMS_DELTA])  # fmt: skip
+    smag = stribeck_magnitude(speed, fn, mu_s, mu_c, v_s, delta)
     for i in range(f.shape[0]):
         if stick[i] == 1 or f[i, 0] * vx + f[i, 1] * vy <= 0.0:  # stick, or reversed
             df[i, 0] = k[i] * vx
@@ -75,11 +69,10 @@ def gms2d_rates(f, stick, vx, vy, fn, nu, k, gms, df):
 
 
 @njit(cache=CACHE)
-def gms2d_update(f, stick, vx, vy, fn, nu, gms):
+def gms2d_update(f, stick, vx, vy, fn, nu, mu_s, mu_c, v_s, delta):
     """Stick/slip transitions after a step; returns the number of sticking elements."""
     speed = math.sqrt(vx * vx + vy * vy)
-    smag = stribeck_magnitude(speed, fn, gms[GMS_MU_S], gms[GMS_MU_C], gms[GMS_V_S],
-                              gms[GMS_DELTA])  # fmt: skip
+    smag = stribeck_magnitude(speed, fn, mu_s, mu_c, v_s, delta)
     n_stick = 0
     for i in range(f.shape[0]):
         load = f[i, 0] * vx + f[i, 1] * vy
@@ -95,9 +88,8 @@ def gms2d_update(f, stick, vx, vy, fn, nu, gms):
 
 
 @njit(cache=CACHE)
-def run_gms2d_velocity_driven(f0, stick0, vel, dt, fn, nu, k, gms):
-    """Integrate 2-D GMS under prescribed plane velocities vel[N, 2] (explicit Euler); ``gms``
-    the packed row (module docstring).
+def run_gms2d_velocity_driven(f0, stick0, vel, dt, fn, nu, k, c, mu_s, mu_c, v_s, delta, sigma2):
+    """Integrate 2-D GMS under prescribed plane velocities vel[N, 2] (explicit Euler).
 
     Returns (force[N+1, 2], f_elements[N+1, n, 2], stick[N+1, n]).
     """
@@ -109,18 +101,17 @@ def run_gms2d_velocity_driven(f0, stick0, vel, dt, fn, nu, k, gms):
     force = np.empty((n + 1, 2))
     fs = np.empty((n + 1, ne, 2))
     sts = np.empty((n + 1, ne), dtype=np.int64)
-    sigma2 = gms[GMS_SIGMA2]
     force[0, 0], force[0, 1] = gms2d_force(f, vel[0, 0], vel[0, 1], sigma2)
     fs[0] = f
     sts[0] = stick
     for i in range(n):
         vx = vel[i, 0]
         vy = vel[i, 1]
-        gms2d_rates(f, stick, vx, vy, fn, nu, k, gms, df)
+        gms2d_rates(f, stick, vx, vy, fn, nu, k, c, mu_s, mu_c, v_s, delta, df)
         for j in range(ne):
             f[j, 0] += dt * df[j, 0]
             f[j, 1] += dt * df[j, 1]
-        gms2d_update(f, stick, vx, vy, fn, nu, gms)
+        gms2d_update(f, stick, vx, vy, fn, nu, mu_s, mu_c, v_s, delta)
         force[i + 1, 0], force[i + 1, 1] = gms2d_force(f, vx, vy, sigma2)
         fs[i + 1] = f
         sts[i + 1] = stick

@@ -515,7 +515,12 @@ class GMS(FrictionModel):
             fn,
             np.asarray(self.nu, dtype=float),
             np.asarray(self.k, dtype=float),
-            np.array([self.C, s.mu_s, s.mu_c, s.v_s, s.delta, s.sigma2, 0.0]),
+            self.C,
+            s.mu_s,
+            s.mu_c,
+            s.v_s,
+            s.delta,
+            s.sigma2,
         )
 
     def describe(self, prefix: str = "friction") -> list[Quantity]:
