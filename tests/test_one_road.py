@@ -101,3 +101,22 @@ def test_the_3d_road_runs_the_input_stage():
     assert ramp > 0.0
     assert 0.01 * ramp < _hold_drift(b, 2.5e-3) - _hold_drift(a, 2.5e-3) < 0.1 * ramp
     assert b.info["plant"].startswith("Plant(")
+
+
+def test_one_result_out_signals_by_name_on_both_fidelities():
+    """Both responses give their signals by name, with the same names for what both record
+    (the angle about the axis under test and the detector), and ``to_pandas`` is that."""
+    (red,) = simulate_axes(["real"], [SCAN], 6e-3, output_dt=1e-4)
+    full = simulate("real", SCAN, 6e-3, output_dt=1e-4, coarse_factor=0.5)
+    for r in (red, full):
+        df = r.to_pandas()
+        assert list(df.columns) == list(r.signals())
+        np.testing.assert_array_equal(r.signal("angle_rad"), r.angle())
+        np.testing.assert_array_equal(r.signal("detector_V"), r.detector_voltage())
+        np.testing.assert_array_equal(df["angle_rad"].to_numpy(), r.angle())
+        with pytest.raises(ValueError, match="signal 'angle_deg': not recorded"):
+            r.signal("angle_deg")
+    # the two fidelities agree on a slow scan (the table sticks to the tubes), by name
+    i = np.searchsorted(full.time, 5e-3)
+    j = np.searchsorted(red.time, 5e-3)
+    assert red.signal("angle_rad")[j] == pytest.approx(full.signal("angle_rad")[i], rel=0.1)

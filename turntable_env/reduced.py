@@ -181,10 +181,10 @@ class AxisResponse(SteppingMetrics):
             raise ValueError(f"axis={axis!r}: the reduced model only turns about {self.axis}")
         return self.angle_rad
 
-    def to_pandas(self) -> Any:
-        """DataFrame indexed by time_s (SI units in the column names)."""
-        import pandas as pd
-
+    def signals(self) -> dict[str, np.ndarray]:
+        """Every recorded signal by name (unit in the name): angle, angular velocity,
+        amplifier output, detector, and each driving tube's deflection, slip, friction and
+        sticking elements."""
         cols = {
             "angle_rad": self.angle_rad,
             "angular_velocity_rad_s": self.angular_velocity,
@@ -196,7 +196,7 @@ class AxisResponse(SteppingMetrics):
             cols[f"slip{k + 1}_m"] = self.slip[:, k]
             cols[f"friction{k + 1}_N"] = self.friction[:, k]
             cols[f"n_stick{k + 1}"] = self.n_stick[:, k]
-        return pd.DataFrame(cols, index=pd.Index(self.time, name="time_s"))
+        return cols
 
     def plot(self, axes: Any = None) -> Any:
         """Angle at the table radius, amplifier voltage and sticking elements vs time."""

@@ -52,6 +52,24 @@ class SteppingMetrics:
     def angle(self, axis: str | None = None) -> np.ndarray:  # pragma: no cover - interface
         raise NotImplementedError
 
+    def signals(self) -> dict[str, np.ndarray]:  # pragma: no cover - interface
+        """Every recorded signal by name, with its unit in the name; every response has
+        ``angle_rad`` (about the axis under test) and ``detector_V``."""
+        raise NotImplementedError
+
+    def signal(self, name: str) -> np.ndarray:
+        """One signal by name (:meth:`signals`); ValueError naming the known ones."""
+        sig = self.signals()
+        if name not in sig:
+            raise ValueError(f"signal {name!r}: not recorded (signals: {', '.join(sig)})")
+        return sig[name]
+
+    def to_pandas(self) -> Any:
+        """DataFrame of :meth:`signals` indexed by ``time_s``."""
+        import pandas as pd
+
+        return pd.DataFrame(self.signals(), index=pd.Index(self.time, name="time_s"))
+
     def detector_voltage(self, rng: np.random.Generator | None = None) -> np.ndarray:
         """Detector output about the axis under test [V] (Eq. 4.1 inverted, saturation,
         noise if ``rng`` is given), with the plant's output-stage effects where the response
@@ -272,11 +290,12 @@ class TurntableResponse(SteppingMetrics):
             "dt_s": self.info.get("dt"),
         }
 
-    def to_pandas(self) -> Any:
-        """DataFrame indexed by ``time_s``: angles, detector, voltages, contacts, energy."""
-        import pandas as pd
-
-        cols: dict[str, np.ndarray] = {}
+    def signals(self) -> dict[str, np.ndarray]:
+        """Every recorded signal by name (unit in the name): the angle about the axis under
+        test and the detector, the three axes' angles, the centre's displacement, the
+        quadrant voltages, each contact's forces, slip speed and sticking elements, and the
+        energy terms."""
+        cols: dict[str, np.ndarray] = {"angle_rad": self.angle()}
         for i, a in enumerate(AXES):
             cols[f"angle_{a}_rad"] = self.angles[:, i]
         cols["detector_V"] = self.detector_voltage()
@@ -292,7 +311,7 @@ class TurntableResponse(SteppingMetrics):
             cols[f"n_stick_{t}"] = self.n_stick[:, k]
         for name, v in self.energy.items():
             cols[f"energy_{name}_J"] = v
-        return pd.DataFrame(cols, index=pd.Index(self.time, name="time_s"))
+        return cols
 
     def plot(self, axes: Any = None) -> Any:
         """Angle, quadrant voltage, contact forces and energy residual versus time."""
