@@ -56,13 +56,6 @@ from .validation import (
 )
 
 __all__ = [
-    "AMP_FAST",
-    "AMP_GAIN",
-    "AMP_IDEAL",
-    "AMP_LIMIT",
-    "AMP_RATE",
-    "AMP_TAU",
-    "AMP_T_FAST",
     "Amplifier",
     "AmplifierResponse",
     "adapted_hold_core",
@@ -72,14 +65,6 @@ __all__ = [
 ]
 
 LN9 = math.log(9.0)
-# the amplifier row the compiled kernels read (Amplifier.kernel_row), by name
-AMP_GAIN = 0  # G
-AMP_TAU = 1  # τ of the slow (first-order) path [s]
-AMP_IDEAL = 2  # 1: an instant source V = G·u
-AMP_LIMIT = 3  # input limit [V]
-AMP_RATE = 4  # output rate limit R on the load [V/s] (the 3-D model keeps one per channel)
-AMP_FAST = 5  # fast-path fraction a
-AMP_T_FAST = 6  # fast-path time constant τ_f [s]
 
 
 @njit(cache=CACHE)
@@ -379,9 +364,9 @@ class Amplifier:
         )
 
     def kernel_row(self, load_capacitance: float) -> np.ndarray:
-        """The amplifier as the compiled kernels read it, columns ``AMP_*``: (gain G, τ [s],
-        ideal (1/0), input limit [V], rate limit R [V/s] on ``load_capacitance`` [F], fast
-        fraction a, τ_f [s])."""
+        """The amplifier as the compiled kernels read it: (gain G, τ [s], ideal (1/0),
+        input limit [V], rate limit R [V/s] on ``load_capacitance`` [F], fast fraction a,
+        τ_f [s])."""
         return np.array(
             [
                 self.gain,
