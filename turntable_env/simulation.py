@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Literal
 
@@ -129,10 +129,7 @@ def simulate(
     drives = {axis: drive} if isinstance(drive, DriveSignal | Waveform) else dict(drive)
     check_nonnegative("settle", settle)
     if duration is None:
-        ends = [
-            d.start + d.duration if isinstance(d, DriveSignal) else d.end for d in drives.values()
-        ]
-        duration = max([*ends, 0.0]) + settle
+        duration = _drive_end(drives.values()) + settle
     dur = check_positive("duration", duration)
     mdl = model if model is not None else TurntableModel(ps)
     if mdl.params is not ps and model is not None:
@@ -216,8 +213,7 @@ def simulate_axes(
     resolved = [_runnable(p) for p in plants]
     check_nonnegative("settle", settle)
     if duration is None:
-        ends = [d.start + d.duration if isinstance(d, DriveSignal) else d.end for d in drives]
-        duration = max([*ends, 0.0]) + settle
+        duration = _drive_end(drives) + settle
     models = [reduced_model(p.params, axis) for p in resolved]
     inputs: list[DriveSignal | Waveform] = []
     for p, m, d in zip(resolved, models, drives, strict=True):
@@ -233,6 +229,12 @@ def simulate_axes(
         info = {**r.info, "plant": repr(p)}
         out.append(replace(r, period_starts=starts, effect_row=row, info=info))
     return out
+
+
+def _drive_end(drives: Iterable[DriveSignal | Waveform]) -> float:
+    """The end of the longest drive [s] (0 for none)."""
+    ends = [d.start + d.duration if isinstance(d, DriveSignal) else d.end for d in drives]
+    return max([*ends, 0.0])
 
 
 def _input_staged(wave: Waveform, plant: Plant, end: float) -> Waveform:
