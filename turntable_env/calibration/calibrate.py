@@ -153,12 +153,52 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
                 f"{'yes' if v.get('identified', True) else 'no (prior)'} | "
                 f"{'**yes**' if v.get('at_bound') else 'no'} | {v.get('meaning', '')} |"
             )
+    lines += _md_signatures(d.get("signatures"))
     lines += ["", "## Effects the protocol can identify", ""]
     lines += [f"- {k}: {v}" for k, v in d["identifiability"].items()]
     lines += ["", "## Residual", ""]
     lines.append(d.get("signature", f"at the noise floor ({result.error_after:.3g} {u})"))
     if d["warnings"]:
         lines += ["", "## Warnings", "", *[f"- {w}" for w in d["warnings"]]]
+    return lines
+
+
+def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
+    """report.md lines of the identification by signature (:mod:`.identify`)."""
+    if not sig:
+        return []
+    lines = ["", "## Effects by signature (features each effect must explain)", ""]
+    for ln in sig.get("lines", []):
+        f = ln.get("frequency_Hz")
+        lines.append(
+            f"- spectral line in the holds: {f:.1f} Hz, {ln['amplitude_nm']:.3g} nm, χ² "
+            f"{ln['chi2']:.1f} against a false-alarm level of {ln['threshold_chi2']:.1f} "
+            f"({'found' if ln['chi2'] >= ln['threshold_chi2'] else 'none'})"
+            if f == f else "- no hold long enough to search for a spectral line"
+        )
+    for rnd in sig.get("rounds", []):
+        dec = rnd["decision"]
+        named = dec["named"] or (
+            f"undecided between {', '.join(dec['undecided'])}" if dec["undecided"] else "none"
+        )
+        margin = dec["margin_nats"]
+        lead = f" (lead {margin:.1f} nats)" if dec["named"] and margin != float("inf") else ""
+        lines += [
+            "",
+            f"Round {rnd['round']}: named {named}{lead}.",
+            "",
+            "| candidate | groups | gain on them [nats] | over all [nats] | best at neutral "
+            "| values |",
+            "|---|---|---:|---:|---|---|",
+        ]
+        for c in rnd["candidates"]:
+            vals = ", ".join(f"{k}={v:.4g}" for k, v in c["values"].items())
+            lines.append(
+                f"| {c['effect']} | {'+'.join(c['declared_groups'])} | "
+                f"{c['declared_nats']:.1f} | {c['total_nats']:.1f} | "
+                f"{'yes' if c['at_neutral'] else 'no'} | {vals}"
+                f"{'; ' + c['note'] if c['note'] else ''} |"
+            )
     return lines
 
 

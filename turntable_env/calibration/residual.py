@@ -7,7 +7,12 @@ structure, spectral peaks, ringing after flybacks, correlations.
   e = measured − model (detector volts → nm at R_table, Eq. 4.1–4.2 linearised) minus
   its mean over the ``ANCHOR`` window just before the segment starts. The model itself
   runs the whole drive once, so every segment starts from the state the drive history
-  left it in; only the position offset is re-read, as a lab re-reads its encoder.
+  left it in; only the position offset is re-read, as a lab re-reads its encoder. The
+  offset is re-read only where stepping has happened since the last reading (a steps
+  segment, or the first segment after one): holds and scans that follow holds and
+  scans continue their predecessor's anchor — multiple shooting with continuity where
+  the model's position error cannot have grown — so slow effects (creep, drift) are
+  judged over the whole stretch, not only by their slope within one segment.
 * **Noise floor.** From the data, never assumed: the detector's white noise σ from the
   first differences in quiet holds (robust: 1.4826·MAD(Δv)/√2, insensitive to slow drift
   or creep), or from the residual's first differences where the file has no holds; the
@@ -34,7 +39,9 @@ from .segments import Segment
 __all__ = [
     "ANCHOR",
     "Anchoring",
+    "correlation_tests",
     "noise_floor",
+    "own_ring",
     "ringing",
     "spectral_peaks",
     "structured_rms",
@@ -83,7 +90,12 @@ class Anchoring:
             if i1 <= i0:
                 a0[k], a1[k] = i0, min(i0 + 1, n)
                 continue
-            if i0 >= n_a:
+            if k > 0 and s.kind != "steps" and segments[k - 1].kind != "steps" and a1[k - 1] > 0:
+                # no stepping since the last anchor: the model's position error has not
+                # grown, so the segment continues its predecessor's anchor (creep and drift
+                # stay visible across holds and scans)
+                a0[k], a1[k] = a0[k - 1], a1[k - 1]
+            elif i0 >= n_a:
                 a0[k], a1[k] = i0 - n_a, i0
             else:  # the trace's first segment: anchored on its own start
                 a0[k], a1[k] = i0, min(i0 + n_a, i1)
@@ -201,17 +213,9 @@ def ringing(
     [Hz]; None without steps."""
     t = np.asarray(time, float)
     r = np.asarray(residual, float)
-    if jumps.size == 0:
-        return None
-    dt = float(np.median(np.diff(t)))
-    n_w = max(round(RING_WINDOW / dt), 8)
-    starts = np.searchsorted(t, jumps)
-    starts = starts[(starts + n_w < t.size)]
-    # one window per flyback (an overshoot's two jumps are one flyback)
+    dt, n_w, starts = _flyback_windows(t, jumps)
     if starts.size == 0:
         return None
-    keep = np.concatenate([[True], np.diff(starts) > n_w // 4])
-    starts = starts[keep]
     mask = np.zeros(t.size, bool)
     windows = []
     for i in starts:
@@ -235,3 +239,97 @@ def ringing(
         "frequency_Hz": f_peak,
         "flybacks": len(windows),
     }
+
+
+def _flyback_windows(t: np.ndarray, jumps: np.ndarray) -> tuple[float, int, np.ndarray]:
+    """(sample interval [s], window length [samples], first sample of each window): one
+    ``RING_WINDOW`` after each flyback within the trace (an overshoot's two jumps are one
+    flyback)."""
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    n_w = max(round(RING_WINDOW / dt), 8)
+    starts = np.searchsorted(t, np.asarray(jumps, float))
+    starts = starts[starts + n_w < t.size]
+    if starts.size:
+        starts = starts[np.concatenate([[True], np.diff(starts) > n_w // 4])]
+    return dt, n_w, starts
+
+
+def own_ring(time: np.ndarray, signal: np.ndarray, jumps: np.ndarray) -> float:
+    """The dominant frequency [Hz] a signal rings at after the drive's jumps: in the
+    ``RING_WINDOW`` after each flyback, a quadratic (the table's own motion) removed, the
+    peak of the mean power spectrum above 1/``RING_WINDOW``; nan without a flyback. Read
+    on the data and on the model alike, it says whose mode a ring in the residual is."""
+    t = np.asarray(time, float)
+    v = np.asarray(signal, float)
+    dt, n_w, starts = _flyback_windows(t, jumps)
+    if starts.size == 0 or t.size < 16:
+        return math.nan
+    x = np.linspace(-1.0, 1.0, n_w)
+    basis = np.column_stack([np.ones(n_w), x, x**2])
+    q, _ = np.linalg.qr(basis)
+    spec = np.zeros(2 * n_w + 1)
+    for i in starts:
+        w = v[i : i + n_w]
+        w = w - q @ (q.T @ w)
+        spec += np.abs(np.fft.rfft(w, 4 * n_w)) ** 2
+    freqs = np.fft.rfftfreq(4 * n_w, dt)
+    ok = freqs > 1.0 / RING_WINDOW
+    return float(freqs[ok][np.argmax(spec[ok])]) if ok.any() else math.nan
+
+
+CORR_LAG = 10e-3  # s, largest lag of the residual correlation tests
+
+
+def _xcorr(a: np.ndarray, b: np.ndarray, max_lag: int) -> np.ndarray:
+    """Normalised cross-correlation of a and b (means removed) at lags −max_lag…max_lag."""
+    a = a - a.mean()
+    b = b - b.mean()
+    den = math.sqrt(float(a @ a) * float(b @ b))
+    if den == 0.0:
+        return np.zeros(2 * max_lag + 1)
+    n = a.size
+    fa = np.fft.rfft(a, 2 * n)
+    fb = np.fft.rfft(b, 2 * n)
+    c = np.fft.irfft(fa * np.conj(fb), 2 * n)
+    return np.concatenate([c[-max_lag:], c[: max_lag + 1]]) / den
+
+
+def correlation_tests(
+    time: np.ndarray, residual: np.ndarray, drive: np.ndarray
+) -> dict[str, dict[str, float]]:
+    """Billings and Voon's correlation tests of a nonlinear model's residual ε against its
+    input u (Billings & Voon 1986, "Structure detection and model validity tests in the
+    identification of nonlinear systems"): a model that leaves no predictable structure has
+    φ_εε(τ) = δ(τ), φ_uε(τ) = 0, φ_u²'ε(τ) = 0, φ_u²'ε²(τ) = 0 and φ_ε(εu)(τ) = 0 for
+    τ ≥ 0 (u²' = u² − mean). Per test over |τ| ≤ ``CORR_LAG`` (τ ≠ 0 for the
+    autocorrelation): the largest |φ|, the 95 % band 1.96/√N, their ratio and the share
+    of lags outside the band (about 5 % for a white residual; the largest of hundreds of
+    lags reaches 1.5–2 bands by chance); a test far outside says which dependence is
+    left: on the input (linear dynamics), on its square (an even nonlinearity such as a
+    direction-independent loss), on the residual itself
+    (unmodelled dynamics or a slow effect)."""
+    t = np.asarray(time, float)
+    e = np.asarray(residual, float)
+    u = np.asarray(drive, float)
+    n = e.size
+    if n < 64:
+        return {}
+    dt = float(np.median(np.diff(t)))
+    lag = int(min(max(round(CORR_LAG / dt), 1), n // 4))
+    u2 = u**2 - np.mean(u**2)
+    ec = e - e.mean()
+    tests = {
+        "residual_autocorrelation": _xcorr(e, e, lag),
+        "input": _xcorr(u, e, lag),
+        "input_squared": _xcorr(u2, e, lag),
+        "input_squared_residual_squared": _xcorr(u2, ec**2, lag),
+        "residual_residual_input": _xcorr(e, ec * (u - u.mean()), lag)[lag:],
+    }
+    tests["residual_autocorrelation"][lag] = 0.0  # φ_εε(0) = 1 by definition
+    band = 1.96 / math.sqrt(n)
+    return {
+        k: {"max_abs": float(np.max(np.abs(v))), "band": band,
+            "ratio": float(np.max(np.abs(v)) / band),
+            "share_outside": float(np.mean(np.abs(v) > band))}
+        for k, v in tests.items()
+    }  # fmt: skip

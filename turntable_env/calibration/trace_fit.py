@@ -24,12 +24,20 @@
    whose posterior σ is above 70 % of the prior's are reported as not identified.
 5. **Effects** (:data:`~turntable_env.effects.CATALOGUE`), only those the protocol can
    identify (creep needs holds after motion, hysteresis a scan, asymmetry both
-   directions, misalignment the y channel, …): each screened on top of the fitted nominal
-   model, the best two refitted jointly with it. One is added only if its held-out error
-   beats the nominal model refitted with the same budget by ``min_improvement``, its
-   parameter lies 3 σ from neutral, and a refit of it on the held-out portion alone
-   agrees with the fit portion's (within 3 σ, same sign) — a misfit nominal model is
-   never "explained" by an effect.
+   directions, misalignment the y channel, …), in rounds. Each round first asks the
+   *signatures* (:mod:`.signatures`, :mod:`.identify`): the protocol features each effect
+   must change (step per period by direction, a hold's relaxation, the scan's shape and
+   loop, a spectral line in the holds, the y channel), measured on the data and on the
+   model unanchored, so slow effects stay visible; every candidate is profiled over its
+   main parameter and searched (bounded Powell) on its features; one is named when it
+   gains ≥ 4.5 nats there and leads the runner-up by 2 nats (else the round is
+   undecided), then refitted jointly with the nominal model on the trace. When the
+   signatures name nothing, the held-out trace error decides as before: each candidate
+   screened on top of the fitted nominal model, the best two refitted jointly with it,
+   one added only if its held-out error beats the nominal model refitted with the same
+   budget by ``min_improvement``, its parameter lies 3 σ from neutral, and a refit of it
+   on the held-out portion alone agrees with the fit portion's (within 3 σ, same sign) —
+   a misfit nominal model is never "explained" by an effect.
 6. **Diagnosis** of the final held-out residual against the floor: its structured part
    √(rms² − floor²), spectral peaks above 5 Hz, ringing after the flybacks,
    correlations with time, position, direction and drive level.
@@ -55,9 +63,18 @@ import scipy.stats.qmc
 
 from ..effects import CATALOGUE, apply_output
 from ..plant import Plant
+from .identify import SignatureSearch, decide
 from .measurement import Measurement, load_measurement
 from .nominal import NominalModel
-from .residual import Anchoring, noise_floor, residual_sigma, ringing, spectral_peaks
+from .residual import (
+    Anchoring,
+    correlation_tests,
+    noise_floor,
+    own_ring,
+    residual_sigma,
+    ringing,
+    spectral_peaks,
+)
 from .result import CalibrationResult
 from .segments import DriveReading, Segment, read_drive, segment_trace, split_portions
 from .trace import simulate_trace
@@ -254,21 +271,32 @@ class TraceProblem:
             d, sensitivity=m.sensitivity, distance=m.distance, table_radius=m.table_radius
         )
 
-    def errors(
+    def signals(
         self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]]
-    ) -> list[list[np.ndarray]]:
-        """Per trace: the anchored errors [nm] of its channels (x, and y if recorded)."""
+    ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per trace: the model's detector channels (x, y) [V] at its samples, with the
+        output-stage effects and the photodiode's saturation, no noise."""
         phys = {k: dict(v) for k, v in effects.items() if CATALOGUE[k].stage != "output"}
         out_fx = {k: v for k, v in effects.items() if CATALOGUE[k].stage == "output"}
         thetas = self._theta(np.asarray(x, float), phys)
-        res = []
+        out = []
         for td, th in zip(self.traces, thetas, strict=True):
             m = td.m
             xv, yv = apply_output(m.time - m.time[0], th, out_fx, self.detector(x, td))
             vs = m.detector.saturation_voltage
-            chans = [td.anchoring.apply((m.detector_v - np.clip(xv, -vs, vs)) * td.scale)]
+            out.append((np.clip(xv, -vs, vs), np.clip(yv, -vs, vs)))
+        return out
+
+    def errors(
+        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]]
+    ) -> list[list[np.ndarray]]:
+        """Per trace: the anchored errors [nm] of its channels (x, and y if recorded)."""
+        res = []
+        for td, (xv, yv) in zip(self.traces, self.signals(x, effects), strict=True):
+            m = td.m
+            chans = [td.anchoring.apply((m.detector_v - xv) * td.scale)]
             if td.has_y and m.detector_y_v is not None:
-                chans.append(td.anchoring.apply((m.detector_y_v - np.clip(yv, -vs, vs)) * td.scale))
+                chans.append(td.anchoring.apply((m.detector_y_v - yv) * td.scale))
             res.append(chans)
         return res
 
@@ -371,17 +399,22 @@ def local_fit(
         x, e = unpack(v0)
         r = fun(v0)
         return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, nx, rows)
+    # effect parameters in units of a quarter of their range: the finite-difference step
+    # (DIFF_STEP of the unit) then moves a 5e-5 rad amplitude or a 1 µs time constant as
+    # much as a ln-factor, instead of stepping past its bounds
+    unit = np.concatenate([np.ones(nx), scale[nx:]])
     res = scipy.optimize.least_squares(
-        fun, v0, bounds=(lo, hi), x_scale=scale, diff_step=DIFF_STEP, max_nfev=max_nfev,
-        method="trf",
+        lambda z: fun(z * unit), v0 / unit, bounds=(lo / unit, hi / unit),
+        x_scale=scale / unit, diff_step=DIFF_STEP, max_nfev=max_nfev, method="trf",
     )  # fmt: skip
-    x, e = unpack(res.x)
-    jac = res.jac
+    v = res.x * unit
+    x, e = unpack(v)
+    jac = res.jac / unit  # d r / d v
     try:
         cov = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
-        cov = np.diag(np.full(res.x.size, np.inf))
-    return _finish(problem, x, e, res.x, cov, float(res.fun @ res.fun), int(res.nfev), nx, rows)
+        cov = np.diag(np.full(v.size, np.inf))
+    return _finish(problem, x, e, v, cov, float(res.fun @ res.fun), int(res.nfev), nx, rows)
 
 
 def _finish(problem, x, e, v, cov, cost, nfev, nx, rows) -> LocalFit:
@@ -646,10 +679,11 @@ def calibrate_traces(
     considered = [n for n in names if not ident.get(n)]
     if base_plant.params.amplifier.fast_fraction > 0 and "amplifier_fast_path" in considered:
         considered.remove("amplifier_fast_path")  # the base plant has one already
-    current, selected, history, candidates_out = _select_effects(
+    current, selected, history, candidates_out, signature = _select_effects(
         problem, nominal, considered, floor, max_effects, min_improvement, warnings, say
     )
     diag = diagnose(problem, current, floor)
+    diag["signatures"] = signature
     diag.update(
         noise_floor=floor, noise_floor_source=traces[0].floor_source, rms_motion=motion,
         target=max(3.0 * floor, 0.02 * motion), starts=spread, n_simulations=problem.n_sims,
@@ -657,6 +691,16 @@ def calibrate_traces(
         error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
         drive_recording=[td.reading.recording for td in traces],
     )  # fmt: skip
+    # flagged: the final model (nominal and named effects) does not explain the data to
+    # the target — something the catalogue lacks, or a model-structure mismatch
+    diag["unexplained"] = bool(current.heldout_rms > diag["target"])
+    if diag["unexplained"]:
+        warnings.append(
+            f"unexplained: the held-out error {current.heldout_rms:.3g} {ERROR_UNIT} stays above "
+            f"the target {diag['target']:.3g} {ERROR_UNIT} with "
+            f"{', '.join(selected) or 'no effect'}: an effect outside the catalogue or a "
+            f"structure the model lacks ({diag.get('signature', 'see the residual')})"
+        )
     params, plant = _fitted(model, current, selected, warnings)
     diag["warnings"] = warnings
     overlay = _overlay(problem, current)
@@ -757,38 +801,106 @@ def _accept_one(
     return None
 
 
+def _signature_search(problem: TraceProblem) -> SignatureSearch:
+    return SignatureSearch(
+        problem.signals,
+        [
+            (td.m.time, td.drive, td.segments, td.m.detector_v,
+             td.m.detector_y_v if td.has_y else None, td.scale, td.floor,
+             td.m.detector.table_radius)
+            for td in problem.traces
+        ],
+    )  # fmt: skip
+
+
+def _by_signature(
+    problem: TraceProblem, search: SignatureSearch, current: LocalFit,
+    considered: Sequence[str], selected: list[str], say: Callable[[str], None],
+) -> tuple[str | None, LocalFit | None, dict[str, Any]]:  # fmt: skip
+    """One round of identification by signature (:mod:`.identify`): every candidate fitted
+    to the features it must explain; the one named (if any) refitted jointly with the
+    nominal model on the trace, the better of that and the signature fit on held-out
+    data kept. (name, fit, the round for the report)."""
+    base = search.features(current.x, current.effects)
+    fits = []
+    for n in considered:
+        if n in selected:
+            continue
+        try:
+            fits.append(search.fit_candidate(n, current.x, current.effects, base))
+        except Exception as exc:  # a candidate that cannot run is reported, not fatal
+            fits.append(search.not_run(n, f"failed: {exc}"))
+        f = fits[-1]
+        neutral = " (best at neutral)" if f.at_neutral else ""
+        say(f"  signature {n:<22} gain {f.declared_nats:7.1f} nats on "
+            f"{'+'.join(f.to_json()['declared_groups'])}, {f.total_nats:.1f} over all{neutral}")
+    dec = decide(fits)
+    rnd = {"decision": dec.to_json(), "candidates": [f.to_json() for f in fits]}
+    if dec.named is None:
+        if dec.undecided:
+            say(f"  by signature: undecided between {', '.join(dec.undecided)} "
+                f"(lead {dec.margin:.1f} nats)")  # fmt: skip
+        return None, None, rnd
+    n = dec.named
+    vals = next(f.values for f in fits if f.name == n)
+    eff = {**current.effects, n: vals}
+    sig_fit = local_fit(problem, current.x, eff, free_nominal=False, free_effects=(), max_nfev=1)
+    joint = local_fit(problem, current.x, eff, free_effects=[*selected, n], max_nfev=6)
+    fit = joint if joint.heldout_rms <= sig_fit.heldout_rms else replace(
+        sig_fit, std_effects={**sig_fit.std_effects, **joint.std_effects})  # fmt: skip
+    rnd["heldout_error"] = {"signature_fit": sig_fit.heldout_rms, "joint_refit": joint.heldout_rms}
+    lead = "" if math.isinf(dec.margin) else f", lead {dec.margin:.1f} nats"
+    say(f"  by signature: {n}{lead}; held-out {fit.heldout_rms:.3g} {ERROR_UNIT}")
+    return n, fit, rnd
+
+
 def _select_effects(
     problem: TraceProblem, nominal: LocalFit, considered: Sequence[str], floor: float,
     max_effects: int, min_improvement: float, warnings: list[str], say: Callable[[str], None],
-) -> tuple[LocalFit, list[str], list[dict[str, Any]], list[dict[str, Any]]]:  # fmt: skip
-    """Effects, only after the nominal model fits: rounds of screening and acceptance until
-    none helps, the residual reaches the floor or ``max_effects`` are in; (the final fit,
-    the effects selected, the history, every candidate screened)."""
+) -> tuple[LocalFit, list[str], list[dict], list[dict], dict[str, Any]]:  # fmt: skip
+    """Effects, only after the nominal model fits: rounds until none helps or
+    ``max_effects`` are in. Each round first asks the signatures (:func:`_by_signature`);
+    when they name nothing, the held-out trace error decides as before (screening, then
+    the acceptance rules of :func:`_accept_one`), unless the residual is at the noise
+    floor. (the final fit, the effects selected, the history, every candidate screened,
+    the signature search for the report)."""
     current = nominal
     selected: list[str] = []
     history = [{"effects": [], "heldout_rms": nominal.heldout_rms}]
     candidates_out: list[dict[str, Any]] = []
+    search = _signature_search(problem)
+    signature: dict[str, Any] = {"lines": search.find_lines(nominal.x, {}), "rounds": []}
     while len(selected) < max_effects and considered:
-        if current.heldout_rms <= FLOOR_REACHED * floor:
-            say("  residual at the noise floor: no effect searched")
-            break
-        screened = _screen(problem, current, considered, selected, warnings, say)
-        candidates_out += [
-            {"round": len(selected) + 1, "effect": n, "heldout_error": c.heldout_rms}
-            for n, c in screened
-        ]
-        if not screened:
-            break
-        top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
-        accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say)
-        if accepted is None:
-            say("  no effect beats the nominal model on held-out data")
-            break
-        n, current = accepted
+        n, fit, rnd = _by_signature(problem, search, current, considered, selected, say)
+        rnd["round"] = len(selected) + 1
+        signature["rounds"].append(rnd)
+        how = "signature"
+        if n is None:
+            if current.heldout_rms <= FLOOR_REACHED * floor:
+                say("  residual at the noise floor: no effect searched on the trace")
+                break
+            screened = _screen(problem, current, considered, selected, warnings, say)
+            candidates_out += [
+                {"round": len(selected) + 1, "effect": c, "heldout_error": f.heldout_rms}
+                for c, f in screened
+            ]
+            if not screened:
+                break
+            top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
+            accepted = _accept_one(problem, current, top, selected, min_improvement, warnings,
+                                   say)  # fmt: skip
+            if accepted is None:
+                say("  no effect beats the nominal model on held-out data")
+                break
+            n, fit = accepted
+            how = "held-out trace error"
+        assert fit is not None
+        current = fit
         selected.append(n)
-        history.append({"effects": list(selected), "heldout_rms": current.heldout_rms})
-        say(f"selected {n}: held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
-    return current, selected, history, candidates_out
+        history.append({"effects": list(selected), "heldout_rms": current.heldout_rms,
+                        "decided_by": how})  # fmt: skip
+        say(f"selected {n} ({how}): held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
+    return current, selected, history, candidates_out, signature
 
 
 def _fitted(
@@ -881,7 +993,8 @@ def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, An
         k: [] for k in ("residual", "time", "position", "direction", "drive_level")
     }
     peaks, rings = [], []
-    for td, chans, th in zip(problem.traces, errs, thetas, strict=True):
+    sigs = problem.signals(fit.x, fit.effects)
+    for td, chans, th, (xv, _yv) in zip(problem.traces, errs, thetas, sigs, strict=True):
         held = td.anchoring.heldout
         t = td.m.time
         r = chans[0]
@@ -894,8 +1007,13 @@ def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, An
         compared = td.anchoring.unit >= 0
         peaks += spectral_peaks(t[compared], r[compared])
         rg = ringing(t, r, td.reading.jumps, compared)
-        if rg is not None:
+        if rg is not None:  # whose mode is it: the data's or the model's own?
+            rg["data_ring_Hz"] = own_ring(t, td.m.detector_v, td.reading.jumps)
+            rg["model_ring_Hz"] = own_ring(t, xv, td.reading.jumps)
             rings.append(rg)
+    td0, r0 = problem.traces[0], errs[0][0]
+    cmp0 = td0.anchoring.unit >= 0
+    billings = correlation_tests(td0.m.time[cmp0], r0[cmp0], td0.drive[cmp0])
     res_x = np.concatenate(regress.pop("residual"))
     corr = {}
     for k, parts in regress.items():
@@ -917,6 +1035,7 @@ def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, An
         "spectral_peaks": peaks,
         "ringing": ring,
         "correlation": corr,
+        "correlation_tests": billings,
     }
     if structured:
         strongest = max(corr.items(), key=lambda kv: abs(kv[1])) if corr else ("none", 0.0)
@@ -928,15 +1047,43 @@ def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, An
         )
         rg = (
             f"ringing after flybacks ×{ring['ratio']:.1f} at {ring['frequency_Hz']:.0f} Hz"
+            f"{_whose_ring(ring)}"
             if ring is not None and ring["ratio"] > 2.0
             else "no ringing after the flybacks"
         )
         out["signature"] = (
             f"held-out RMS {rms:.3g} nm against a noise floor of {floor:.3g} nm (structured "
             f"part {structured_part:.3g} nm); {pk}; {rg}; strongest correlation with "
-            f"{strongest[0]} ({strongest[1]:+.2f})"
+            f"{strongest[0]} ({strongest[1]:+.2f}){_billings_text(billings)}"
         )
     return out
+
+
+def _billings_text(tests: dict[str, dict[str, float]]) -> str:
+    """The correlation tests the residual fails most (ratio to the 95 % band)."""
+    failed = sorted(((v["ratio"], k) for k, v in tests.items() if v["share_outside"] > 0.1),
+                    reverse=True)  # fmt: skip
+    if not failed:
+        return "; the residual passes the correlation tests against the drive"
+    return "; correlation tests over their 95 % band: " + ", ".join(
+        f"{k.replace('_', ' ')} ×{r:.0f}" for r, k in failed[:3]
+    )
+
+
+def _whose_ring(ring: dict[str, float]) -> str:
+    """Whose mode a ring in the residual is: the model's own (it rings within 10 % of the
+    residual's frequency and the data does not), the data's, or both."""
+    f, fm, fd = ring["frequency_Hz"], ring.get("model_ring_Hz"), ring.get("data_ring_Hz")
+    if not (fm and fd and math.isfinite(fm) and math.isfinite(fd)):
+        return ""
+    near_m, near_d = abs(fm - f) <= 0.1 * f, abs(fd - f) <= 0.1 * f
+    where = (
+        "the model's own mode (a model-structure mismatch, not an effect: the data ring at "
+        f"{fd:.0f} Hz)" if near_m and not near_d
+        else f"the data's mode (the model rings at {fm:.0f} Hz)" if near_d and not near_m
+        else f"model {fm:.0f} Hz, data {fd:.0f} Hz"
+    )  # fmt: skip
+    return f" — {where}"
 
 
 def _overlay(problem: TraceProblem, fit: LocalFit) -> dict[str, np.ndarray]:

@@ -1,0 +1,221 @@
+"""Signatures (calibration.signatures, calibration.identify): the features read what each
+effect does to a signal, built here by hand (no simulator), and the decisions keep their
+margins."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from turntable_env.calibration.identify import (
+    SIGNIFICANT_NATS,
+    TIE_NATS,
+    CandidateFit,
+    _profile_grid,
+    decide,
+)
+from turntable_env.calibration.segments import Segment
+from turntable_env.calibration.signatures import Features, SignatureLayout, group_scores
+
+FS = 20e3  # Hz
+SIGMA = 2.0  # nm of white detector noise
+
+
+def _protocol() -> tuple[np.ndarray, np.ndarray, list[Segment], list[tuple[float, float]]]:
+    """Time, drive and segments of: hold, up scan, hold, down scan, hold, then bursts of
+    +/− steps each followed by a hold; and the (start, end) of each burst."""
+    segs = [Segment(0.0, 0.05, "hold"), Segment(0.05, 0.15, "scan", 1, 4.0),
+            Segment(0.15, 0.2, "hold"), Segment(0.2, 0.3, "scan", -1, 4.0),
+            Segment(0.3, 0.35, "hold")]  # fmt: skip
+    bursts = []
+    t0 = 0.35
+    for k, d in enumerate((1, -1, 1, -1)):
+        segs.append(Segment(t0, t0 + 0.02, "steps", d, 2.0, 500.0, "jump", 10))
+        bursts.append((t0, t0 + 0.02))
+        segs.append(Segment(t0 + 0.02, t0 + 0.06 + 0.02 * k, "hold"))
+        t0 = segs[-1].end
+    t = np.arange(0.0, t0, 1.0 / FS)
+    u = np.zeros_like(t)
+    up = (t >= 0.05) & (t < 0.15)
+    u[up] = 4.0 * (t[up] - 0.05) / 0.1
+    u[(t >= 0.15) & (t < 0.2)] = 4.0
+    dn = (t >= 0.2) & (t < 0.3)
+    u[dn] = 4.0 - 4.0 * (t[dn] - 0.2) / 0.1
+    return t, u, segs, bursts
+
+
+def _position(t, u, segs, bursts, step_nm=(300.0, -300.0, 300.0, -300.0), creep=0.0):
+    """A stick–slip table by hand: 100 nm per volt while stuck, each burst a net step
+    (linear over the burst), after each burst an exponential relaxation of ``creep`` ×
+    the move (τ = 10 ms)."""
+    x = 100.0 * u
+    for (a, b), s in zip(bursts, step_nm, strict=True):
+        x += np.where(t >= b, s, np.where(t > a, s * (t - a) / (b - a), 0.0))
+        x += np.where(t >= b, creep * s * (1.0 - np.exp(-(t - b) / 0.01)), 0.0)
+    return x
+
+
+@pytest.fixture(scope="module")
+def proto():
+    return _protocol()
+
+
+def _features(proto, x, y=None, line=math.nan):
+    t, u, segs, _b = proto
+    lay = SignatureLayout(t, u, segs, SIGMA)
+    lay.line_frequency = line
+    return lay, lay.measure(x, y)
+
+
+def _group(f: Features, g: str) -> np.ndarray:
+    return f.value[f.group(g)]
+
+
+def test_step_per_period_and_direction_read_the_steps(proto):
+    t, u, segs, bursts = proto
+    _lay, f = _features(proto, _position(t, u, segs, bursts, (300.0, -240.0, 300.0, -240.0)))
+    # 10 periods a burst: 30 and −24 nm per period
+    np.testing.assert_allclose(_group(f, "steps"), [30.0, -24.0, 30.0, -24.0], atol=1e-9)
+    # (|s+| − |s−|)/(|s+| + |s−|) = 6/54 for each of the two pairs
+    np.testing.assert_allclose(_group(f, "direction"), [6.0 / 54.0] * 2, atol=1e-12)
+
+
+@pytest.mark.parametrize("creep", [0.02, 0.05])
+def test_relaxation_follows_the_move_before_the_hold(proto, creep):
+    """Creep: each hold after a burst relaxes by creep × its move (within the windows'
+    share of the exponential); a hold after no move does not relax."""
+    t, u, segs, bursts = proto
+    _lay, f0 = _features(proto, _position(t, u, segs, bursts))
+    _lay, f1 = _features(proto, _position(t, u, segs, bursts, creep=creep))
+    rel = _group(f1, "relaxation") - _group(f0, "relaxation")
+    moves = np.array([300.0, -300.0, 300.0, -300.0])
+    after = rel[-4:]
+    # late (≥ 38 ms) − early (2–4 ms): e^{-3/10} − e^{-39/10} of the creep ≈ 0.72
+    np.testing.assert_allclose(after / (creep * moves), 0.72, atol=0.03)
+    np.testing.assert_allclose(rel[:-4], 0.0, atol=1e-9)
+
+
+def test_drift_relaxes_every_hold_by_its_duration(proto):
+    t, u, segs, bursts = proto
+    x = _position(t, u, segs, bursts)
+    rate = 200.0  # nm/s
+    lay, f0 = _features(proto, x)
+    _lay, f1 = _features(proto, x + rate * t)
+    rel = _group(f1, "relaxation") - _group(f0, "relaxation")
+    spans = np.array([t[h.late[0]: h.late[1]].mean() - t[h.early[0]: h.early[1]].mean()
+                      for h in lay.holds])  # fmt: skip
+    np.testing.assert_allclose(rel, rate * spans, rtol=1e-9)
+
+
+def test_scan_features_see_a_lagging_loop_and_a_cubic_gain(proto):
+    t, u, segs, bursts = proto
+    x = _position(t, u, segs, bursts)
+    _lay, f0 = _features(proto, x)
+    # a lagging loop: the down branch lies above the up branch by 20 nm at equal drive
+    lagging = np.where(t >= 0.2, x + 20.0 * np.sin(np.pi * (u / 4.0)), x)
+    _lay, f1 = _features(proto, lagging)
+    assert _group(f1, "loop")[0] > _group(f0, "loop")[0] + 5.0 / 400.0
+    # a gain that grows with the position (odd, cubic): the cubic term over the gain rises
+    _lay, f2 = _features(proto, x + 0.1 * x * (x / 400.0) ** 2)
+    assert np.all(_group(f2, "scan_shape")[1::2] > _group(f0, "scan_shape")[1::2] + 0.005)
+
+
+def test_line_found_at_its_frequency_and_read_with_its_phase(proto):
+    t, u, segs, bursts = proto
+    rng = np.random.default_rng(3)
+    x = _position(t, u, segs, bursts)
+    f_hz, amp = 123.0, 3.0
+    noisy = x + amp * np.sin(2 * np.pi * f_hz * t + 0.4) + rng.normal(0.0, SIGMA, t.size)
+    lay = SignatureLayout(t, u, segs, SIGMA)
+    found = lay.find_line(noisy - x)
+    span = t[lay.hold_samples][-1] - t[lay.hold_samples][0]
+    assert abs(found["frequency_Hz"] - f_hz) <= 1.0 / (4.0 * span) + 1e-9
+    assert found["chi2"] > 2.0 * math.log(found["searched"] / 1e-3)
+    f = lay.measure(noisy)
+    s, c = _group(f, "line")
+    assert math.hypot(s, c) == pytest.approx(amp, rel=0.15)
+    # noise alone: no line above the false-alarm level
+    quiet = lay.find_line(rng.normal(0.0, SIGMA, t.size))
+    assert quiet["chi2"] < 2.0 * math.log(quiet["searched"] / 1e-3)
+
+
+def test_y_slope_is_the_tangent_of_the_misalignment(proto):
+    t, u, segs, bursts = proto
+    x = _position(t, u, segs, bursts)
+    _lay, f = _features(proto, x, math.tan(0.05) * x)
+    assert _group(f, "y")[0] == pytest.approx(math.tan(0.05), rel=1e-9)
+
+
+def test_group_scores_is_an_f_test():
+    data = Features(("a", "b", "c", "d", "e"), ("steps",) * 5, np.zeros(5), np.ones(5))
+    off = Features(data.names, data.groups, np.full(5, 3.0), np.ones(5))
+    exact = Features(data.names, data.groups, np.zeros(5), np.ones(5))
+    s = group_scores(data, off, exact)["steps"]
+    assert s["delta"] == pytest.approx(45.0) and s["nats"] == pytest.approx(22.5)
+    # a model that halves the misfit: the variance comes from its own misfit per dof
+    half = Features(data.names, data.groups, np.full(5, 1.5), np.ones(5))
+    s = group_scores(data, off, half)["steps"]
+    assert s["scale"] == pytest.approx(5 * 2.25 / 4)
+    assert s["delta"] == pytest.approx((45.0 - 11.25) / (11.25 / 4))
+
+
+def _cand(name, nats, sig=True):
+    return CandidateFit(name, {}, [], 0.0, 0.0, not sig, {}, nats, nats, sig)
+
+
+@pytest.mark.parametrize(
+    ("fits", "named", "undecided"),
+    [
+        ([_cand("a", 20.0), _cand("b", 20.0 - TIE_NATS - 0.1)], "a", []),
+        ([_cand("a", 20.0), _cand("b", 19.0)], None, ["a", "b"]),
+        ([_cand("a", SIGNIFICANT_NATS + 1)], "a", []),
+        ([_cand("a", 30.0, sig=False), _cand("b", 3.0, sig=False)], None, []),
+    ],
+)
+def test_decide_names_only_with_a_margin(fits, named, undecided):
+    d = decide(fits)
+    assert d.named == named and d.undecided == undecided
+
+
+@pytest.mark.parametrize(
+    ("low", "high", "neutral"), [(-0.4, 0.4, 0.0), (0.0, 0.05, 0.0), (0.3, 2.0, 1.0)]
+)
+def test_profile_grid_reaches_small_values_on_each_side(low, high, neutral):
+    g = _profile_grid(low, high, neutral, neutral)
+    assert neutral in g and g.min() == low and g.max() == high
+    for edge in (low, high):
+        if edge != neutral:  # 1 % of the way to each end is on the grid
+            assert np.any(np.isclose(g, neutral + 0.01 * (edge - neutral)))
+
+
+@pytest.mark.parametrize("f_ring", [2.3e3, 4.7e3])
+def test_own_ring_reads_the_mode_a_signal_rings_at_after_the_flybacks(f_ring):
+    """Steps with a decaying ring after each jump (plus a ramp, the table's motion): the
+    ring's frequency within the spectrum's resolution 1/(4·window)."""
+    from turntable_env.calibration.residual import RING_WINDOW, own_ring
+
+    t = np.arange(0.0, 0.2, 1.0 / 50e3)
+    jumps = np.arange(0.01, 0.19, 0.01)
+    v = 30.0 * t
+    for j in jumps:
+        after = t >= j
+        v = v + after * (5.0 + 3.0 * np.exp(-(t - j) / 1e-3) * np.sin(2 * np.pi * f_ring * (t - j)))
+    assert own_ring(t, v, jumps) == pytest.approx(f_ring, abs=1.0 / (4 * RING_WINDOW) + 1e-6)
+    assert math.isnan(own_ring(t, v, np.zeros(0)))
+
+
+def test_correlation_tests_say_which_dependence_is_left():
+    """Billings–Voon: white noise passes every test; a residual that is the input's square
+    fails the squared-input test far more than the linear one (an even nonlinearity)."""
+    from turntable_env.calibration.residual import correlation_tests
+
+    rng = np.random.default_rng(5)
+    t = np.arange(20_000) / 20e3
+    u = rng.uniform(-1.0, 1.0, t.size)
+    white = correlation_tests(t, rng.normal(size=t.size), u)
+    assert all(v["share_outside"] < 0.1 and v["ratio"] < 2.5 for v in white.values())
+    even = correlation_tests(t, u**2 + 0.1 * rng.normal(size=t.size), u)
+    assert even["input_squared"]["ratio"] > 20.0
+    assert even["input"]["ratio"] < 2.0

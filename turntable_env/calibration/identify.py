@@ -1,0 +1,309 @@
+"""Effect identification by signature: which catalogue effect explains what the fitted
+nominal model leaves, judged on the protocol features it must change (:mod:`.signatures`).
+
+For every candidate effect, on top of the current model (the fitted nominal model and the
+effects already named):
+
+1. **Start values from the data**: the line's amplitude and phase (vibration), the y/x
+   slope (misalignment), the relaxation's rate (drift); the middle of the range else.
+2. **A profile** of its main parameter over its whole range (its neutral value and
+   1 %…100 % of the way to each end, :func:`_profile_grid`), the objective being the
+   features' misfit Σ_g RSS_g / w_g (whitened by the detector noise, each group weighted
+   by the current model's misfit per feature, so no group dominates by its count).
+3. **A bounded Powell search** (:func:`scipy.optimize.minimize`) over all its parameters
+   from the profile's best point, in range-normalised coordinates.
+4. **Scores**: :func:`~.signatures.group_scores` against the current model per feature
+   group, in nats. A candidate is *significant* when it gains ≥ ``SIGNIFICANT_NATS``
+   in the groups it declares (:data:`~.signatures.EFFECT_GROUPS`) and over all the
+   signature groups (:data:`~.signatures.SIGNATURE_GROUPS`: not the step sizes and scan
+   gains the nominal model is fitted to, which a refit restores); the profile and the
+   search minimise the misfit of those groups alone (what a candidate does to the other
+   groups is reported, and the joint refit on the trace settles the nominal model)
+   groups. A candidate whose
+   profile is best at its neutral value is reported so (``at_neutral``), never silently
+   equal to the nominal model.
+
+:func:`decide` names the significant candidate with the largest gain over the signature
+groups (an effect explains what it must and what follows from it: creep relaxes the holds
+and opens the scan's loop, hysteresis only the loop) when it leads
+the runner-up by ``TIE_NATS``; otherwise the round is undecided between them and nothing
+is named (a selection that flips with the start or the rounding is not a result).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+
+from ..effects import CATALOGUE
+from .signatures import EFFECT_GROUPS, SIGNATURE_GROUPS, Features, SignatureLayout, group_scores
+
+__all__ = [
+    "LINE_P_VALUE",
+    "SIGNIFICANT_NATS",
+    "TIE_NATS",
+    "CandidateFit",
+    "Decision",
+    "SignatureSearch",
+    "decide",
+]
+
+SIGNIFICANT_NATS = 4.5  # χ² of 9 (3σ for one parameter) on its groups and over all
+TIE_NATS = 2.0  # a lead under this over the runner-up is a tie (likelihood ratio e² ≈ 7)
+LINE_P_VALUE = 1e-3  # false-alarm probability of a spectral line over the whole search
+POWELL_EVALS = 40  # objective evaluations of the bounded search per candidate
+# the parameter profiled (else an effect's first)
+MAIN_PARAMETER = {"sensor_drift": "rate", "vibration": "amplitude"}
+
+Effects = Mapping[str, Mapping[str, float]]
+
+
+@dataclass
+class CandidateFit:
+    """One candidate's search: its parameter ``values``, the ``profile`` [(first
+    parameter, objective)], the objective at the optimum and at neutral, whether the
+    optimum is at neutral, per-group ``scores`` against the current model (nats), the
+    gains on its declared groups and over all, and ``significant``."""
+
+    name: str
+    values: dict[str, float]
+    profile: list[tuple[float, float]]
+    objective: float
+    objective_neutral: float
+    at_neutral: bool
+    scores: dict[str, dict[str, float]]
+    declared_nats: float
+    total_nats: float
+    significant: bool
+    note: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "effect": self.name,
+            "values": self.values,
+            "profile": [[float(a), float(b)] for a, b in self.profile],
+            "objective": self.objective,
+            "objective_neutral": self.objective_neutral,
+            "at_neutral": self.at_neutral,
+            "declared_groups": list(EFFECT_GROUPS.get(self.name, ())),
+            "declared_nats": self.declared_nats,
+            "total_nats": self.total_nats,
+            "group_nats": {g: s["nats"] for g, s in self.scores.items()},
+            "significant": self.significant,
+            "note": self.note,
+        }
+
+
+@dataclass
+class Decision:
+    """A round's outcome: the ``named`` effect (or None), its lead over the runner-up in
+    nats (``margin``; inf when it is the only significant one), and the candidates it
+    is ``undecided`` between when the lead is under :data:`TIE_NATS`."""
+
+    named: str | None
+    margin: float
+    undecided: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"named": self.named, "margin_nats": self.margin, "undecided": self.undecided}
+
+
+def decide(fits: Sequence[CandidateFit]) -> Decision:
+    """The significant candidate with the largest gain over the signature groups, if it
+    leads the runner-up by TIE_NATS."""
+    sig = sorted((f for f in fits if f.significant), key=lambda f: -f.total_nats)
+    if not sig:
+        return Decision(None, 0.0)
+    if len(sig) == 1:
+        return Decision(sig[0].name, math.inf)
+    margin = sig[0].total_nats - sig[1].total_nats
+    if margin < TIE_NATS:
+        tied = [f.name for f in sig if sig[0].total_nats - f.total_nats < TIE_NATS]
+        return Decision(None, margin, tied)
+    return Decision(sig[0].name, margin)
+
+
+class SignatureSearch:
+    """Features of the data and of models on a set of traces.
+
+    Args:
+        signals: (x, effects) → per trace the model's detector channels (x, y) [V].
+        traces: per trace (time [s], drive [V], segments, detector x [V], detector y [V]
+            or None, nm per volt, noise floor [nm], table radius [m]).
+    """
+
+    def __init__(
+        self,
+        signals: Callable[[np.ndarray, Effects], list[tuple[np.ndarray, np.ndarray]]],
+        traces: Sequence[tuple[Any, ...]],
+    ) -> None:
+        self._signals = signals
+        self.traces = list(traces)
+        self.layouts = [
+            SignatureLayout(t - t[0], u, segs, floor)
+            for t, u, segs, _x, _y, _s, floor, _r in self.traces
+        ]
+        self.data = self._concat(
+            [
+                lay.measure(x * s, None if y is None else y * s)
+                for lay, (_t, _u, _g, x, y, s, _f, _r) in zip(
+                    self.layouts, self.traces, strict=True
+                )
+            ]
+        )
+        self.lines: list[dict[str, float]] = []
+
+    @staticmethod
+    def _concat(parts: list[Features]) -> Features:
+        names = tuple(f"trace {k}: {n}" for k, p in enumerate(parts) for n in p.names)
+        groups = tuple(g for p in parts for g in p.groups)
+        return Features(
+            names, groups,
+            np.concatenate([p.value for p in parts]) if parts else np.zeros(0),
+            np.concatenate([p.noise for p in parts]) if parts else np.zeros(0),
+        )  # fmt: skip
+
+    def find_lines(self, x: np.ndarray, effects: Effects) -> list[dict[str, float]]:
+        """Search each trace's holds for a spectral line in data − model; a line counts
+        when its χ² beats the false-alarm level :data:`LINE_P_VALUE` over all the searched
+        frequencies (2 ln(N/p)); the layouts then measure it. Re-reads the data's
+        features."""
+        self.lines = []
+        for lay, sig, tr in zip(self.layouts, self._signals(x, effects), self.traces, strict=True):
+            _t, _u, _g, xv, _y, s, _f, _r = tr
+            found = lay.find_line((xv - sig[0]) * s)
+            thr = 2.0 * math.log(max(found["searched"], 1) / LINE_P_VALUE)
+            found["threshold_chi2"] = thr
+            if not found["chi2"] >= thr:
+                lay.line_frequency = math.nan
+            self.lines.append(found)
+        self.data = self._concat(
+            [
+                lay.measure(x_ * s, None if y is None else y * s)
+                for lay, (_t, _u, _g, x_, y, s, _f, _r) in zip(
+                    self.layouts, self.traces, strict=True
+                )
+            ]
+        )
+        return self.lines
+
+    def features(self, x: np.ndarray, effects: Effects) -> Features:
+        """The model's features at (x, effects)."""
+        parts = []
+        for lay, (xv, yv), tr in zip(self.layouts, self._signals(x, effects), self.traces,
+                                     strict=True):  # fmt: skip
+            s, has_y = tr[5], tr[4] is not None
+            parts.append(lay.measure(xv * s, yv * s if has_y else None))
+        return self._concat(parts)
+
+    # --- one candidate ----------------------------------------------------------------------
+    def _start(self, name: str, model: Features) -> dict[str, float]:
+        e = CATALOGUE[name]
+        start = e.defaults()
+        if name == "sensor_drift":
+            start["offset"] = 0.0  # the features are level differences: no offset in them
+        d, m = self.data, model
+        if name == "vibration":
+            ln = [k for k, g in enumerate(d.groups) if g == "line"]
+            lay = next((lay for lay in self.layouts if math.isfinite(lay.line_frequency)), None)
+            if len(ln) >= 2 and lay is not None:
+                s_c = d.value[ln[:2]] - m.value[ln[:2]]
+                radius = self.traces[self.layouts.index(lay)][7]
+                start = {"amplitude": float(np.hypot(*s_c)) / (radius * 1e9),
+                         "frequency": lay.line_frequency,
+                         "phase": float(np.arctan2(s_c[1], s_c[0]))}  # fmt: skip
+        elif name == "axis_misalignment":
+            k = [i for i, g in enumerate(d.groups) if g == "y"]
+            if k:
+                start = {"phi": float(abs(math.atan(d.value[k[0]])))}
+        return {p.name: float(np.clip(start.get(p.name, p.typical), p.low, p.high))
+                for p in e.parameters}  # fmt: skip
+
+    def fit_candidate(
+        self, name: str, x: np.ndarray, effects: Effects, model: Features | None = None
+    ) -> CandidateFit:
+        """Profile, bounded search and scores of one candidate (module docstring)."""
+        e = CATALOGUE[name]
+        base = self.features(x, effects) if model is None else model
+        d = self.data
+        declared = EFFECT_GROUPS.get(name, ())
+        weights = {}
+        for g in set(d.groups):
+            mk = d.group(g)
+            z = (d.value[mk] - base.value[mk]) / d.noise[mk]
+            weights[g] = max(1.0, float(z @ z) / max(int(mk.sum()), 1))
+        # the objective: the declared groups only (a candidate is fitted to its signature;
+        # what it does elsewhere is reported, and the joint trace refit settles the rest)
+        w = np.array([weights[g] if g in declared else np.inf for g in d.groups])
+
+        def objective(vals: Mapping[str, float]) -> float:
+            try:
+                f = self.features(x, {**effects, name: dict(vals)})
+            except Exception:  # a diverging corner of the range is a bad point
+                return math.inf
+            z = (d.value - f.value) / d.noise
+            j = float(np.sum(z**2 / w))
+            return j if math.isfinite(j) else math.inf
+
+        if name == "vibration" and not any(math.isfinite(ly.line_frequency) for ly in self.layouts):
+            return self.not_run(name, "no spectral line in the holds above the false-alarm level")
+        start = self._start(name, base)
+        neutral = e.neutral()
+        p0 = next(p for p in e.parameters if p.name == MAIN_PARAMETER.get(name, p.name))
+        j_neutral = objective({**start, **neutral}) if name != "vibration" else objective(
+            {**start, "amplitude": 0.0})  # fmt: skip
+        grid = _profile_grid(p0.low, p0.high, p0.neutral, start[p0.name])
+        profile = [(float(v), objective({**start, p0.name: float(v)})) for v in grid]
+        v_best, j_best = min(profile, key=lambda vj: vj[1])
+        best = {**start, p0.name: v_best}
+        # bounded Powell in range-normalised coordinates over the parameters that move
+        fixed = {"vibration": ("frequency",), "sensor_drift": ("offset",)}.get(name, ())
+        free = [p for p in e.parameters if p.high > p.low and p.name not in fixed]
+        lo = np.array([p.low for p in free])
+        span = np.array([p.high - p.low for p in free])
+
+        def from_unit(z: np.ndarray) -> dict[str, float]:
+            return {**best, **{p.name: float(lo[i] + span[i] * z[i]) for i, p in enumerate(free)}}
+
+        z0 = np.array([(best[p.name] - p.low) / (p.high - p.low) for p in free])
+        res = scipy.optimize.minimize(
+            lambda z: objective(from_unit(np.clip(z, 0.0, 1.0))), z0, method="Powell",
+            bounds=[(0.0, 1.0)] * len(free),
+            options={"maxfev": POWELL_EVALS, "xtol": 1e-3, "ftol": 1e-4},
+        )  # fmt: skip
+        if res.fun < j_best:
+            best, j_best = from_unit(np.clip(res.x, 0.0, 1.0)), float(res.fun)
+        at_neutral = j_best >= j_neutral - 1e-9 or all(
+            abs(best[p.name] - p.neutral) <= 1e-3 * (p.high - p.low) for p in (p0,)
+        )
+        feats = self.features(x, {**effects, name: best})
+        scores = group_scores(d, base, feats, n_free=len(free))
+        gain = sum(scores[g]["nats"] for g in declared if g in scores)
+        total = sum(s["nats"] for g, s in scores.items() if g in SIGNATURE_GROUPS)
+        return CandidateFit(
+            name, best, profile, j_best, j_neutral, bool(at_neutral), scores, float(gain),
+            float(total),
+            bool(not at_neutral and gain >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
+        )  # fmt: skip
+
+    @staticmethod
+    def not_run(name: str, why: str) -> CandidateFit:
+        """A candidate that was not searched, with the reason."""
+        return CandidateFit(name, CATALOGUE[name].neutral(), [], math.nan, math.nan, True, {},
+                            0.0, 0.0, False, why)  # fmt: skip
+
+
+def _profile_grid(low: float, high: float, neutral: float, start: float) -> np.ndarray:
+    """Values of a parameter for its profile: its neutral value, then on each side of it
+    that the range has, distances of 1 %, 3 %, 10 %, 30 % and 100 % of that side (an
+    effect may be small: a linear grid would step over it), and the start value."""
+    pts = [neutral, start, low, high]
+    for edge in (low, high):
+        if abs(edge - neutral) > 0:
+            pts += [neutral + f * (edge - neutral) for f in (0.01, 0.03, 0.1, 0.3)]
+    return np.unique(np.clip(pts, low, high))

@@ -1,0 +1,397 @@
+"""Signatures: protocol features of a trace, and the effects each one must explain.
+
+A whole-trace error is dominated by the fast transients (the ring after a flyback), where
+a model of another structure is always somewhat off; an effect the model lacks is
+usually smaller there than that mismatch. Its *signature* is not: each catalogue effect
+(:data:`~turntable_env.effects.CATALOGUE`) changes a few protocol features in its own
+way, and those features are averages over milliseconds, robust to the transients.
+
+Features are measured the same way on the data and on a model's output (detector volts
+→ nm at R_table, Eq. 4.1–4.2 linearised), never on an anchored residual, so slow effects
+(creep, drift, wear) stay visible. Each has a noise standard deviation from the data's
+noise floor. The feature groups and the effects they name:
+
+==========  ==============================================  ==================================
+group       feature (one per ...)                           effects whose signature it is
+==========  ==============================================  ==================================
+steps       burst: net step per period, (level early in     (nominal: stroke, friction);
+            the next hold − level before) / periods         friction_wear, amplifier_*
+direction   pair of opposite bursts of one setting:         friction_asymmetry
+            (|s₊| − |s₋|) / (|s₊| + |s₋|)
+relaxation  hold ≥ ``MIN_HOLD_S``: late − early level (2    piezo_creep (∝ the move before,
+            ms windows, the first after ``SETTLE_S``)       decaying), sensor_drift (∝ time)
+scan        scan: gain over the normalised drive            (nominal: stroke, detector gain)
+scan_shape  scan: 2nd and 3rd order terms over the gain     piezo_hysteresis (bends a branch
+                                                            by its direction),
+                                                            detector_nonlinearity (odd, cubic)
+loop        a scan and the next opposite one: later −       piezo_hysteresis (same sign every
+            earlier branch at equal drive, over the gain    pair), sensor_drift (∝ time
+                                                            between them: alternating sign)
+line        sine and cosine of the strongest spectral line  vibration
+            in the holds (each hold's level, slope and
+            curvature removed)
+y           slope of the y channel on the x channel         axis_misalignment
+==========  ==============================================  ==================================
+
+The steps and scan gains are the nominal model's (:data:`NOMINAL_GROUPS`): a fitted
+nominal model matches them as well as its structure allows, and an effect that changes
+them is compensated by the joint refit; decisions are scored on the others
+(:data:`SIGNATURE_GROUPS`).
+
+:func:`group_scores` compares two models' features as a nested-model test per group:
+the whitened residuals' sum of squares, with the variance inflated to the richer model's
+misfit per degree of freedom where the group has enough features (an F-test: an effect
+must explain a share of the misfit beyond what any free parameter would).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .segments import Segment
+
+__all__ = [
+    "EFFECT_GROUPS",
+    "GROUPS",
+    "NOMINAL_GROUPS",
+    "SIGNATURE_GROUPS",
+    "Features",
+    "SignatureLayout",
+    "group_scores",
+]
+
+SETTLE_S = 2e-3  # s skipped at a hold's start (the ring after a flyback)
+WINDOW_S = 2e-3  # s, a level's averaging window
+MIN_HOLD_S = 8e-3  # s, shortest hold whose relaxation is measured
+LINE_FMIN_HZ = 5.0  # Hz, lowest line searched (below: trends)
+LINE_FMAX_HZ = 1000.0  # Hz, highest (the catalogue's vibration range)
+GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "loop", "line", "y")
+# the groups no effect is needed for: the nominal model's own (stroke, friction, gain)
+NOMINAL_GROUPS = ("steps", "scan")
+# the groups an effect's signature lies in: decisions are scored on these
+SIGNATURE_GROUPS = tuple(g for g in GROUPS if g not in NOMINAL_GROUPS)
+# the feature groups an effect changes first (its signature)
+EFFECT_GROUPS: dict[str, tuple[str, ...]] = {
+    "amplifier_dynamics": ("steps",),
+    "amplifier_fast_path": ("steps",),
+    "piezo_hysteresis": ("scan_shape", "loop"),
+    "piezo_creep": ("relaxation",),
+    "friction_asymmetry": ("direction",),
+    "friction_wear": ("steps",),
+    "axis_misalignment": ("y",),
+    "detector_nonlinearity": ("scan_shape",),
+    "sensor_drift": ("relaxation", "loop"),
+    "vibration": ("line",),
+}
+
+
+class Features(NamedTuple):
+    """Feature values of one trace: ``names``, ``groups`` (one per value), ``value`` [nm,
+    nm per normalised volt, or − for the y slope] and ``noise`` (their standard deviation
+    from the detector noise alone)."""
+
+    names: tuple[str, ...]
+    groups: tuple[str, ...]
+    value: np.ndarray
+    noise: np.ndarray
+
+    def group(self, g: str) -> np.ndarray:
+        return np.array([k == g for k in self.groups], bool)
+
+
+@dataclass(frozen=True, eq=False)
+class _Burst:
+    pre: tuple[int, int]  # sample range of the level before
+    post: tuple[int, int]  # sample range of the level after (in the next hold)
+    periods: int
+    label: str
+    direction: int
+    setting: tuple[float, float, str]  # amplitude [V], frequency [Hz], flyback
+
+
+@dataclass(frozen=True, eq=False)
+class _Hold:
+    early: tuple[int, int]
+    late: tuple[int, int]
+    label: str
+
+
+@dataclass(frozen=True, eq=False)
+class _Scan:
+    span: tuple[int, int]
+    xi: np.ndarray  # drive normalised to −1…1 over the scan
+    direction: int
+    label: str
+    lo: float  # drive range [V]
+    hi: float
+
+
+def _window(t: np.ndarray, t0: float, t1: float) -> tuple[int, int]:
+    return int(np.searchsorted(t, t0, "left")), int(np.searchsorted(t, t1, "left"))
+
+
+def _mean(v: np.ndarray, w: tuple[int, int]) -> float:
+    return float(np.mean(v[w[0] : w[1]]))
+
+
+class SignatureLayout:
+    """Where a trace's features are read (from its drive alone), built once per trace;
+    :meth:`measure` reads them from any detector signal on the trace's samples.
+
+    Args:
+        time: sample times [s]; drive: amplifier input [V] at them; segments: the
+        trace's segments (:mod:`.segments`); sigma_nm: the detector's white noise [nm];
+        drive_frequencies: stepping frequencies [Hz] whose harmonics a line must avoid.
+    """
+
+    def __init__(
+        self,
+        time: np.ndarray,
+        drive: np.ndarray,
+        segments: list[Segment],
+        sigma_nm: float,
+    ) -> None:
+        t = np.asarray(time, float)
+        u = np.asarray(drive, float)
+        self.time = t
+        self.sigma = float(sigma_nm)
+        dt = float(np.median(np.diff(t)))
+        self.dt = dt
+        self.bursts: list[_Burst] = []
+        self.holds: list[_Hold] = []
+        self.scans: list[_Scan] = []
+        hold_idx: list[np.ndarray] = []
+        # merge the fit/held-out halves of one burst (consecutive steps of one condition)
+        runs: list[list[Segment]] = []
+        for s in segments:
+            if runs and s.kind == runs[-1][-1].kind and s.condition == runs[-1][-1].condition:
+                runs[-1].append(s)
+            else:
+                runs.append([s])
+        for k, run in enumerate(runs):
+            s0, s1 = run[0], run[-1]
+            if s0.kind == "hold" and s1.end - s0.start >= MIN_HOLD_S:
+                a, b = s0.start + SETTLE_S, s1.end
+                self.holds.append(
+                    _Hold(_window(t, a, a + WINDOW_S), _window(t, b - WINDOW_S, b),
+                          f"hold {s0.start:.3f}-{s1.end:.3f} s")
+                )  # fmt: skip
+                w = _window(t, a, b)
+                if w[1] - w[0] > 8:
+                    hold_idx.append(np.arange(*w))
+            elif s0.kind == "steps" and 0 < k < len(runs) - 1:
+                nxt = runs[k + 1][0]
+                prev = runs[k - 1][-1]
+                if nxt.kind != "hold" or nxt.duration < SETTLE_S + WINDOW_S:
+                    continue
+                pre = _window(t, s0.start - min(WINDOW_S, prev.duration), s0.start)
+                post = _window(t, nxt.start + SETTLE_S, nxt.start + SETTLE_S + WINDOW_S)
+                periods = sum(s.periods for s in run)
+                if pre[1] - pre[0] < 3 or post[1] - post[0] < 3 or periods < 1:
+                    continue
+                self.bursts.append(
+                    _Burst(pre, post, periods, f"{s0.condition} at {s0.start:.3f} s",
+                           s0.direction, (round(s0.amplitude, 1), round(s0.frequency), s0.flyback))
+                )  # fmt: skip
+            elif s0.kind == "scan":
+                w = _window(t, s0.start, s1.end)
+                if w[1] - w[0] < 20:
+                    continue
+                us = u[w[0] : w[1]]
+                lo, hi = float(us.min()), float(us.max())
+                if hi - lo < 1e-3:
+                    continue
+                xi = (2.0 * us - (hi + lo)) / (hi - lo)
+                self.scans.append(_Scan(w, xi, s0.direction, f"scan {s0.start:.3f} s", lo, hi))
+        # opposite bursts of one setting, in time order, each in one pair at most
+        self.pairs: list[tuple[int, int]] = []
+        used: set[int] = set()
+        for i, a in enumerate(self.bursts):
+            if i in used:
+                continue
+            for j in range(i + 1, len(self.bursts)):
+                b = self.bursts[j]
+                if j not in used and b.setting == a.setting and b.direction == -a.direction:
+                    self.pairs.append((i, j) if a.direction > 0 else (j, i))
+                    used |= {i, j}
+                    break
+        self._hold_idx = np.concatenate(hold_idx) if hold_idx else np.zeros(0, np.int64)
+        # each hold its own level and slope (nuisance of the line fit)
+        self._hold_of = np.concatenate(
+            [np.full(h.size, k) for k, h in enumerate(hold_idx)]
+        ) if hold_idx else np.zeros(0, np.int64)  # fmt: skip
+        self.line_frequency = math.nan
+
+    @property
+    def hold_samples(self) -> np.ndarray:
+        """Indices of the samples the line is searched on (the holds past their settling)."""
+        return self._hold_idx
+
+    # --- the line -------------------------------------------------------------------------
+    def _nuisance(self) -> np.ndarray:
+        """Per hold: its level, slope and curvature (columns over the hold samples): a
+        hold's relaxation (creep, drift) is not a line."""
+        idx, of = self._hold_idx, self._hold_of
+        n_h = int(of.max()) + 1 if of.size else 0
+        t = self.time[idx]
+        cols = np.zeros((idx.size, 3 * n_h))
+        for k in range(n_h):
+            m = of == k
+            tc = (t[m] - t[m].mean()) / max(float(np.ptp(t[m])), 1e-9)
+            cols[m, 3 * k] = 1.0
+            cols[m, 3 * k + 1] = tc
+            cols[m, 3 * k + 2] = tc**2 - np.mean(tc**2)
+        return cols
+
+    def find_line(self, signal_nm: np.ndarray) -> dict[str, float]:
+        """The strongest sinusoid in the holds of ``signal_nm`` (each hold's level, slope and
+        curvature removed): frequency [Hz] on a grid of 1/(4·span) from one period per
+        median hold (at least ``LINE_FMIN_HZ``) to
+        min(``LINE_FMAX_HZ``, Nyquist/4), amplitude [nm] and its χ² (power over the noise,
+        2 degrees of freedom); sets the frequency :meth:`measure` reads."""
+        idx = self._hold_idx
+        if idx.size < 64:
+            return {"frequency_Hz": math.nan, "amplitude_nm": 0.0, "chi2": 0.0, "searched": 0}
+        t = self.time[idx]
+        nuis = self._nuisance()
+        q, _ = np.linalg.qr(nuis)
+        v = np.asarray(signal_nm, float)[idx]
+        v = v - q @ (q.T @ v)
+        span = float(t[-1] - t[0])
+        fmax = min(LINE_FMAX_HZ, 0.25 / self.dt)
+        # at least one period in the median hold: slower is a trend there
+        durations = np.bincount(self._hold_of) * self.dt
+        fmin = max(LINE_FMIN_HZ, 1.0 / float(np.median(durations)))
+        freqs = np.arange(fmin, fmax, 1.0 / (4.0 * span))
+        best = (math.nan, 0.0, 0.0)
+        for f in freqs:
+            c = np.cos(2 * math.pi * f * t)
+            s = np.sin(2 * math.pi * f * t)
+            c = c - q @ (q.T @ c)
+            s = s - q @ (q.T @ s)
+            a = np.column_stack([s, c])
+            g = a.T @ a
+            if np.linalg.cond(g) > 1e8:
+                continue
+            coef = np.linalg.solve(g, a.T @ v)
+            chi2 = float(coef @ g @ coef) / self.sigma**2
+            if chi2 > best[2]:
+                best = (float(f), float(np.hypot(*coef)), chi2)
+        self.line_frequency = best[0]
+        return {"frequency_Hz": best[0], "amplitude_nm": best[1], "chi2": best[2],
+                "searched": int(freqs.size)}  # fmt: skip
+
+    def _line(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        f = self.line_frequency
+        if not math.isfinite(f):
+            return np.zeros(0), np.zeros(0)
+        idx = self._hold_idx
+        t = self.time[idx]
+        a = np.column_stack([self._nuisance(), np.sin(2 * math.pi * f * t),
+                             np.cos(2 * math.pi * f * t)])  # fmt: skip
+        coef, *_ = np.linalg.lstsq(a, v[idx], rcond=None)
+        cov = np.linalg.pinv(a.T @ a) * self.sigma**2
+        return coef[-2:], np.sqrt(np.clip(np.diag(cov)[-2:], 0.0, None))
+
+    # --- all features ---------------------------------------------------------------------
+    def measure(self, x_nm: np.ndarray, y_nm: np.ndarray | None = None) -> Features:
+        """The features of a detector signal [nm] (x channel; y channel if recorded)."""
+        v = np.asarray(x_nm, float)
+        names: list[str] = []
+        groups: list[str] = []
+        vals: list[float] = []
+        noise: list[float] = []
+        sig = self.sigma
+
+        def add(name: str, group: str, value: float, sd: float) -> None:
+            names.append(name)
+            groups.append(group)
+            vals.append(value)
+            noise.append(max(sd, 1e-12))
+
+        steps, steps_sd = [], []
+        for b in self.bursts:
+            n1, n2 = b.pre[1] - b.pre[0], b.post[1] - b.post[0]
+            steps.append((_mean(v, b.post) - _mean(v, b.pre)) / b.periods)
+            steps_sd.append(sig * math.sqrt(1.0 / n1 + 1.0 / n2) / b.periods)
+            add(f"step per period, {b.label}", "steps", steps[-1], steps_sd[-1])
+        for i, j in self.pairs:  # (forward, backward): (|s+| − |s−|)/(|s+| + |s−|)
+            sp, sm = steps[i], steps[j]
+            tot = sp - sm
+            ratio = (sp + sm) / tot if abs(tot) > 1e-12 else 0.0
+            sd = math.hypot(steps_sd[i], steps_sd[j]) / max(abs(tot), 1e-12)
+            add(f"direction asymmetry, {self.bursts[i].label} / {self.bursts[j].label}",
+                "direction", ratio, sd)  # fmt: skip
+        for h in self.holds:
+            n1, n2 = h.early[1] - h.early[0], h.late[1] - h.late[0]
+            add(f"relaxation, {h.label}", "relaxation", _mean(v, h.late) - _mean(v, h.early),
+                sig * math.sqrt(1.0 / n1 + 1.0 / n2))  # fmt: skip
+        prev: tuple[_Scan, np.ndarray] | None = None
+        poly = np.polynomial.polynomial.polyval
+        for s in self.scans:
+            ys = v[s.span[0] : s.span[1]]
+            a = np.column_stack([np.ones_like(s.xi), s.xi, s.xi**2, s.xi**3])
+            coef, *_ = np.linalg.lstsq(a, ys, rcond=None)
+            sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(a.T @ a)), 0, None)) * sig
+            gain = float(coef[1]) if abs(coef[1]) > 1e-12 else 1e-12
+            add(f"scan gain, {s.label}", "scan", gain, float(sd[1]))
+            # the shape relative to the gain: hysteresis bends a branch by its direction,
+            # a photodiode's gain change is odd in the position
+            add(f"scan curvature / gain, {s.label}", "scan_shape", float(coef[2]) / gain,
+                float(sd[2]) / abs(gain))  # fmt: skip
+            add(f"scan cubic / gain, {s.label}", "scan_shape", float(coef[3]) / gain,
+                float(sd[3]) / abs(gain))  # fmt: skip
+            if prev is not None and prev[0].direction == -s.direction:
+                # the loop: the later branch minus the earlier at equal drive over their
+                # common range, signed so a lagging loop is positive, over the gain
+                p, pc = prev
+                lo, hi = max(p.lo, s.lo), min(p.hi, s.hi)
+                if hi - lo > 0.2 * (s.hi - s.lo):
+                    u = np.linspace(lo, hi, 21)[1:-1]
+                    d = np.mean(poly((2 * u - s.hi - s.lo) / (s.hi - s.lo), coef)
+                                - poly((2 * u - p.hi - p.lo) / (p.hi - p.lo), pc))  # fmt: skip
+                    add(f"scan loop / gain, {p.label} / {s.label}", "loop",
+                        float(-s.direction * d) / abs(gain),
+                        math.sqrt(2.0) * float(sd[0]) / abs(gain))  # fmt: skip
+            prev = (s, coef)
+        if math.isfinite(self.line_frequency):
+            c, sd = self._line(v)
+            add(f"line sin {self.line_frequency:.1f} Hz", "line", float(c[0]), float(sd[0]))
+            add(f"line cos {self.line_frequency:.1f} Hz", "line", float(c[1]), float(sd[1]))
+        if y_nm is not None:
+            y = np.asarray(y_nm, float)
+            xc = v - v.mean()
+            sxx = float(xc @ xc)
+            if sxx > 0:
+                add("y on x slope", "y", float(xc @ (y - y.mean())) / sxx, sig / math.sqrt(sxx))
+        return Features(tuple(names), tuple(groups), np.array(vals), np.array(noise))
+
+
+def group_scores(
+    data: Features, model_a: Features, model_b: Features, n_free: int = 1
+) -> dict[str, dict[str, float]]:
+    """Per group: how much better model b explains the data's features than model a.
+
+    Whitened residuals z = (data − model)/noise; RSS_a, RSS_b; the variance scale
+    s² = max(1, RSS_b/(n − n_free)) when the group has at least
+    ``n_free`` + 3 features, else 1 (an F-test's variance from the richer model: a group
+    both models miss by far is judged by that misfit, not by the detector noise); ``delta`` =
+    (RSS_a − RSS_b)/s² (χ² with ``n_free`` degrees of freedom under "b adds nothing") and
+    ``nats`` = delta/2."""
+    out = {}
+    for g in GROUPS:
+        m = data.group(g)
+        n = int(m.sum())
+        if n == 0:
+            continue
+        za = (data.value[m] - model_a.value[m]) / data.noise[m]
+        zb = (data.value[m] - model_b.value[m]) / data.noise[m]
+        ra, rb = float(za @ za), float(zb @ zb)
+        s2 = max(1.0, rb / (n - n_free)) if n >= n_free + 3 else 1.0
+        out[g] = {"n": n, "rss_a": ra, "rss_b": rb, "scale": s2,
+                  "delta": (ra - rb) / s2, "nats": 0.5 * (ra - rb) / s2}  # fmt: skip
+    return out
