@@ -44,7 +44,7 @@ from pathlib import Path
 from turntable_env.calibration.calibrate import calibrate, write_report
 from turntable_env.scale import BACKENDS, map_tasks
 
-# the independent plant's effect → the catalogue effect a calibrator should name
+# an independent plant's effect → the catalogue effect a calibrator should name
 EXPECTED = {
     "creep": "piezo_creep",
     "hysteresis": "piezo_hysteresis",
@@ -54,8 +54,11 @@ EXPECTED = {
     "sensor_drift": "sensor_drift",
     "detector_nonlinearity": "detector_nonlinearity",
     "axis_misalignment": "axis_misalignment",
+    "contact_wear": "friction_wear",  # the second plant's: friction falls with sliding
     "preload_relaxation": "outside",
     "mount_resonance": "outside",
+    "mains_pickup": "outside",
+    "mirror_play": "outside",
 }
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
 PLANTS = {  # plant → (its traces' default directory, the script that writes them)

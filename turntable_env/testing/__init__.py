@@ -3,8 +3,12 @@
 :mod:`.independent_plant` is a piezo stick–slip turntable simulator written from the
 thesis's physics and the measurement file format only; it shares no model code with the
 rest of the package, so data from it can judge the calibrator fairly.
+:mod:`.second_plant` is a second one, from a different formulation (elasto-plastic
+friction, two table modes, a slewing amplifier); its names overlap the first's, so it is
+exported as a module.
 """
 
+from . import second_plant
 from .independent_plant import (
     PROTOCOLS,
     Burst,
@@ -27,6 +31,7 @@ __all__ = [
     "Protocol",
     "Ramp",
     "build_drive",
+    "second_plant",
     "simulate",
     "write_trace",
 ]
