@@ -407,13 +407,3 @@ def test_named_protocols():
     assert not any(isinstance(s, Scan) for s in PROTOCOLS["stepping_bursts"].segments)
     assert any(isinstance(s, Scan) for s in PROTOCOLS["scan_and_bursts"].segments)
 
-
-@pytest.mark.slow
-def test_a_long_trace_simulates_quickly():
-    import time
-
-    proto = PROTOCOLS["scan_and_bursts"]
-    simulate(P, proto, np.arange(0.0, 0.01, 5e-5))  # compiled
-    t0 = time.perf_counter()
-    simulate(P, proto, np.arange(0.0, 2.5, 5e-5))
-    assert time.perf_counter() - t0 < 20.0
