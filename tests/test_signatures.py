@@ -73,6 +73,10 @@ def _group(f: Features, g: str) -> np.ndarray:
     return f.value[f.group(g)]
 
 
+def _named(f: Features, prefix: str) -> np.ndarray:
+    return np.array([v for n, v in zip(f.names, f.value, strict=True) if n.startswith(prefix)])
+
+
 def test_step_per_period_and_direction_read_the_steps(proto):
     t, u, segs, bursts = proto
     _lay, f = _features(proto, _position(t, u, segs, bursts, (300.0, -240.0, 300.0, -240.0)))
@@ -116,10 +120,10 @@ def test_scan_features_see_a_lagging_loop_and_a_cubic_gain(proto):
     # a lagging loop: the down branch lies above the up branch by 20 nm at equal drive
     lagging = np.where(t >= 0.2, x + 20.0 * np.sin(np.pi * (u / 4.0)), x)
     _lay, f1 = _features(proto, lagging)
-    assert _group(f1, "loop")[0] > _group(f0, "loop")[0] + 5.0 / 400.0
+    assert _named(f1, "scan loop")[0] > _named(f0, "scan loop")[0] + 5.0 / 400.0
     # a gain that grows with the position (odd, cubic): the cubic term over the gain rises
     _lay, f2 = _features(proto, x + 0.1 * x * (x / 400.0) ** 2)
-    assert np.all(_group(f2, "scan_shape")[1::2] > _group(f0, "scan_shape")[1::2] + 0.005)
+    assert np.all(_named(f2, "scan cubic") > _named(f0, "scan cubic") + 0.005)
 
 
 def test_line_found_at_its_frequency_and_read_with_its_phase(proto):

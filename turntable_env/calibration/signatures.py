@@ -21,17 +21,22 @@ direction   pair of opposite bursts of one setting:         friction_asymmetry
 relaxation  hold ≥ ``MIN_HOLD_S``: late − early level (2    piezo_creep (∝ the move before,
             ms windows, the first after ``SETTLE_S``)       decaying), sensor_drift (∝ time)
 scan        scan: gain over the normalised drive            (nominal: stroke, detector gain)
-scan_shape  scan: 2nd and 3rd order terms over the gain     piezo_hysteresis (bends a branch
-                                                            by its direction),
-                                                            detector_nonlinearity (odd, cubic)
-loop        a scan and the next opposite one: later −       piezo_hysteresis (same sign every
-            earlier branch at equal drive, over the gain    pair), sensor_drift (∝ time
-                                                            between them: alternating sign)
+scan_shape  scan: 2nd and 3rd order terms over the gain;    piezo_hysteresis (bends a branch
+            the loop of a scan and the next opposite one:   by its direction; a loop of one
+            later − earlier branch at equal drive, over     sign), detector_nonlinearity
+            the gain                                        (odd, cubic), sensor_drift (a
+                                                            loop ∝ the time between scans,
+                                                            alternating in sign)
 line        sine and cosine of the strongest spectral line  vibration
             in the holds (each hold's level, slope and
             curvature removed)
 y           slope of the y channel on the x channel         axis_misalignment
 ==========  ==============================================  ==================================
+
+The loop is one group with the scan's shape: a group needs more features than a candidate
+has parameters to estimate its own misfit variance (:func:`group_scores`), and one loop
+per pair of scans is too few for that — judged against the detector noise alone, a model
+of another structure would make any loop-shaped effect look certain.
 
 The steps and scan gains are the nominal model's (:data:`NOMINAL_GROUPS`): a fitted
 nominal model matches them as well as its structure allows, and an effect that changes
@@ -69,7 +74,7 @@ WINDOW_S = 2e-3  # s, a level's averaging window
 MIN_HOLD_S = 8e-3  # s, shortest hold whose relaxation is measured
 LINE_FMIN_HZ = 5.0  # Hz, lowest line searched (below: trends)
 LINE_FMAX_HZ = 1000.0  # Hz, highest (the catalogue's vibration range)
-GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "loop", "line", "y")
+GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "line", "y")
 # the groups no effect is needed for: the nominal model's own (stroke, friction, gain)
 NOMINAL_GROUPS = ("steps", "scan")
 # the groups an effect's signature lies in: decisions are scored on these
@@ -78,13 +83,13 @@ SIGNATURE_GROUPS = tuple(g for g in GROUPS if g not in NOMINAL_GROUPS)
 EFFECT_GROUPS: dict[str, tuple[str, ...]] = {
     "amplifier_dynamics": ("steps",),
     "amplifier_fast_path": ("steps",),
-    "piezo_hysteresis": ("scan_shape", "loop"),
+    "piezo_hysteresis": ("scan_shape",),
     "piezo_creep": ("relaxation",),
     "friction_asymmetry": ("direction",),
     "friction_wear": ("steps",),
     "axis_misalignment": ("y",),
     "detector_nonlinearity": ("scan_shape",),
-    "sensor_drift": ("relaxation", "loop"),
+    "sensor_drift": ("relaxation", "scan_shape"),
     "vibration": ("line",),
 }
 
@@ -354,7 +359,7 @@ class SignatureLayout:
                     u = np.linspace(lo, hi, 21)[1:-1]
                     d = np.mean(poly((2 * u - s.hi - s.lo) / (s.hi - s.lo), coef)
                                 - poly((2 * u - p.hi - p.lo) / (p.hi - p.lo), pc))  # fmt: skip
-                    add(f"scan loop / gain, {p.label} / {s.label}", "loop",
+                    add(f"scan loop / gain, {p.label} / {s.label}", "scan_shape",
                         float(-s.direction * d) / abs(gain),
                         math.sqrt(2.0) * float(sd[0]) / abs(gain))  # fmt: skip
             prev = (s, coef)
