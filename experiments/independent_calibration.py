@@ -1,7 +1,7 @@
 """Calibrate an independent plant's traces and print the before/after table (issues 19, 31).
 
     python experiments/independent_calibration.py [--plant first|second] [--traces DIR]
-        [--only NAME ...] [--base calibrated] [--out DIR]
+        [--only NAME ...] [--base real|thesis|calibrated] [--out DIR]
         [--backend auto|ray|processes [--address auto]]
 
 ``--plant first`` is ``turntable_env/testing/independent_plant.py`` (its traces by
@@ -128,7 +128,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plant", choices=sorted(PLANTS), default="first")
     ap.add_argument("--traces", default=None, help="trace directory (default: by --plant)")
     ap.add_argument("--only", nargs="*", default=None, help="trace names (default: all)")
-    ap.add_argument("--base", default="calibrated")
+    ap.add_argument("--base", default="real",
+                    help="the prior parameter set, as turntable calibrate --base (default real)")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--out", default=None, help="default experiments/results/<plant>_calibration")
     ap.add_argument(

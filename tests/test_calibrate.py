@@ -32,28 +32,7 @@ def _run(effects):
     return calibrate([m], progress=None)
 
 
-DRIFT_MISS = pytest.mark.xfail(
-    reason="issue 19 regression: the anchored residual re-reads every segment, so a sensor "
-    "drift leaves only its within-segment slope (held-out 5.1 nm before against a 2.8 nm "
-    "floor: a 3x drop is impossible) and it is not selected",
-    strict=False,
-)
-OUTPUT_MISS = pytest.mark.xfail(
-    reason="issue 19 regression: the nominal fit (ten free factors, detector gain among them) "
-    "absorbs part of this detector-side effect and the candidate is not accepted "
-    "(held-out gain, 3-sigma or portion-consistency rule)",
-    strict=False,
-)
-MISSES = {
-    "sensor_drift": DRIFT_MISS,
-    "vibration": OUTPUT_MISS,
-    "detector_nonlinearity": OUTPUT_MISS,
-}
-
-
-@pytest.mark.parametrize(
-    "name", [pytest.param(n, marks=MISSES[n]) if n in MISSES else n for n in CASES]
-)
+@pytest.mark.parametrize("name", list(CASES))
 def test_undeclared_effect_is_named_and_the_error_drops(name):
     res = _run({name: CASES[name]})
     assert name in res.selected_effects
@@ -69,7 +48,6 @@ def test_clean_data_selects_nothing_and_is_white():
     assert res.error_after == pytest.approx(1e-3 * 9.9e-5 / (2 * 0.175) * 0.01 * 1e9, rel=0.05)
 
 
-@DRIFT_MISS
 def test_two_effects_at_once_are_both_found(tmp_path):
     res = _run({"piezo_creep": {"gamma": 0.02}, "sensor_drift": {"offset": 0.0, "rate": 0.1}})
     assert {"piezo_creep", "sensor_drift"} <= set(res.selected_effects)
@@ -85,7 +63,6 @@ def test_two_effects_at_once_are_both_found(tmp_path):
     assert paths["md"].read_text().startswith("# Calibration report")
 
 
-@DRIFT_MISS
 def test_several_files_are_fitted_together():
     """Two short files (the §4.1.3 thesis protocol, different noise realisations), a
     drift in both: found from both, the held-out error over both drops 3×."""

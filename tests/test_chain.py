@@ -78,14 +78,7 @@ def test_creep_found_in_lab_data_keeps_creeping_in_the_env(tmp_path):
     [
         "piezo_creep",
         "piezo_hysteresis",
-        pytest.param(
-            "vibration",
-            marks=pytest.mark.xfail(
-                reason="issue 19 regression: the rebuilt calibrator does not accept vibration "
-                "on the standard protocol (see tests/test_calibrate.py OUTPUT_MISS)",
-                strict=False,
-            ),
-        ),
+        "vibration",
     ],
 )
 def test_effect_found_by_the_full_calibration_runs_in_the_env(tmp_path, name):

@@ -126,11 +126,15 @@ def test_scan_features_see_a_lagging_loop_and_a_cubic_gain(proto):
     assert np.all(_named(f2, "scan cubic") > _named(f0, "scan cubic") + 0.005)
 
 
-def test_line_found_at_its_frequency_and_read_with_its_phase(proto):
+@pytest.mark.parametrize(
+    "f_hz, amp",
+    [(123.0, 3.0),  # several periods per hold
+     (12.0, 10.0)],  # 0.6 period per median hold (48 ms): found though slower than a hold
+)  # fmt: skip
+def test_line_found_at_its_frequency_and_read_with_its_phase(proto, f_hz, amp):
     t, u, segs, bursts = proto
     rng = np.random.default_rng(3)
     x = _position(t, u, segs, bursts)
-    f_hz, amp = 123.0, 3.0
     noisy = x + amp * np.sin(2 * np.pi * f_hz * t + 0.4) + rng.normal(0.0, SIGMA, t.size)
     lay = SignatureLayout(t, u, segs, SIGMA)
     found = lay.find_line(noisy - x)

@@ -10,7 +10,12 @@ import pytest
 from turntable_env.calibration.calibrate import calibrate
 from turntable_env.calibration.residual import Anchoring, noise_floor
 from turntable_env.calibration.segments import read_drive, segment_trace, split_portions
-from turntable_env.calibration.trace_fit import correlation_length, identifiable_effects
+from turntable_env.calibration.trace_fit import (
+    LocalFit,
+    _main_at_bound,
+    correlation_length,
+    identifiable_effects,
+)
 from turntable_env.calibration.virtual_lab import run_virtual_lab
 
 
@@ -142,3 +147,21 @@ def test_the_z_axis_is_refused_with_the_reason(tmp_path):
     z = replace(m, axis="Z", drives={"Z": m.drives[m.axis]})
     with pytest.raises(ValueError, match="axis 'Z'"):
         calibrate([z], progress=None, global_points=0)
+
+
+@pytest.mark.parametrize(
+    "name, values, pinned",
+    [
+        ("friction_wear", {"beta": -0.5}, True),  # at the lower end of its range
+        ("friction_wear", {"beta": 0.5}, True),  # at the upper end
+        ("friction_wear", {"beta": 0.3}, False),  # inside
+        ("vibration", {"amplitude": 0.0, "frequency": 50.0, "phase": -np.pi}, False),  # off
+        ("piezo_creep", {"gamma": 0.05}, True),
+    ],
+)
+def test_an_effect_pinned_at_its_bound_is_told_apart(name, values, pinned):
+    """After the joint refit, a main parameter at a bound of its range away from neutral
+    marks an effect standing in for something else; at neutral (off) it does not, nor do
+    the other parameters (a phase at ±π)."""
+    fit = LocalFit(np.zeros(1), {name: values}, np.zeros(1), {}, 0.0, 1.0, 1.0, 0)
+    assert bool(_main_at_bound(fit, name)) is pinned

@@ -173,7 +173,8 @@ def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
         lines.append(
             f"- spectral line in the holds: {f:.1f} Hz, {ln['amplitude_nm']:.3g} nm, χ² "
             f"{ln['chi2']:.1f} against a false-alarm level of {ln['threshold_chi2']:.1f} "
-            f"({'found' if ln['chi2'] >= ln['threshold_chi2'] else 'none'})"
+            f"({'found' if ln['chi2'] >= ln['threshold_chi2'] else 'none'}; searched "
+            f"{ln.get('searched', 0)} frequencies from {ln.get('lowest_Hz', float('nan')):.1f} Hz)"
             if f == f else "- no hold long enough to search for a spectral line"
         )
     for rnd in sig.get("rounds", []):
@@ -183,8 +184,11 @@ def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
         )
         margin = dec["margin_nats"]
         lead = f" (lead {margin:.1f} nats)" if dec["named"] and margin != float("inf") else ""
+        if dec.get("rejected"):
+            lead += f", then not named: {dec['rejected']}"
         lines += [
             "",
+            f"Round {rnd['round']}: led by {named}{lead}." if dec.get("rejected") else
             f"Round {rnd['round']}: named {named}{lead}.",
             "",
             "| candidate | groups | gain on them [nats] | over all [nats] | best at neutral "

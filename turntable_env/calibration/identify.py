@@ -18,8 +18,10 @@ effects already named):
    signature groups (:data:`~.signatures.SIGNATURE_GROUPS`: not the step sizes and scan
    gains the nominal model is fitted to, which a refit restores); the profile and the
    search minimise the misfit of those groups alone (what a candidate does to the other
-   groups is reported, and the joint refit on the trace settles the nominal model)
-   groups. A candidate whose
+   groups is reported, and the joint refit on the trace settles the nominal model),
+   and it changes the predicted trace by at least the noise floor (RMS; an effect too
+   small to see in the trace is not a finding, whatever its features say). A main
+   parameter at a bound of its range is noted, not disqualifying. A candidate whose
    profile is best at its neutral value is reported so (``at_neutral``), never silently
    equal to the nominal model.
 
@@ -68,7 +70,8 @@ class CandidateFit:
     """One candidate's search: its parameter ``values``, the ``profile`` [(first
     parameter, objective)], the objective at the optimum and at neutral, whether the
     optimum is at neutral, per-group ``scores`` against the current model (nats), the
-    gains on its declared groups and over all, and ``significant``."""
+    gains on its declared groups and over all, ``significant``, a ``note`` on why not,
+    and ``size``: the RMS change of the predicted trace over the noise floor."""
 
     name: str
     values: dict[str, float]
@@ -81,6 +84,7 @@ class CandidateFit:
     total_nats: float
     significant: bool
     note: str = ""
+    size: float = 0.0  # RMS change of the predicted trace over the noise floor
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -95,6 +99,7 @@ class CandidateFit:
             "total_nats": self.total_nats,
             "group_nats": {g: s["nats"] for g, s in self.scores.items()},
             "significant": self.significant,
+            "size_over_floor": self.size,
             "note": self.note,
         }
 
@@ -285,11 +290,37 @@ class SignatureSearch:
         scores = group_scores(d, base, feats, n_free=len(free))
         gain = sum(scores[g]["nats"] for g in declared if g in scores)
         total = sum(s["nats"] for g, s in scores.items() if g in SIGNATURE_GROUPS)
+        size = self._effect_size(x, effects, {**effects, name: best})
+        at_bound = min(best[p0.name] - p0.low, p0.high - best[p0.name]) <= 1e-3 * (
+            p0.high - p0.low) and abs(best[p0.name] - p0.neutral) > 1e-3 * (p0.high - p0.low)
+        notes = []
+        if at_bound:
+            notes.append(f"{p0.name} at its bound with the nominal model held (the joint "
+                         "refit decides)")  # fmt: skip
+        if size < 1.0:
+            notes.append(f"changes the trace by {size:.2f}× the noise floor only")
+        # at a bound is reported, not disqualifying: with the nominal model held at its fit
+        # (itself a compromise without the effect) a true effect can ask for more
+        ok = not at_neutral and size >= 1.0
         return CandidateFit(
             name, best, profile, j_best, j_neutral, bool(at_neutral), scores, float(gain),
             float(total),
-            bool(not at_neutral and gain >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
+            bool(ok and gain >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
+            "; ".join(notes), float(size),
         )  # fmt: skip
+
+    def _effect_size(self, x: np.ndarray, without: Effects, with_: Effects) -> float:
+        """How much a candidate changes the predicted detector channels: the largest RMS
+        change [nm] of a trace's x or y channel over that trace's noise floor."""
+        size = 0.0
+        for (xa, ya), (xb, yb), tr in zip(self._signals(x, without), self._signals(x, with_),
+                                          self.traces, strict=True):  # fmt: skip
+            s, floor = tr[5], tr[6]
+            chans = [(xa, xb)] + ([(ya, yb)] if tr[4] is not None else [])
+            for a, b in chans:
+                rms = float(np.sqrt(np.mean(((b - a) * s) ** 2)))
+                size = max(size, rms / max(floor, 1e-12))
+        return size
 
     @staticmethod
     def not_run(name: str, why: str) -> CandidateFit:

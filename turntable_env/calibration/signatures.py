@@ -16,8 +16,10 @@ group       feature (one per ...)                           effects whose signat
 ==========  ==============================================  ==================================
 steps       burst: net step per period, (level early in     (nominal: stroke, friction);
             the next hold − level before) / periods         friction_wear, amplifier_*
-direction   pair of opposite bursts of one setting:         friction_asymmetry
-            (|s₊| − |s₋|) / (|s₊| + |s₋|)
+direction   pair of opposite bursts of one setting:         friction_asymmetry (constant per
+            (|s₊| − |s₋|) / (|s₊| + |s₋|)                   setting); friction_wear (the
+                                                            pair's later burst, shrinking
+                                                            with the travel before it)
 relaxation  hold ≥ ``MIN_HOLD_S``: late − early level (2    piezo_creep (∝ the move before,
             ms windows, the first after ``SETTLE_S``)       decaying), sensor_drift (∝ time)
 scan        scan: gain over the normalised drive            (nominal: stroke, detector gain)
@@ -74,6 +76,7 @@ WINDOW_S = 2e-3  # s, a level's averaging window
 MIN_HOLD_S = 8e-3  # s, shortest hold whose relaxation is measured
 LINE_FMIN_HZ = 5.0  # Hz, lowest line searched (below: trends)
 LINE_FMAX_HZ = 1000.0  # Hz, highest (the catalogue's vibration range)
+LINE_MIN_PERIODS = 0.2  # periods of the lowest line searched in the median hold
 GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "line", "y")
 # the groups no effect is needed for: the nominal model's own (stroke, friction, gain)
 NOMINAL_GROUPS = ("steps", "scan")
@@ -86,7 +89,8 @@ EFFECT_GROUPS: dict[str, tuple[str, ...]] = {
     "piezo_hysteresis": ("scan_shape",),
     "piezo_creep": ("relaxation",),
     "friction_asymmetry": ("direction",),
-    "friction_wear": ("steps",),
+    # a pair's bursts run in time order: wear (μ with the travel) makes the later one differ
+    "friction_wear": ("steps", "direction"),
     "axis_misalignment": ("y",),
     "detector_nonlinearity": ("scan_shape",),
     "sensor_drift": ("relaxation", "scan_shape"),
@@ -254,8 +258,8 @@ class SignatureLayout:
 
     def find_line(self, signal_nm: np.ndarray) -> dict[str, float]:
         """The strongest sinusoid in the holds of ``signal_nm`` (each hold's level, slope and
-        curvature removed): frequency [Hz] on a grid of 1/(4·span) from one period per
-        median hold (at least ``LINE_FMIN_HZ``) to
+        curvature removed): frequency [Hz] on a grid of 1/(4·span) from
+        ``LINE_MIN_PERIODS`` periods per median hold (at least ``LINE_FMIN_HZ``) to
         min(``LINE_FMAX_HZ``, Nyquist/4), amplitude [nm] and its χ² (power over the noise,
         2 degrees of freedom); sets the frequency :meth:`measure` reads."""
         idx = self._hold_idx
@@ -268,9 +272,10 @@ class SignatureLayout:
         v = v - q @ (q.T @ v)
         span = float(t[-1] - t[0])
         fmax = min(LINE_FMAX_HZ, 0.25 / self.dt)
-        # at least one period in the median hold: slower is a trend there
+        # a fifth of a period in the median hold: a slower line is a trend there (its
+        # residue after each hold's level, slope and curvature is below a cubic's third)
         durations = np.bincount(self._hold_of) * self.dt
-        fmin = max(LINE_FMIN_HZ, 1.0 / float(np.median(durations)))
+        fmin = max(LINE_FMIN_HZ, LINE_MIN_PERIODS / float(np.median(durations)))
         freqs = np.arange(fmin, fmax, 1.0 / (4.0 * span))
         best = (math.nan, 0.0, 0.0)
         for f in freqs:
@@ -288,7 +293,7 @@ class SignatureLayout:
                 best = (float(f), float(np.hypot(*coef)), chi2)
         self.line_frequency = best[0]
         return {"frequency_Hz": best[0], "amplitude_nm": best[1], "chi2": best[2],
-                "searched": int(freqs.size)}  # fmt: skip
+                "searched": int(freqs.size), "lowest_Hz": float(fmin)}  # fmt: skip
 
     def _line(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         f = self.line_frequency
