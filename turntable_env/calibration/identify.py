@@ -53,6 +53,7 @@ __all__ = [
     "Decision",
     "SignatureSearch",
     "decide",
+    "main_at_bound",
 ]
 
 SIGNIFICANT_NATS = 4.5  # χ² of 9 (3σ for one parameter) on its groups and over all
@@ -131,6 +132,22 @@ def decide(fits: Sequence[CandidateFit]) -> Decision:
         tied = [f.name for f in sig if sig[0].total_nats - f.total_nats < TIE_NATS]
         return Decision(None, margin, tied)
     return Decision(sig[0].name, margin)
+
+
+def main_at_bound(name: str, values: Mapping[str, float], parameter: str | None = None) -> str:
+    """``name.parameter = value`` when an effect's main parameter (``parameter``, default
+    its first) sits at a bound of its range (within 0.1 % of the range) away from
+    neutral, else "". After a
+    joint refit with the nominal model, an effect that still asks for more than its range
+    stands in for a structure it cannot be (a true one of the catalogue's size ends
+    inside)."""
+    ps = CATALOGUE[name].parameters
+    p = next(q for q in ps if q.name == parameter) if parameter else ps[0]
+    v = float(values[p.name])
+    tol = 1e-3 * (p.high - p.low)
+    if abs(v - p.neutral) > tol and min(v - p.low, p.high - v) < tol:
+        return f"{name}.{p.name} = {v:.4g}"
+    return ""
 
 
 class SignatureSearch:
@@ -291,10 +308,8 @@ class SignatureSearch:
         gain = sum(scores[g]["nats"] for g in declared if g in scores)
         total = sum(s["nats"] for g, s in scores.items() if g in SIGNATURE_GROUPS)
         size = self._effect_size(x, effects, {**effects, name: best})
-        at_bound = min(best[p0.name] - p0.low, p0.high - best[p0.name]) <= 1e-3 * (
-            p0.high - p0.low) and abs(best[p0.name] - p0.neutral) > 1e-3 * (p0.high - p0.low)
         notes = []
-        if at_bound:
+        if main_at_bound(name, best, p0.name):
             notes.append(f"{p0.name} at its bound with the nominal model held (the joint "
                          "refit decides)")  # fmt: skip
         if size < 1.0:

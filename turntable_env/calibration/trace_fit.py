@@ -63,7 +63,7 @@ import scipy.stats.qmc
 
 from ..effects import CATALOGUE, apply_output
 from ..plant import Plant
-from .identify import SignatureSearch, decide
+from .identify import SignatureSearch, decide, main_at_bound
 from .measurement import Measurement, load_measurement
 from .nominal import NominalModel
 from .residual import (
@@ -778,7 +778,7 @@ def _accept_one(
     """The first of the best screened candidates, refitted jointly with the nominal model,
     that beats the nominal model refitted with the same budget by ``min_improvement`` on
     held-out data, lies 3 σ from neutral, agrees between portions and has its main
-    parameter inside its range (:func:`_main_at_bound`); None if none does."""
+    parameter inside its range (:func:`~.identify.main_at_bound`); None if none does."""
     refit_nom = local_fit(problem, current.x, current.effects,
                           free_effects=selected, max_nfev=6)  # fmt: skip
     baseline = min(current.heldout_rms, refit_nom.heldout_rms)
@@ -797,7 +797,7 @@ def _accept_one(
         )
         if at_bound:
             warnings.append(f"{n}: {', '.join(at_bound)} at its bound")
-        pinned = _main_at_bound(cand, n)
+        pinned = main_at_bound(n, cand.effects[n])
         if pinned:
             say(f"  {n}: {pinned} at its bound (it stands in for a structure it cannot be)")
         if gain >= min_improvement and sig and ok and not pinned:
@@ -824,7 +824,7 @@ def _by_signature(
     """One round of identification by signature (:mod:`.identify`): every candidate fitted
     to the features it must explain; the one named (if any) refitted jointly with the
     nominal model on the trace, the better of that and the signature fit on held-out
-    data kept — unless its main parameter stays at a bound (:func:`_main_at_bound`), when
+    data kept — unless its main parameter stays at a bound (:func:`~.identify.main_at_bound`), when
     nothing is named. (name, fit, the round for the report)."""
     base = search.features(current.x, current.effects)
     fits = []
@@ -855,7 +855,7 @@ def _by_signature(
     fit = joint if joint.heldout_rms <= sig_fit.heldout_rms else replace(
         sig_fit, std_effects={**sig_fit.std_effects, **joint.std_effects})  # fmt: skip
     rnd["heldout_error"] = {"signature_fit": sig_fit.heldout_rms, "joint_refit": joint.heldout_rms}
-    pinned = _main_at_bound(fit, n)
+    pinned = main_at_bound(n, fit.effects[n])
     if pinned:
         rnd["decision"]["rejected"] = f"{pinned} at its bound after the joint refit"
         say(f"  by signature: {n} not named: {pinned} stays at its bound with the nominal "
@@ -936,19 +936,6 @@ def _fitted(
         for k, s in current.std_effects.get(name, {}).items():
             unc[f"{name}.{k}"] = float(s)
     return params, plant.replace(uncertainty=unc)
-
-
-def _main_at_bound(fit: LocalFit, name: str) -> str:
-    """``name.parameter = value`` when an effect's main parameter (its first) sits at a
-    bound of its range away from neutral, else "": after a joint refit with the nominal
-    model, an effect that still asks for more than its range is standing in for a
-    structure it cannot be (a true one of the catalogue's size ends inside)."""
-    p = CATALOGUE[name].parameters[0]
-    v = fit.effects[name][p.name]
-    tol = 1e-3 * (p.high - p.low)
-    if abs(v - p.neutral) > tol and min(v - p.low, p.high - v) < tol:
-        return f"{name}.{p.name} = {v:.4g}"
-    return ""
 
 
 def _at_bounds_effect(fit: LocalFit, name: str) -> list[str]:
