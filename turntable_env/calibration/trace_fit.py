@@ -453,6 +453,74 @@ def _init_worker(problem: TraceProblem) -> None:
     _WORKER = problem
 
 
+_SEARCH: SignatureSearch | None = None
+
+
+def _init_selection(problem: TraceProblem, search: SignatureSearch) -> None:
+    """A worker of the effect rounds: its copy of the problem and the signature search."""
+    global _SEARCH
+    _init_worker(problem)
+    _SEARCH = search
+
+
+def _worker_candidate(job: tuple[str, str, np.ndarray, dict, Any]) -> tuple[Any, int]:
+    """One candidate in a worker: ("signature", name, x, effects, base features) →
+    (CandidateFit, simulations run); ("screen", name, x, LocalFit, None) →
+    (LocalFit or the error's text, simulations run)."""
+    assert _WORKER is not None and _SEARCH is not None
+    n0 = _WORKER.n_sims
+    return _run_candidate(_WORKER, _SEARCH, job), _WORKER.n_sims - n0
+
+
+def _run_candidate(problem: TraceProblem, search: SignatureSearch, job: tuple) -> Any:
+    kind, name, x, current, base = job
+    if kind == "signature":
+        try:
+            return search.fit_candidate(name, x, current, base)
+        except Exception as exc:  # a candidate that cannot run is reported, not fatal
+            return search.not_run(name, f"failed: {exc}")
+    try:
+        return screen_effect(problem, current, name)
+    except Exception as exc:
+        return f"{exc}"
+
+
+class _Candidates:
+    """Candidate searches of the effect rounds, over ``workers`` processes when > 1 (each
+    with its own copy of the problem and the search, made when the rounds start; every
+    candidate's search is deterministic, so the result does not depend on ``workers``).
+    Candidates on the input and friction stages re-simulate the plant for every
+    evaluation and go first; output-stage ones reuse the cached angle."""
+
+    def __init__(self, problem: TraceProblem, search: SignatureSearch, workers: int) -> None:
+        self.problem, self.search, self.workers = problem, search, workers
+        self._pool: ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> _Candidates:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+
+    def run(self, jobs: list[tuple]) -> list[Any]:
+        """Each job's result, in the jobs' order."""
+        if self.workers <= 1 or len(jobs) <= 1:
+            return [_run_candidate(self.problem, self.search, j) for j in jobs]
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(
+                self.workers, initializer=_init_selection, initargs=(self.problem, self.search)
+            )
+        order = sorted(range(len(jobs)), key=lambda k: CATALOGUE[jobs[k][1]].stage == "output")
+        futures = {k: self._pool.submit(_worker_candidate, jobs[k]) for k in order}
+        out = []
+        for k in range(len(jobs)):
+            res, n = futures[k].result()
+            self.problem.n_sims += n
+            out.append(res)
+        return out
+
+
 def _worker_objective(x: np.ndarray) -> float:
     assert _WORKER is not None
     try:
@@ -680,8 +748,9 @@ def calibrate_traces(
     if base_plant.params.amplifier.fast_fraction > 0 and "amplifier_fast_path" in considered:
         considered.remove("amplifier_fast_path")  # the base plant has one already
     current, selected, history, candidates_out, signature = _select_effects(
-        problem, nominal, considered, floor, max_effects, min_improvement, warnings, say
-    )
+        problem, nominal, considered, floor, max_effects, min_improvement, warnings, say,
+        n_workers,
+    )  # fmt: skip
     diag = diagnose(problem, current, floor)
     diag["signatures"] = signature
     diag.update(
@@ -751,19 +820,17 @@ def _fit_nominal(
 
 
 def _screen(
-    problem: TraceProblem, current: LocalFit, considered: Sequence[str], selected: list[str],
+    pool: _Candidates, current: LocalFit, considered: Sequence[str], selected: list[str],
     warnings: list[str], say: Callable[[str], None],
 ) -> list[tuple[str, LocalFit]]:  # fmt: skip
     """Every candidate not yet selected screened on the current model (a candidate that
-    cannot run is reported, not fatal)."""
+    cannot run is reported, not fatal), over the pool's workers."""
+    names = [n for n in considered if n not in selected]
     screened = []
-    for n in considered:
-        if n in selected:
-            continue
-        try:
-            c = screen_effect(problem, current, n)
-        except Exception as exc:
-            warnings.append(f"{n}: screening failed ({exc})")
+    for n, c in zip(names, pool.run([("screen", n, current.x, current, None) for n in names]),
+                    strict=True):  # fmt: skip
+        if isinstance(c, str):
+            warnings.append(f"{n}: screening failed ({c})")
             continue
         screened.append((n, c))
         say(f"  candidate {n:<22} held-out {c.heldout_rms:.3g} {ERROR_UNIT}")
@@ -818,7 +885,7 @@ def _signature_search(problem: TraceProblem) -> SignatureSearch:
 
 
 def _by_signature(
-    problem: TraceProblem, search: SignatureSearch, current: LocalFit,
+    problem: TraceProblem, pool: _Candidates, current: LocalFit,
     considered: Sequence[str], selected: list[str], say: Callable[[str], None],
 ) -> tuple[str | None, LocalFit | None, dict[str, Any]]:  # fmt: skip
     """One round of identification by signature (:mod:`.identify`): every candidate fitted
@@ -826,20 +893,17 @@ def _by_signature(
     nominal model on the trace, the better of that and the signature fit on held-out
     data kept — unless its main parameter stays at a bound (:func:`~.identify.main_at_bound`), when
     nothing is named. (name, fit, the round for the report)."""
-    base = search.features(current.x, current.effects)
-    fits = []
-    for n in considered:
-        if n in selected:
-            continue
-        try:
-            fits.append(search.fit_candidate(n, current.x, current.effects, base))
-        except Exception as exc:  # a candidate that cannot run is reported, not fatal
-            fits.append(search.not_run(n, f"failed: {exc}"))
-        f = fits[-1]
+    base = pool.search.features(current.x, current.effects)
+    names = [n for n in considered if n not in selected]
+    fits = pool.run([("signature", n, current.x, dict(current.effects), base) for n in names])
+    for f in fits:
+        n = f.name
         neutral = " (best at neutral)" if f.at_neutral else ""
         neutral += f" ({f.note})" if f.note and not f.at_neutral else ""
-        say(f"  signature {n:<22} gain {f.declared_nats:7.1f} nats on "
-            f"{'+'.join(f.to_json()['declared_groups'])}, {f.total_nats:.1f} over all{neutral}")
+        say(
+            f"  signature {n:<22} gain {f.declared_nats:7.1f} nats on "
+            f"{'+'.join(f.to_json()['declared_groups'])}, {f.total_nats:.1f} over all{neutral}"
+        )
     dec = decide(fits)
     rnd = {"decision": dec.to_json(), "candidates": [f.to_json() for f in fits]}
     if dec.named is None:
@@ -869,6 +933,7 @@ def _by_signature(
 def _select_effects(
     problem: TraceProblem, nominal: LocalFit, considered: Sequence[str], floor: float,
     max_effects: int, min_improvement: float, warnings: list[str], say: Callable[[str], None],
+    workers: int = 1,
 ) -> tuple[LocalFit, list[str], list[dict], list[dict], dict[str, Any]]:  # fmt: skip
     """Effects, only after the nominal model fits: rounds until none helps or
     ``max_effects`` are in. Each round first asks the signatures (:func:`_by_signature`);
@@ -882,37 +947,48 @@ def _select_effects(
     candidates_out: list[dict[str, Any]] = []
     search = _signature_search(problem)
     signature: dict[str, Any] = {"lines": search.find_lines(nominal.x, {}), "rounds": []}
-    while len(selected) < max_effects and considered:
-        n, fit, rnd = _by_signature(problem, search, current, considered, selected, say)
-        rnd["round"] = len(selected) + 1
-        signature["rounds"].append(rnd)
-        how = "signature"
-        if n is None:
-            if current.heldout_rms <= FLOOR_REACHED * floor:
-                say("  residual at the noise floor: no effect searched on the trace")
+    with _Candidates(problem, search, workers) as pool:
+        while len(selected) < max_effects and considered:
+            current, n, how = _round(
+                problem, pool, current, considered, selected, floor, min_improvement, warnings,
+                candidates_out, signature, say,
+            )  # fmt: skip
+            if n is None:
                 break
-            screened = _screen(problem, current, considered, selected, warnings, say)
-            candidates_out += [
-                {"round": len(selected) + 1, "effect": c, "heldout_error": f.heldout_rms}
-                for c, f in screened
-            ]
-            if not screened:
-                break
-            top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
-            accepted = _accept_one(problem, current, top, selected, min_improvement, warnings,
-                                   say)  # fmt: skip
-            if accepted is None:
-                say("  no effect beats the nominal model on held-out data")
-                break
-            n, fit = accepted
-            how = "held-out trace error"
-        assert fit is not None
-        current = fit
-        selected.append(n)
-        history.append({"effects": list(selected), "heldout_rms": current.heldout_rms,
-                        "decided_by": how})  # fmt: skip
-        say(f"selected {n} ({how}): held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
+            selected.append(n)
+            history.append({"effects": list(selected), "heldout_rms": current.heldout_rms,
+                            "decided_by": how})  # fmt: skip
+            say(f"selected {n} ({how}): held-out error {current.heldout_rms:.3g} {ERROR_UNIT}")
     return current, selected, history, candidates_out, signature
+
+
+def _round(
+    problem: TraceProblem, pool: _Candidates, current: LocalFit, considered: Sequence[str],
+    selected: list[str], floor: float, min_improvement: float, warnings: list[str],
+    candidates_out: list[dict[str, Any]], signature: dict[str, Any], say: Callable[[str], None],
+) -> tuple[LocalFit, str | None, str]:  # fmt: skip
+    """One round of :func:`_select_effects`: (the fit, the effect named or None, how)."""
+    n, fit, rnd = _by_signature(problem, pool, current, considered, selected, say)
+    rnd["round"] = len(selected) + 1
+    signature["rounds"].append(rnd)
+    if n is not None and fit is not None:
+        return fit, n, "signature"
+    if current.heldout_rms <= FLOOR_REACHED * floor:
+        say("  residual at the noise floor: no effect searched on the trace")
+        return current, None, ""
+    screened = _screen(pool, current, considered, selected, warnings, say)
+    candidates_out += [
+        {"round": len(selected) + 1, "effect": c, "heldout_error": f.heldout_rms}
+        for c, f in screened
+    ]
+    if not screened:
+        return current, None, ""
+    top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
+    accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say)
+    if accepted is None:
+        say("  no effect beats the nominal model on held-out data")
+        return current, None, ""
+    return accepted[1], accepted[0], "held-out trace error"
 
 
 def _fitted(
