@@ -53,6 +53,7 @@ __all__ = [
     "Decision",
     "SignatureSearch",
     "decide",
+    "free_parameters",
     "main_at_bound",
 ]
 
@@ -62,6 +63,9 @@ LINE_P_VALUE = 1e-3  # false-alarm probability of a spectral line over the whole
 POWELL_EVALS = 40  # objective evaluations of the bounded search per candidate
 # the parameter profiled (else an effect's first)
 MAIN_PARAMETER = {"sensor_drift": "rate", "vibration": "amplitude"}
+# held at their start: the line's frequency (found by the line search), the drift's offset
+# (the features are level differences)
+HELD_PARAMETERS = {"vibration": ("frequency",), "sensor_drift": ("offset",)}
 
 Effects = Mapping[str, Mapping[str, float]]
 
@@ -96,6 +100,7 @@ class CandidateFit:
             "objective_neutral": self.objective_neutral,
             "at_neutral": self.at_neutral,
             "declared_groups": list(EFFECT_GROUPS.get(self.name, ())),
+            "n_free": len(free_parameters(self.name)),
             "declared_nats": self.declared_nats,
             "total_nats": self.total_nats,
             "group_nats": {g: s["nats"] for g, s in self.scores.items()},
@@ -132,6 +137,13 @@ def decide(fits: Sequence[CandidateFit]) -> Decision:
         tied = [f.name for f in sig if sig[0].total_nats - f.total_nats < TIE_NATS]
         return Decision(None, margin, tied)
     return Decision(sig[0].name, margin)
+
+
+def free_parameters(name: str) -> list[Any]:
+    """The parameters of an effect its signature search moves (their number is the
+    F-test's degrees of freedom, :func:`~.signatures.group_scores`)."""
+    held = HELD_PARAMETERS.get(name, ())
+    return [p for p in CATALOGUE[name].parameters if p.high > p.low and p.name not in held]
 
 
 def main_at_bound(name: str, values: Mapping[str, float], parameter: str | None = None) -> str:
@@ -284,8 +296,7 @@ class SignatureSearch:
         v_best, j_best = min(profile, key=lambda vj: vj[1])
         best = {**start, p0.name: v_best}
         # bounded Powell in range-normalised coordinates over the parameters that move
-        fixed = {"vibration": ("frequency",), "sensor_drift": ("offset",)}.get(name, ())
-        free = [p for p in e.parameters if p.high > p.low and p.name not in fixed]
+        free = free_parameters(name)
         lo = np.array([p.low for p in free])
         span = np.array([p.high - p.low for p in free])
 

@@ -1,0 +1,157 @@
+"""What the independent tables' reports say beyond their rows (issue 31): the margins of
+the signature decisions, what a stricter significance level would have named, and whose
+mode a ring after the flybacks is.
+
+    python experiments/table_reports.py DIR [DIR ...]
+
+Each DIR is an ``--out`` directory of ``experiments/independent_calibration.py`` (its
+``results.json`` and one report directory per trace). For every round of every trace it
+prints the leading significant candidate (or the best one when none is), its degrees of
+freedom (the parameters its search moves, :func:`~turntable_env.calibration.identify.
+free_parameters`), its gain over the signature groups and on its own groups [nats], its
+lead over the runner-up, the candidates searched in the round, and whether it would pass:
+
+* ``now``: the rule in force, ≥ ``SIGNIFICANT_NATS`` on both (χ² 9, 3σ for one degree
+  of freedom);
+* ``k``: the χ² quantile of its own degrees of freedom at the 3σ level (p = 0.0027);
+* ``k, m``: the same with Bonferroni's correction over the m candidates searched in the
+  round (p = 0.0027/m) — the family-wise level of a round that picks the best of m.
+
+and whether the effect is the truth (a catalogue effect the plant injected; "amp" for an
+amplifier effect, which every plant's amplifier warrants). Only the first round of a
+trace is exact under another level: a round after a name the stricter level rejects
+would not have run as it did. The last lines count, over the first rounds, the true and
+false names under each level.
+
+A second table gives, per trace, the final residual's ring after the flybacks: its ratio
+to the residual elsewhere, its frequency, the frequencies the data and the fitted model
+ring at (:func:`~turntable_env.calibration.residual.own_ring`), and whether the report
+counts it (ratio > 2, as the diagnosis does) — issue 31's item 4: a residual dominated by
+the model's own table mode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from scipy.stats import chi2
+
+from turntable_env.calibration.identify import SIGNIFICANT_NATS, free_parameters
+
+P_3SIGMA = 0.0027  # two-sided 3σ
+AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
+
+
+def level_nats(k: int, m: int = 1) -> float:
+    """Half the χ²_k quantile at p = 0.0027/m [nats]."""
+    return 0.5 * float(chi2.ppf(1.0 - P_3SIGMA / m, k))
+
+
+def rounds(report: dict) -> list[dict]:
+    """Per round: the leader's name, k, gains, lead, the number searched, the decision."""
+    out = []
+    for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
+        cands = [c for c in rnd["candidates"] if c.get("total_nats") is not None]
+        searched = [c for c in cands if not math.isnan(c.get("objective", math.nan))]
+        if not searched:
+            continue
+        sig = sorted((c for c in searched if c["significant"]), key=lambda c: -c["total_nats"])
+        lead = sig[0] if sig else max(searched, key=lambda c: min(c["declared_nats"],
+                                                                   c["total_nats"]))  # fmt: skip
+        others = [c["total_nats"] for c in sig[1:]]
+        dec = rnd["decision"]
+        out.append({
+            "round": rnd.get("round", len(out) + 1),
+            "effect": lead["effect"],
+            "k": len(free_parameters(lead["effect"])),
+            "total": lead["total_nats"],
+            "declared": lead["declared_nats"],
+            "size": lead.get("size_over_floor", math.nan),
+            "significant": lead["significant"],
+            "lead": lead["total_nats"] - max(others) if others else math.inf,
+            "m": len(searched),
+            "named": dec.get("named"),
+            "rejected": dec.get("rejected", ""),
+        })  # fmt: skip
+    return out
+
+
+def passes(r: dict, level: float) -> bool:
+    return bool(r["significant"] and min(r["total"], r["declared"]) >= level)
+
+
+def _reports(dirs: list[Path]) -> list[tuple[str, dict, dict]]:
+    """(label, results row, report) per trace with a report."""
+    out = []
+    for d in dirs:
+        for row in json.loads((d / "results.json").read_text()):
+            rep = d / row["trace"] / "report.json"
+            if rep.exists():
+                out.append((f"{d.name}/{row['trace']}", row, json.loads(rep.read_text())))
+    return out
+
+
+def _ring_table(reports: list[tuple[str, dict, dict]]) -> None:
+    print("| trace | ring ratio | residual rings at [Hz] | data [Hz] | model [Hz] | counted |")
+    print("|---|---:|---:|---:|---:|---|")
+    for label, _row, rep in reports:
+        g = rep["diagnosis"].get("ringing")
+        if not g:
+            print(f"| {label} | — | — | — | — | no flyback |")
+            continue
+        print(
+            f"| {label} | {g['ratio']:.2f} | {g['frequency_Hz']:.0f} | "
+            f"{g.get('data_ring_Hz', math.nan):.0f} | {g.get('model_ring_Hz', math.nan):.0f} | "
+            f"{'yes' if g['ratio'] > 2.0 else 'no'} |"
+        )
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dirs", nargs="+", type=Path)
+    args = ap.parse_args(argv)
+    for d in args.dirs:
+        if not (d / "results.json").exists():
+            print(f"{d}: no results.json (an --out directory of independent_calibration.py)",
+                  file=sys.stderr)  # fmt: skip
+            return 2
+    reports = _reports(args.dirs)
+    print("| trace | round | leader | k | m | gain all / own [nats] | lead [nats] | named | "
+          "truth | now (4.5) | k | k, m |")  # fmt: skip
+    print("|---|---:|---|---:|---:|---:|---:|---|---|---|---|---|")
+    tally = {lv: {"true": 0, "false": 0} for lv in ("now", "k", "k, m")}
+    for label, row, rep in reports:
+        truth = set(row["expected"]) - {"none", "outside"}
+        for r in rounds(rep):
+            is_true = r["effect"] in truth or r["effect"] in AMPLIFIER
+            levels = {"now": SIGNIFICANT_NATS, "k": level_nats(r["k"]),
+                      "k, m": level_nats(r["k"], r["m"])}  # fmt: skip
+            verdicts = {lv: passes(r, x) for lv, x in levels.items()}
+            cells = " | ".join(
+                f"{'yes' if verdicts[lv] else 'no'} ({levels[lv]:.1f})" for lv in levels
+            )
+            if r["round"] == 1:
+                for lv, ok in verdicts.items():
+                    if ok:
+                        tally[lv]["true" if is_true else "false"] += 1
+            truth_txt = "amp" if r["effect"] in AMPLIFIER else ("yes" if is_true else "no")
+            named = r["named"] or ("rejected: " + r["rejected"] if r["rejected"] else "—")
+            print(
+                f"| {label} | {r['round']} | {r['effect']} | {r['k']} | "
+                f"{r['m']} | {r['total']:.1f} / {r['declared']:.1f} | {r['lead']:.1f} | "
+                f"{named} | {truth_txt} | {cells} |"
+            )
+    print()
+    for lv, t in tally.items():
+        print(f"first rounds, level {lv}: {t['true']} true names, {t['false']} false ones")
+    print()
+    _ring_table(reports)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
