@@ -18,7 +18,9 @@
    ln-factors with normal priors; a global stage (a scrambled Sobol design over ±2.5 σ
    of the priors, evaluated in parallel over ``workers`` processes) picks the starts of
    bounded least squares (``scipy.optimize.least_squares``, the priors as residual
-   rows); the starts' optima are reported side by side (do they agree?). Standard
+   rows); every start is continued to its own optimum under the data's weight at the
+   best first-pass fit, the starts over the workers, and their optima are reported side
+   by side (do they agree?). Standard
    errors come from the Jacobian with the residual's correlation length counted
    (N/L effective samples), never ``nan``; parameters at a bound are flagged; those
    whose posterior σ is above 70 % of the prior's are reported as not identified.
