@@ -28,8 +28,9 @@ verdict against issue 31's acceptance and the wall time:
   is met;
 * an effect outside the catalogue: the target is met (fitted) or the residual flagged.
 
-The last line counts the rows that pass. ``results.json`` in ``--out`` holds the same,
-and each file's report directory.
+The last line counts the rows that pass. ``results.json`` in ``--out`` holds the same
+(rewritten after every row when the traces run one after another), and each file's report
+directory.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ import time
 from pathlib import Path
 
 from turntable_env.calibration.calibrate import calibrate, write_report
+from turntable_env.files import write_atomic
 from turntable_env.scale import BACKENDS, map_tasks
 
 # an independent plant's effect → the catalogue effect a calibrator should name
@@ -158,8 +160,12 @@ def main(argv: list[str] | None = None) -> int:
          "base": args.base, "workers": args.workers, "out": str(out / name)}
         for name in names
     ]  # fmt: skip
-    if args.backend is None:
-        rows = [_print_row(_calibrate_one(job)) for job in jobs]
+    out.mkdir(parents=True, exist_ok=True)
+    if args.backend is None:  # results.json after every row: an interrupted run keeps its rows
+        rows = []
+        for job in jobs:
+            rows.append(_print_row(_calibrate_one(job)))
+            write_atomic(out / "results.json", json.dumps(rows, indent=2))
     else:  # the sweep as Ray tasks (or processes), one calibration each, one core each
         for job in jobs:
             job["workers"] = 1
@@ -168,8 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     n_pass = sum(r["pass"] for r in rows)
     print(f"\n{n_pass} of {len(rows)} rows pass ({100.0 * n_pass / max(len(rows), 1):.0f} %); "
           f"wall {sum(r['wall_s'] for r in rows):.0f} s in all")  # fmt: skip
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(rows, indent=2))
+    write_atomic(out / "results.json", json.dumps(rows, indent=2))
     return 0
 
 
