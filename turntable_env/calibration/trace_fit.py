@@ -952,7 +952,14 @@ def _by_signature(
     vals = next(f.values for f in fits if f.name == n)
     eff = {**current.effects, n: vals}
     sig_fit = local_fit(problem, current.x, eff, free_nominal=False, free_effects=(), max_nfev=1)
-    joint = local_fit(problem, current.x, eff, free_effects=[*selected, n], max_nfev=6)
+    # jointly with the nominal model, from its fit and from the prior: a nominal fit made
+    # without the effect may have absorbed part of it (a stroke or gain factor bent to a
+    # detector's curvature), and a few iterations from there do not undo that
+    joint = min(
+        (local_fit(problem, x0, eff, free_effects=[*selected, n], max_nfev=6)
+         for x0 in (current.x, np.zeros_like(current.x))),
+        key=lambda f: f.cost,
+    )  # fmt: skip
     fit = joint if joint.heldout_rms <= sig_fit.heldout_rms else replace(
         sig_fit, std_effects={**sig_fit.std_effects, **joint.std_effects})  # fmt: skip
     rnd["heldout_error"] = {"signature_fit": sig_fit.heldout_rms, "joint_refit": joint.heldout_rms}
