@@ -69,6 +69,13 @@ PLANTS = {  # plant → (its traces' default directory, the script that writes t
 }
 
 
+HEADER = (
+    "| trace | injected | expected | selected (how) | before [nm] | nominal [nm] | "
+    "after [nm] | floor [nm] | target [nm] | met | flagged | passes | wall [s] |\n"
+    "|---|---|---|---|---:|---:|---:|---:|---:|---|---|---|---:|"
+)
+
+
 def verdict(row: dict) -> bool:
     """The row passes issue 31's acceptance (module docstring)."""
     sel = set(row["selected"])
@@ -110,7 +117,7 @@ def _calibrate_one(job: dict) -> dict:
     }
 
 
-def _print_row(row: dict) -> dict:
+def print_row(row: dict) -> dict:
     sel = [f"{n} ({h})" for n, h in zip(row["selected"], row["decided_by"], strict=True)]
     row["pass"] = verdict(row)
     print(
@@ -150,11 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         ap.error(f"--only: no trace {unknown} in {traces} (has {sorted(truth)})")
     out = Path(args.out or f"experiments/results/{args.plant}_plant_calibration")
-    print(
-        "| trace | injected | expected | selected (how) | before [nm] | nominal [nm] | "
-        "after [nm] | floor [nm] | target [nm] | met | flagged | passes | wall [s] |"
-    )
-    print("|---|---|---|---|---:|---:|---:|---:|---:|---|---|---|---:|")
+    print(HEADER)
     jobs = [
         {"name": name, "file": str(traces / f"{name}.csv"), "info": truth[f"{name}.csv"],
          "base": args.base, "workers": args.workers, "out": str(out / name)}
@@ -164,13 +167,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.backend is None:  # results.json after every row: an interrupted run keeps its rows
         rows = []
         for job in jobs:
-            rows.append(_print_row(_calibrate_one(job)))
+            rows.append(print_row(_calibrate_one(job)))
             write_atomic(out / "results.json", json.dumps(rows, indent=2))
     else:  # the sweep as Ray tasks (or processes), one calibration each, one core each
         for job in jobs:
             job["workers"] = 1
         done = map_tasks(_calibrate_one, jobs, backend=args.backend, address=args.address)
-        rows = [_print_row(row) for row in done]
+        rows = [print_row(row) for row in done]
     n_pass = sum(r["pass"] for r in rows)
     print(f"\n{n_pass} of {len(rows)} rows pass ({100.0 * n_pass / max(len(rows), 1):.0f} %); "
           f"wall {sum(r['wall_s'] for r in rows):.0f} s in all")  # fmt: skip

@@ -2,7 +2,11 @@
 the signature decisions, what a stricter significance level would have named, and whose
 mode a ring after the flybacks is.
 
-    python experiments/table_reports.py DIR [DIR ...]
+    python experiments/table_reports.py DIR [DIR ...] [--rows]
+
+``--rows`` prints the table's rows instead, one per trace, from every DIR's
+``results.json`` (a later DIR's row replaces an earlier one's for the same trace: a
+table run in parts, or rows re-run), with the count of rows that pass.
 
 Each DIR is an ``--out`` directory of ``experiments/independent_calibration.py`` (its
 ``results.json`` and one report directory per trace). For every round of every trace it
@@ -110,15 +114,32 @@ def _ring_table(reports: list[tuple[str, dict, dict]]) -> None:
         )
 
 
+def _rows(dirs: list[Path]) -> int:
+    from independent_calibration import HEADER, print_row  # the table's own format
+
+    rows: dict[str, dict] = {}
+    for d in dirs:
+        for row in json.loads((d / "results.json").read_text()):
+            rows[row["trace"]] = {**row, "run": d.name}
+    print(HEADER)
+    done = [print_row(r) for r in rows.values()]
+    n = sum(r["pass"] for r in done)
+    print(f"\n{n} of {len(done)} rows pass ({100.0 * n / max(len(done), 1):.0f} %)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="+", type=Path)
+    ap.add_argument("--rows", action="store_true", help="print the merged table's rows")
     args = ap.parse_args(argv)
     for d in args.dirs:
         if not (d / "results.json").exists():
             print(f"{d}: no results.json (an --out directory of independent_calibration.py)",
                   file=sys.stderr)  # fmt: skip
             return 2
+    if args.rows:
+        return _rows(args.dirs)
     reports = _reports(args.dirs)
     print("| trace | round | leader | k | m | gain all / own [nats] | lead [nats] | named | "
           "truth | now (4.5) | k | k, m |")  # fmt: skip
