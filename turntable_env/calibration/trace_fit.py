@@ -492,7 +492,8 @@ def _run_candidate(problem: TraceProblem, search: SignatureSearch, job: tuple) -
 class _Candidates:
     """Candidate searches of the effect rounds, over ``workers`` processes when > 1 (each
     with its own copy of the problem and the search, made when the rounds start; every
-    candidate's search is deterministic, so the result does not depend on ``workers``).
+    candidate's search is deterministic, so the result does not depend on ``workers``, up
+    to the last bits of a sum: a worker's BLAS runs on one thread).
     Candidates on the input and friction stages re-simulate the plant for every
     evaluation and go first; output-stage ones reuse the cached angle."""
 
@@ -536,7 +537,8 @@ def _local_fits(
     problem: TraceProblem, starts: list[np.ndarray], workers: int, max_nfev: int
 ) -> list[LocalFit]:
     """The nominal model's least squares from each start (in order), over ``workers``
-    processes when > 1 (each fit is deterministic: the result does not depend on them;
+    processes when > 1 (each fit is deterministic: the result does not depend on them, up
+    to the last bits of a sum;
     a worker's copy of the problem carries its weight)."""
     if workers <= 1 or len(starts) <= 1:
         return [local_fit(problem, xs, {}, max_nfev=max_nfev) for xs in starts]
@@ -708,7 +710,8 @@ def calibrate_traces(
             model refitted with the same budget.
         global_points: Sobol points of the global stage; starts: local fits from the best
             of them (and one from the prior).
-        workers: processes for the global stage (default: the CPUs this process may use).
+        workers: processes for the global stage, the nominal fit's starts and the effect
+            candidates (default: the CPUs this process may use).
         seed: the Sobol design's scrambling seed.
         progress: message sink (None: silent); tqdm bars go to stderr when given.
     """
