@@ -471,9 +471,8 @@ def _worker_candidate(job: tuple[str, str, np.ndarray, dict, Any]) -> tuple[Any,
     """One candidate in a worker: ("signature", name, x, effects, base features) →
     (CandidateFit, simulations run); ("screen", name, x, LocalFit, None) →
     (LocalFit or the error's text, simulations run)."""
-    assert _WORKER is not None and _SEARCH is not None
-    n0 = _WORKER.n_sims
-    return _run_candidate(_WORKER, _SEARCH, job), _WORKER.n_sims - n0
+    assert _SEARCH is not None
+    return _counted(lambda pb: _run_candidate(pb, _SEARCH, job))
 
 
 def _run_candidate(problem: TraceProblem, search: SignatureSearch, job: tuple) -> Any:
@@ -528,9 +527,15 @@ class _Candidates:
 
 def _worker_local_fit(job: tuple[np.ndarray, int]) -> tuple[LocalFit, int]:
     """One start of the nominal fit in a worker: (its fit, simulations run)."""
+    return _counted(lambda pb: local_fit(pb, job[0], {}, max_nfev=job[1]))
+
+
+def _counted(fn: Callable[[TraceProblem], Any]) -> tuple[Any, int]:
+    """fn on this worker's problem: (its result, the simulations it ran), so the calling
+    process can count them."""
     assert _WORKER is not None
     n0 = _WORKER.n_sims
-    return local_fit(_WORKER, job[0], {}, max_nfev=job[1]), _WORKER.n_sims - n0
+    return fn(_WORKER), _WORKER.n_sims - n0
 
 
 def _local_fits(
