@@ -259,7 +259,12 @@ def test_a_trace_without_information_is_refused_before_fitting(case, lab_file, t
 # --- 7. Ctrl-C stops a compiled run -------------------------------------------------------
 def test_ctrl_c_stops_a_long_3d_run(tmp_path):
     """A 3-D run of 1000 periods (about half a minute) interrupted after it started: it
-    exits 130 and says so, long before the run would have ended."""
+    exits 130 and says so, long before the run would have ended. A one-period run first
+    compiles the 3-D kernels into numba's cache (with an empty cache the long run would
+    still be compiling when the signal arrives, and a compilation is not interruptible)."""
+    cmd = [sys.executable, "-m", "turntable_env.cli", "simulate", "--model", "full"]
+    subprocess.run([*cmd, "--periods", "1", "--output-dt", "1e-3"], check=True,
+                   capture_output=True, timeout=600)  # fmt: skip
     p = subprocess.Popen(
         [sys.executable, "-m", "turntable_env.cli", "simulate", "--model", "full",
          "--periods", "1000", "--output-dt", "1e-3"],
