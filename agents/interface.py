@@ -101,6 +101,7 @@ class AgentInterface:
     def features(self, obs: np.ndarray) -> np.ndarray:
         """(8,) float32 features of one env observation."""
         c = self.ctx
+        obs = c.lab_observation(obs)  # the reading as the table angle, by the rig's calibration
         meas, target = float(obs[OBS.measured_angle_rad]), float(obs[OBS.target_angle_rad])
         e = target - meas
         sat = 0.0

@@ -25,22 +25,26 @@ import abc
 import functools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from turntable_env.detector import Detector
 from turntable_env.envs.config import OBS, ActionScaling, EnvConfig
 from turntable_env.linear import scan_plant, stick_plant
 from turntable_env.params import ParameterSet
 
 from .lab import LabBrief
 from .scan_pid import PIDGains, ScanPID, design_scan_pid
+from .step_gain import StepGains
 
 __all__ = ["Controller", "ControllerContext", "Move", "StepScanController"]
 
 SATURATION_FRACTION = 0.995  # of θ_lin: readings beyond it count as saturated
 UNWIND_FRACTION = 0.5  # of u_max: a larger scan offset is ramped to 0 before stepping
+LOST_EXCESS = 0.05  # of θ_lin: first guess of a lost spot's distance beyond the edge (doubles)
+MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
 
 
 @dataclass(frozen=True)
@@ -49,9 +53,17 @@ class ControllerContext:
 
     Attributes:
         params: nominal parameter set; axis: "A"/"B"/"C"; control_interval: Δt [s];
-        scaling: action scaling; angle_range: detector linear range θ_lin [rad];
-        scan_gain: K, angle per scan-offset volt of the stick plant [rad/V];
-        input_limit: amplifier input limit u_max [V]; tolerance: success band [rad].
+        scaling: action scaling; angle_range: the table angle at the edge of the
+        detector's linear range [rad] (θ_lin of Eq. 4.1 converted with the rig's mirror tilt
+        and gain, :meth:`Detector.table_angle`); scan_gain: K, angle per scan-offset volt
+        of the stick plant [rad/V]; input_limit: amplifier input limit u_max [V];
+        tolerance: success band [rad]; detector: the detector model of the plant the
+        controller was built for (what its lab's calibration knows of the rig).
+
+    A controller reads the table angle from an observation with :meth:`lab_observation`:
+    the env's ``measured_angle_rad`` is the Eq. 4.1 reading, which a rig with a tilted
+    mirror or another photodiode gain scales (the thesis calibration's rig reads 0.82 of
+    the table angle); the conversion is the identity for the nominal rig.
     """
 
     params: ParameterSet
@@ -62,6 +74,7 @@ class ControllerContext:
     scan_gain: float
     input_limit: float
     tolerance: float
+    detector: Detector = field(default_factory=Detector)
 
     @classmethod
     def from_config(cls, config: EnvConfig) -> ControllerContext:
@@ -71,10 +84,11 @@ class ControllerContext:
             axis=config.axis,
             control_interval=config.control_interval,
             scaling=config.scaling,
-            angle_range=ps.detector.angle_range,
+            angle_range=float(ps.detector.table_angle(ps.detector.angle_range)),
             scan_gain=_scan_design(ps, config.axis, config.control_interval)[0],
             input_limit=ps.amplifier.input_limit,
             tolerance=config.tolerance,
+            detector=ps.detector,
         )
 
     @classmethod
@@ -84,6 +98,17 @@ class ControllerContext:
         if not isinstance(config, EnvConfig):
             raise ValueError(f"env={env!r}: not a PiezoTurntable environment")
         return cls.from_config(config)
+
+    def lab_observation(self, obs: np.ndarray) -> np.ndarray:
+        """``obs`` (…, 8) with ``measured_angle_rad`` converted from the Eq. 4.1 reading to
+        the table angle [rad] with the rig's calibration (the same array for the nominal
+        rig, a copy otherwise)."""
+        det = self.detector
+        if det.tilt_factor == 1.0 and det.gain == 1.0:
+            return obs
+        out = np.array(obs, dtype=float, copy=True)
+        out[..., OBS.measured_angle_rad] = det.table_angle(out[..., OBS.measured_angle_rad])
+        return out
 
     @property
     def scan_range(self) -> float:
@@ -156,13 +181,15 @@ def _lab_only(reset: Callable[..., None]) -> Callable[..., None]:
 @dataclass(frozen=True)
 class Move:
     """One stepping interval: input amplitude [V] (signed), frequency [Hz] (m/Δt), ramp
-    ratio a, slew adaptation k and the displacement the controller expects [rad]."""
+    ratio a, slew adaptation k, the displacement the controller expects [rad] and the one
+    its nominal step map predicts [rad] (0: none; what the online step gains learn from)."""
 
     amplitude: float
     frequency: float
     a: float
     k: float
     expected: float
+    nominal: float = 0.0
 
 
 class StepScanController(Controller):
@@ -183,11 +210,14 @@ class StepScanController(Controller):
         self.scan_fraction = scan_fraction
         self.scan_exit = scan_exit
         self.pid = ScanPID(ctx.pid_gains, ctx.input_limit)
+        self.gains: StepGains | None = None  # online step gains (set by map-based subclasses)
+        self.min_learn = MIN_LEARN
         # a saturated reading sits at the edge plus the detector's noise (1 mV ≈ 0.3 µrad)
         self._sat = ctx.angle_range * SATURATION_FRACTION
 
     # --- episode ----------------------------------------------------------------------
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
+        obs = self.ctx.lab_observation(obs)
         self.target = float(obs[OBS.target_angle_rad])
         meas = float(obs[OBS.measured_angle_rad])
         self.estimate = meas  # rad, believed angle: the reading where it is valid, ...
@@ -201,6 +231,10 @@ class StepScanController(Controller):
         self.offset = 0.0  # V, scan offset commanded for the interval now ending
         self.last_move: Move | None = None
         self.last_measured: float | None = None if self.saturated(meas) else meas
+        self._offset_before = 0.0  # V, the scan offset a stepping interval ramped from
+        self._excess = LOST_EXCESS  # of θ_lin: the lost spot's believed distance beyond the edge
+        if self.gains is not None:
+            self.gains.reset()
         self.pid.reset(0.0)
 
     def saturated(self, measured: float) -> bool:
@@ -215,21 +249,57 @@ class StepScanController(Controller):
         elif not saturated:
             self.estimate = measured
 
+    def learn(self, measured: float, saturated: bool) -> None:
+        """Update the online step gains (:mod:`controllers.step_gain`) from the interval
+        just ended: ρ = (Δθ_measured − K·Δu_scan)/D_map when both readings are valid and the
+        map's move exceeds ``min_learn``; a move that ran past the detector's edge in its
+        own direction sets a lower bound (it went at least to the edge)."""
+        mv = self.last_move
+        if (
+            self.gains is None
+            or mv is None
+            or self.last_measured is None
+            or abs(mv.nominal) < self.min_learn
+        ):
+            return
+        d = 1 if mv.nominal > 0 else -1
+        scan = -self.ctx.scan_gain * self._offset_before  # the offset ramped to 0
+        if not saturated:
+            rho = (measured - self.last_measured - scan) / mv.nominal
+            if rho > 0.0:  # a plant stepping backwards here is no gain to scale the map by
+                self.gains.update(d, mv.amplitude, rho)
+        elif measured * d > 0.0:
+            lower = (d * self.ctx.angle_range - self.last_measured - scan) / mv.nominal
+            if lower > float(self.gains.estimate(d, mv.amplitude)[0][0]):
+                self.gains.update(d, mv.amplitude, lower)
+
+    def search_move(self, direction: int) -> Move | None:
+        """The safety monitor's step towards the target (``direction`` ±1) when no planned
+        move fits but the table must move: the reading is saturated (the spot is lost), or
+        the error lies beyond the scan's reach. Default: None (the subclass has no map)."""
+        return None
+
     @abc.abstractmethod
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
         """The setting for the next interval, to cover ``remaining`` [rad] (None: scan)."""
 
     # --- control law ------------------------------------------------------------------
     def act(self, obs: np.ndarray) -> np.ndarray:
+        obs = self.ctx.lab_observation(obs)
         meas = float(obs[OBS.measured_angle_rad])
         self.target = float(obs[OBS.target_angle_rad])  # the commanded target now
         sat = self.saturated(meas)
+        self.learn(meas, sat)
         self.observe(meas, sat)
         k_scan = self.ctx.scan_gain
-        if sat:  # beyond the detector: at least at its edge on the reading's side
-            edge = math.copysign(self.ctx.angle_range * 1.05, meas)
-            if abs(self.estimate) < abs(edge) or np.sign(self.estimate) != np.sign(meas):
-                self.estimate = edge
+        if sat:  # beyond the detector: at least at its edge on the reading's side; a belief
+            # the reading contradicts is a lost spot: search on with a doubling excess
+            lim = self.ctx.angle_range
+            if abs(self.estimate) < lim * (1.0 + LOST_EXCESS) or self.estimate * meas <= 0.0:
+                self.estimate = math.copysign(lim * (1.0 + self._excess), meas)
+                self._excess *= 2.0
+        else:
+            self._excess = LOST_EXCESS
         if self.mode == "scan":
             err = self.target - meas
             # leave the scan when the error leaves its range, or when the offset is saturated
@@ -247,12 +317,15 @@ class StepScanController(Controller):
             if self.steps and abs(self.offset) > UNWIND_FRACTION * self.ctx.input_limit:
                 return self._unwind()
             move = self.choose_move(remaining, meas, sat)
+            if move is None and (sat or abs(remaining) > self.scan_exit * self.ctx.scan_range):
+                move = self.search_move(1 if remaining > 0 else -1)  # the safety monitor
         if move is None:
             self.mode = "scan"
             self.pid.reset(self.offset)
             return self._scan(self.target - meas if not sat else 0.0, meas)
         self.last_move = move
         self.estimate -= k_scan * self.offset
+        self._offset_before = self.offset
         self.offset = 0.0
         self.last_measured = None if sat else meas
         return self.ctx.scaling.encode(move.amplitude, move.frequency, move.a, move.k, 0.0)

@@ -19,11 +19,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
-from .base import ControllerContext, Move, StepScanController
+from .base import MIN_LEARN, ControllerContext, Move, StepScanController
 from .feedforward import MapPlanner
-from .lab import LabBrief
+from .step_gain import StepGains
 from .step_map import StepMap
 
 __all__ = ["ClosedLoopStepController"]
@@ -45,44 +43,32 @@ class ClosedLoopStepController(StepScanController):
         step_map: StepMap | None = None,
         *,
         learning_rate: float = 0.5,
-        min_learn: float = 5e-6,
+        min_learn: float = MIN_LEARN,
+        caution: float = 4.0,
+        spread: float = 2.0,
         **kwargs: Any,
     ) -> None:
         super().__init__(ctx, **kwargs)
         self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx)
-        self.learning_rate = learning_rate
+        self.gains = StepGains(rate=learning_rate, caution=caution, spread=spread)
         self.min_learn = min_learn
 
-    def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
-        super().reset(obs, brief)
-        self.gain = {1: 1.0, -1: 1.0}
-        self._map_move = 0.0  # rad, the map's displacement of the last move (γ = 1)
-        self._offset_before = 0.0
-
     def observe(self, measured: float, saturated: bool) -> None:
-        mv = self.last_move
-        if mv is not None and not saturated and self.last_measured is not None:
-            if abs(self._map_move) >= self.min_learn:
-                d = 1 if self._map_move > 0 else -1
-                scan = -self.ctx.scan_gain * self._offset_before  # offset ramped to 0
-                rho = (measured - self.last_measured - scan) / self._map_move
-                g = self.gain[d]
-                self.gain[d] = g + self.learning_rate * (float(np.clip(rho, 0.0, 3.0)) - g)
-        if mv is not None:
-            self.estimate += mv.expected
+        if self.last_move is not None:
+            self.estimate += self.last_move.expected
         if not saturated:
             self.estimate = measured
 
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
-        d = 1 if remaining > 0 else -1
-        gain = max(self.gain[d], 0.1)
-        move = self.planner.plan(
+        return self.planner.plan(
             remaining,
             self.scan_fraction * self.ctx.scan_range,
             from_rest=self.last_move is None,
-            gain=gain,
+            gains=self.gains,
             amplitude_limit=self.ctx.input_limit - abs(self.offset),
         )
-        self._offset_before = self.offset
-        self._map_move = 0.0 if move is None else move.expected / gain
-        return move
+
+    def search_move(self, direction: int) -> Move | None:
+        return self.planner.smallest(
+            direction, gains=self.gains, amplitude_limit=self.ctx.input_limit - abs(self.offset)
+        )

@@ -12,9 +12,14 @@ range; the number of intervals and the amplitudes follow.
 
 :class:`FeedForwardController` plans from the start it believes — the reading, or beyond
 the detector the lab's dead-reckoned start (:class:`~controllers.lab.LabBrief`) — with
-the nominal map and ignores the detector while stepping; the scan PID then finishes on
-the detector. Should the residual still exceed the scan range (a plant that differs
-from the model), it re-plans from the reading, at most ``max_replans`` times.
+the map scaled by the step gains its stepping intervals measured so far
+(:class:`~controllers.step_gain.StepGains`: per direction and amplitude; before any
+measurement its moves are small enough for a plant stepping 4× the map), and ignores
+the detector while stepping (its angle is dead-reckoned); the scan PID then finishes on
+the detector. Should the residual still exceed the scan range, it re-plans from the
+reading with what it has learned, at most ``max_replans`` times. A saturated reading
+with no planned move left starts the safety monitor's search back
+(:meth:`~controllers.base.StepScanController.search_move`).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
 from .lab import LabBrief
+from .step_gain import StepGains
 from .step_map import StepMap
 
 __all__ = ["FeedForwardController", "MapPlanner"]
@@ -38,6 +44,10 @@ class MapPlanner:
         ctx: the plant context (axis, Δt, input limit).
         a, k: the waveform family.
         min_step: smallest useful |step| per period [rad] (below it a setting is not used).
+        min_amplitude: smallest amplitude used [V]: near the stick–slip onset the step is
+            most sensitive to the plant (at 1 V the nominal plant steps under 1 nm per period
+            at 500 Hz and 2 kHz: ``experiments/step_gain_survey.py``), and another plant's
+            step there has no bounded ratio to the map's, so no plan relies on it.
     """
 
     def __init__(
@@ -48,6 +58,7 @@ class MapPlanner:
         a: float = 0.9,
         k: float = 1.0,
         min_step: float = 1e-6,
+        min_amplitude: float = 2.0,
     ) -> None:
         if abs(step_map.control_interval - ctx.control_interval) > 1e-12:
             raise ValueError(
@@ -61,7 +72,7 @@ class MapPlanner:
             for d in (1, -1):
                 for i in step_map.family(ctx.axis, float(f), a, k, d):
                     s = float(step_map.step[i])
-                    if s * d < min_step:
+                    if s * d < min_step or abs(step_map.amplitude[i]) < min_amplitude - 1e-9:
                         continue
                     run = m * s
                     rest = float(step_map.first[i]) + (m - 1) * s
@@ -78,24 +89,56 @@ class MapPlanner:
         *,
         from_rest: bool,
         gain: float = 1.0,
+        gains: StepGains | None = None,
         amplitude_limit: float = np.inf,
     ) -> Move | None:
         """The largest move towards ``remaining`` [rad] that does not pass the target, or
         None when |remaining| ≤ ``tolerance`` [rad] (the scan finishes) or no move fits.
 
-        ``gain`` scales the map's displacements (an online estimate of the plant)."""
+        ``gain`` scales the map's displacements (one estimate of the plant); ``gains``, when
+        given, instead scales each amplitude's by its own estimate, no move may pass the
+        target at its upper bound, and stalled amplitudes are not used
+        (:class:`~controllers.step_gain.StepGains`)."""
         if abs(remaining) <= tolerance:
             return None
         d = 1 if remaining > 0 else -1
         mv = self.moves[d]
-        disp = np.abs(mv[:, 3] if from_rest else mv[:, 2]) * gain
-        ok = (disp <= abs(remaining)) & (np.abs(mv[:, 0]) <= amplitude_limit)
+        nominal = np.abs(mv[:, 3] if from_rest else mv[:, 2])
+        usable = np.abs(mv[:, 0]) <= amplitude_limit
+        if gains is not None:
+            g, upper = gains.estimate(d, mv[:, 0])
+            usable &= ~gains.stalled(d, mv[:, 0])
+        else:
+            g = upper = np.full(nominal.shape, gain)
+        disp, reach = nominal * g, nominal * upper
+        ok = (reach <= abs(remaining)) & usable
         if not ok.any():
             return None
         best = disp[ok].max()
         near = ok & (disp >= 0.9 * best)
         i = int(np.flatnonzero(near)[np.argmin(mv[near, 4])])
-        return Move(float(mv[i, 0]), float(mv[i, 1]), self.a, self.k, d * float(disp[i]))
+        return self._move(i, d, float(disp[i]), float(nominal[i]))
+
+    def smallest(
+        self, direction: int, *, gains: StepGains | None = None, amplitude_limit: float = np.inf
+    ) -> Move | None:
+        """The move of least map displacement from rest in ``direction`` (±1) within the
+        amplitude limit: the safety monitor's search step (None if none fits)."""
+        d = 1 if direction > 0 else -1
+        mv = self.moves[d]
+        ok = np.abs(mv[:, 0]) <= amplitude_limit
+        if gains is not None and (ok & ~gains.stalled(d, mv[:, 0])).any():
+            ok &= ~gains.stalled(d, mv[:, 0])  # skip amplitudes that barely step here
+        if not ok.any():
+            return None
+        nominal = np.abs(mv[:, 3])
+        i = int(np.flatnonzero(ok)[np.argmin(nominal[ok])])
+        g = 1.0 if gains is None else float(gains.estimate(d, mv[i, 0])[0][0])
+        return self._move(i, d, float(nominal[i]) * g, float(nominal[i]))
+
+    def _move(self, i: int, d: int, disp: float, nominal: float) -> Move:
+        mv = self.moves[d]
+        return Move(float(mv[i, 0]), float(mv[i, 1]), self.a, self.k, d * disp, d * nominal)
 
 
 class FeedForwardController(StepScanController):
@@ -119,6 +162,7 @@ class FeedForwardController(StepScanController):
         super().__init__(ctx, **kwargs)
         self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx)
         self.max_replans = max_replans
+        self.gains = StepGains()
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         super().reset(obs, brief)
@@ -132,8 +176,14 @@ class FeedForwardController(StepScanController):
             remaining,
             self.scan_fraction * self.ctx.scan_range,
             from_rest=new_sequence,
+            gains=self.gains,
             amplitude_limit=self.ctx.input_limit - abs(self.offset),
         )
         if move is not None and new_sequence:
             self.plans += 1
         return move
+
+    def search_move(self, direction: int) -> Move | None:
+        return self.planner.smallest(
+            direction, gains=self.gains, amplitude_limit=self.ctx.input_limit - abs(self.offset)
+        )

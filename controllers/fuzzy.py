@@ -58,6 +58,8 @@ import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
 from .lab import LabBrief
+from .step_gain import StepGains
+from .step_map import StepMap
 
 __all__ = ["FuzzyStepController", "control_surface", "fuzzy_system"]
 
@@ -130,7 +132,14 @@ class FuzzyStepController(StepScanController):
 
     Args:
         ctx: plant context; amplitude: input amplitude of the steps [V]; max_steps: |n|
-        bound; grid: points per axis of the tabulated control surface.
+        bound; grid: points per axis of the tabulated control surface; step_map: the map
+        whose step per period at ``amplitude`` (mean over f ≤ max_steps/Δt) the online
+        step gain is measured against (default: the shipped one); caution: the gain's
+        upper bound before anything is measured (:class:`~controllers.step_gain.StepGains`).
+
+    The plant it is on: the error enters the rules divided by the learned step gain γ_d
+    (input scaling, a plant that steps 2× the map sees half the error), and no interval
+    runs more periods than could pass the target at the gain's upper bound.
     """
 
     name = "fuzzy"
@@ -142,6 +151,8 @@ class FuzzyStepController(StepScanController):
         amplitude: float = 6.0,
         max_steps: int = 10,
         grid: int = 61,
+        step_map: StepMap | None = None,
+        caution: float = 4.0,
         **kwargs: Any,
     ) -> None:
         super().__init__(ctx, **kwargs)
@@ -152,10 +163,33 @@ class FuzzyStepController(StepScanController):
         self.errors = np.linspace(-E_MAX, E_MAX, grid)
         self.changes = np.linspace(-DE_MAX, DE_MAX, grid)
         self.surface = _surface(max_steps, grid)
+        smap = step_map if step_map is not None else StepMap.load()
+        freqs = np.unique(smap.frequency)
+        freqs = freqs[freqs * ctx.control_interval <= max_steps + 1e-9]
+        # the nominal step per period at the fixed waveform, by direction [rad]
+        self.reference_step = {
+            d: float(np.mean([smap.step_size(ctx.axis, d * amplitude, f, 0.9, 1.0) for f in freqs]))
+            for d in (1, -1)
+        }
+        if any(self.reference_step[d] * d <= 0.0 for d in (1, -1)):
+            raise ValueError(f"amplitude={amplitude!r}: the step map has no forward step there")
+        self.gains = StepGains(caution=caution)
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         super().reset(obs, brief)
         self.last_error: float | None = None
+
+    def _move(self, n: int) -> Move:
+        """n signed periods at the fixed waveform, with the displacement the map predicts."""
+        d = 1 if n > 0 else -1
+        f = abs(n) / self.ctx.control_interval
+        amp = min(self.amplitude, self.ctx.input_limit - abs(self.offset))
+        nominal = abs(n) * self.reference_step[d]
+        g = float(self.gains.estimate(d, amp)[0][0])
+        return Move(d * amp, f, 0.9, 1.0, nominal * g, nominal)
+
+    def search_move(self, direction: int) -> Move | None:
+        return self._move(1 if direction > 0 else -1)
 
     def steps(self, error: float, change: float) -> float:
         """Defuzzified n for e, Δe [rad] (bilinear in the tabulated surface)."""
@@ -178,15 +212,20 @@ class FuzzyStepController(StepScanController):
 
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
         err = self.target - measured
+        d = 1 if err > 0 else -1
+        g, upper = self.gains.estimate(d, self.amplitude)
+        # input scaling by the learned step gain: the rules see the error in nominal steps
+        scaled = err / float(g[0])
         fresh = self.last_error is None or self.last_move is None  # first stepping interval
-        change = 0.0 if fresh else err - self.last_error
-        self.last_error = err
-        n = round(self.steps(err, change))
+        change = 0.0 if fresh else scaled - self.last_error
+        self.last_error = scaled
+        n = round(self.steps(scaled, change))
         if n == 0:
             return None
-        f = abs(n) / self.ctx.control_interval
-        amp = min(self.amplitude, self.ctx.input_limit - abs(self.offset))
-        return Move(float(np.sign(n)) * amp, f, 0.9, 1.0, 0.0)
+        if not saturated:  # no more periods than could pass the target at the gain's bound
+            cap = int(abs(err) / (abs(self.reference_step[d]) * float(upper[0])))
+            n = int(np.sign(n)) * max(1, min(abs(n), cap))
+        return self._move(n)
 
 
 _SURFACES: dict[tuple[int, int], np.ndarray] = {}

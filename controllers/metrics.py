@@ -29,6 +29,7 @@ __all__ = [
     "BAND",
     "HOLD",
     "METRICS",
+    "RUNAWAY_LIMIT",
     "Metric",
     "episode_metrics",
     "mean_ci",
@@ -37,6 +38,7 @@ __all__ = [
 ]
 
 BAND = 30e-9  # m at R_table: settling band, ≈ 10× the nominal detector noise floor (2.8 nm)
+RUNAWAY_LIMIT = 50e-6  # m at R_table: the largest run-away a controller may show (issue 32)
 HOLD = 0.2  # s, the hold window at the end of every episode (tracking: 0.1 s to settle)
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000
@@ -81,6 +83,12 @@ METRICS: dict[str, Metric] = {
             "overshoot_nm", "nm", True,
             "largest travel past the final reference value in the direction of the last "
             "approach, after the first entry into the band",
+        ),
+        Metric(
+            "runaway_um", "µm", True,
+            "largest distance from the reference beyond the start's, max(0, max|θ − r| − "
+            "|θ₀ − r₀|)·R: how far a controller ran the table away (a lost spot); the "
+            "benchmark's bound is RUNAWAY_LIMIT",
         ),
         Metric(
             "slips_per_um", "1/µm", True,
@@ -162,6 +170,7 @@ def episode_metrics(
         "hold_rms_nm": hold_rms * 1e9,
         "hold_rms_rel": hold_rms / np.maximum(np.asarray(noise_floor, dtype=float), 1e-15),
         "overshoot_nm": np.maximum(overshoot, 0.0) * 1e9,
+        "runaway_um": np.maximum(err.max(axis=1) - err[:, 0], 0.0) * 1e6,
         "slips_per_um": steps.sum(axis=1) / travel_um,
         "energy_per_um_mJ": energy.sum(axis=1) * 1e3 / travel_um,
     }

@@ -5,13 +5,13 @@ need stepping, tracking tasks and a knock on the nominal, randomized, held_out,
 calibrated and full_3d plant sets, 20 paired seeds per cell; writes benchmark.json,
 episodes.csv, leaderboard.md/.html and trajectory plots, then prints the summary.
 
-    python experiments/controller_benchmark.py [--seeds 20] [--out DIR]   (about 9 min)
+    python experiments/controller_benchmark.py [--seeds 20] [--out DIR] [--backend processes]
     python experiments/controller_benchmark.py --summarize [--out DIR]    (from the files)
 
 The summary: the leaderboard, the mean success over each plant set's tasks, the pairs
 the benchmark tells apart, the paired differences the README quotes, each plant set's
-scan range and detector noise floor, and the held-out episodes a controller fails with
-their plant draws.
+scan range and detector noise floor, the held-out episodes each controller fails by the
+seed's effect, and every run-away beyond the benchmark's bound with its plant draw.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ QUOTED = [  # (plant set, task, pair, metric): the paired differences the README
 def summarize(out: Path) -> None:
     """Print the summary of a benchmark directory (module docstring)."""
     from controllers.base import ControllerContext
-    from controllers.metrics import noise_floor
+    from controllers.metrics import RUNAWAY_LIMIT, noise_floor
     from controllers.plant_sets import PLANT_SETS
     from turntable_env.envs.config import EnvConfig
 
@@ -78,19 +78,30 @@ def summarize(out: Path) -> None:
         print(f"  {ps:<11} scan range {ctx.scan_range * det.table_radius * 1e6:.2f} µm, "
               f"detector ±{det.angle_range * det.table_radius * 1e6:.2f} µm, "
               f"noise floor {floor * 1e9:.2f} nm")  # fmt: skip
-    print("\nheld-out episodes failed (hold RMS, plant draw):")
     with (out / "episodes.csv").open(encoding="utf-8") as fh:
-        rows = [r for r in csv.DictReader(fh) if r["plant_set"] == "held_out"]
-    draws = doc["plant_draws"]["held_out"]
+        rows = list(csv.DictReader(fh))
+    draws = doc["plant_draws"]
+    print("\nheld-out episodes failed, by the seed's effect (each effect has 2–3 of 20 seeds):")
+    held = [r for r in rows if r["plant_set"] == "held_out"]
+    for c in dict.fromkeys(r["controller"] for r in held):
+        fails: dict[str, int] = {}
+        for r in held:
+            if r["controller"] == c and float(r["success"]) < 1.0:
+                effect = draws["held_out"][int(r["seed"])]["effect"]
+                fails[effect] = fails.get(effect, 0) + 1
+        print(f"  {c}: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
+    limit = RUNAWAY_LIMIT * 1e6
+    print(f"\nrun-aways (farthest from the reference beyond the start) over {limit:g} µm:")
     for r in rows:
-        if r["task"] == "point_50um" and r["controller"] == "closed_loop" and r["success"] == "0.0":
-            d = draws[int(r["seed"])]
-            keys = ("friction", "preload", "amplifier", "effect")
-            print(f"  closed_loop point_50um seed {r['seed']}: hold RMS "
-                  f"{float(r['hold_rms_nm']) / 1e3:.3g} µm; "
-                  + ", ".join(f"{k} {d[k] if isinstance(d[k], str) else round(d[k], 2)}"
-                              for k in keys)
-                  + "".join(f", {k} {v:.3g}" for k, v in d.items() if "." in k))  # fmt: skip
+        if float(r["runaway_um"]) > limit:
+            d = draws[r["plant_set"]][int(r["seed"])]
+            print(f"  {r['plant_set']}/{r['task']} {r['controller']} seed {r['seed']}: "
+                  f"{float(r['runaway_um']):.1f} µm; "
+                  + ", ".join(f"{k} {v if isinstance(v, str) else round(v, 3)}"
+                              for k, v in d.items()))  # fmt: skip
+    worst = max(rows, key=lambda r: float(r["runaway_um"]))
+    print(f"  largest: {float(worst['runaway_um']):.1f} µm ({worst['plant_set']}/{worst['task']} "
+          f"{worst['controller']} seed {worst['seed']})")  # fmt: skip
 
 
 def main() -> None:
@@ -99,13 +110,22 @@ def main() -> None:
     ap.add_argument("--controllers", default=None, help="comma-separated (default: all)")
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     ap.add_argument("--summarize", action="store_true", help="only print the summary of --out")
+    ap.add_argument("--backend", choices=("auto", "ray", "processes"), default=None,
+                    help="run the cells in parallel (as turntable benchmark --backend)")
+    ap.add_argument("--workers", type=int, default=None, help="processes for --backend processes")
     args = ap.parse_args()
     out = Path(args.out)
     if not args.summarize:
         from controllers.benchmark import run_benchmark, write_outputs
 
         names = args.controllers.split(",") if args.controllers else None
-        res = run_benchmark(names, seeds=args.seeds, progress=True)
+        res = run_benchmark(
+            names,
+            seeds=args.seeds,
+            progress=args.backend is None,
+            backend=args.backend,
+            workers=args.workers,
+        )
         write_outputs(res, out)
     summarize(out)
 

@@ -58,3 +58,17 @@ def test_noise_is_seeded_and_sized():
 def test_detector_rejects_bad_input(call, field):
     with pytest.raises(ValueError, match=field):
         call()
+
+
+@given(
+    angle=st.floats(min_value=-5e-4, max_value=5e-4, allow_nan=False),
+    tilt=st.floats(min_value=0.5, max_value=1.0),
+    gain=st.floats(min_value=0.5, max_value=2.0),
+)
+def test_table_angle_inverts_the_labs_reading_for_a_known_rig(angle, tilt, gain):
+    """A lab that knows its rig's mirror tilt and photodiode gain recovers the table angle
+    from its Eq. 4.1 reading (the thesis calibration's rig reads 0.82 of it)."""
+    det = Detector(tilt_factor=tilt, gain=gain)
+    reading = det.angle(det.unclipped_voltage(np.array(angle)))
+    assert float(det.table_angle(reading)) == pytest.approx(angle, rel=1e-9, abs=1e-15)
+    assert DET.table_angle(reading) is reading  # the nominal rig: the reading itself

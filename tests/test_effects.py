@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from turntable_env.calibration import load_measurement
 from turntable_env.calibration.trace import simulate_trace
@@ -13,7 +15,13 @@ from turntable_env.calibration.virtual_lab import (
     protocol_drive,
     run_virtual_lab,
 )
-from turntable_env.effects import CATALOGUE, check_effects, parse_effects
+from turntable_env.effects import (
+    CATALOGUE,
+    check_effects,
+    detector_stage,
+    pack_effects,
+    parse_effects,
+)
 from turntable_env.params import real_parameters
 from turntable_env.plant import Plant
 
@@ -97,6 +105,22 @@ def test_detector_nonlinearity_is_cubic_in_the_reading(ps, drive, clean):
     vs = ps.detector.saturation_voltage
     v = clean.detector_v
     np.testing.assert_allclose(res.detector_v, v * (1 + 0.2 * (v / vs) ** 2), atol=1e-12)
+
+
+@given(kappa=st.floats(-0.3, 0.3), angle=st.floats(-0.05, 0.05))
+def test_detector_nonlinearity_is_monotone_and_saturates_on_the_tables_side(ps, kappa, angle):
+    """The photodiode's response stays monotone in the table angle for every κ of the
+    catalogue, inside and far beyond the linear range; a table beyond the range reads
+    saturated on its own side (a folded cubic read −V_sat for a table 5 mm out at κ < 0)."""
+    det = ps.detector
+    rows = pack_effects({"detector_nonlinearity": {"kappa": kappa}})
+    th = angle + np.array([0.0, 1e-6])
+    x, _y = detector_stage(th, np.zeros(2), rows, det)
+    assert x[1] > x[0]
+    vs = det.saturation_voltage
+    if abs(angle) > 1.01 * det.angle_range:
+        assert np.sign(np.clip(x[0], -vs, vs)) == np.sign(angle)
+        assert abs(np.clip(x[0], -vs, vs)) == pytest.approx(vs)
 
 
 def _block(kind, *args):

@@ -17,7 +17,8 @@ Two properties of the rig, not of Eq. 4.1 (the laboratory's conversion knows nei
   (``gain``: true over calibrated, Fig. 4.4).
 
 :meth:`Detector.voltage` is what the photodiode outputs for a table angle; :meth:`angle`
-is the laboratory's Eq. 4.1 reading of a voltage.
+is the laboratory's Eq. 4.1 reading of a voltage; :meth:`table_angle` the table angle behind
+a reading for a lab that knows its rig (a calibration's mirror tilt and gain).
 """
 
 from __future__ import annotations
@@ -114,6 +115,15 @@ class Detector:
     def angle(self, voltage: np.ndarray | float) -> np.ndarray:
         """Table angle θ = ½·arctan(V·S/L) [rad], Eq. 4.1."""
         return 0.5 * np.arctan(self.spot_displacement(voltage) / self.distance)
+
+    def table_angle(self, reading: np.ndarray | float) -> np.ndarray | float:
+        """The table angle θ [rad] behind a laboratory reading r = :meth:`angle` [rad]: Eq. 4.1
+        inverted for this rig's mirror tilt t and gain g, tan 2r = g·tan(2t·θ), so
+        θ = arctan(tan(2r)/g)/(2t) (the identity for t = g = 1; what a lab that calibrated its
+        rig converts its readings with). Unclipped: a saturated reading gives the edge."""
+        if self.tilt_factor == 1.0 and self.gain == 1.0:
+            return reading
+        return np.arctan(np.tan(2.0 * np.asarray(reading)) / self.gain) / (2.0 * self.tilt_factor)
 
     def table_displacement(self, voltage: np.ndarray | float) -> np.ndarray:
         """Displacement at the table radius x_table = θ·R_table [m], Eq. 4.2."""

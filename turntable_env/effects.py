@@ -25,7 +25,8 @@ friction_wear           friction    μ_s, μ_c × (1 + ``beta``·travel/10 µm) 
                                     contacts flatten or roughen with use (§4.3 mentions wear)
 axis_misalignment       output      the axes are not perpendicular (§4.3): the detector's x channel
                                     sees θ·cos φ, its y channel θ·sin φ (``phi`` [rad])
-detector_nonlinearity   output      photodiode response: V·(1 + κ·(V/V_sat)²) (``kappa``)
+detector_nonlinearity   output      photodiode: V + κ·V_c³/V_sat², V_c = V clipped to ±V_sat
+                                    (``kappa``)
 sensor_drift            output      laser/photodiode drift: offset + rate·t (``offset`` [V],
                                     ``rate`` [V/s])
 vibration               output      floor vibration rocking the table under the beam: θ +
@@ -535,8 +536,9 @@ def detector_stage(
     times t [s] (since the plant's start) with effect rows broadcast against them:
     vibration adds A·sin(2πft + φ) to θ; the beam turns by twice the mirror's tilt
     (``detector.tilt_factor``·θ, Eq. 4.1), read as 2θ·cos φ (x) and 2θ·sin φ (y) for a
-    misalignment φ, times the photodiode's ``gain``; the photodiode adds κ·V³/V_sat² and
-    drift offset + rate·t."""
+    misalignment φ, times the photodiode's ``gain``; the photodiode adds κ·V_c³/V_sat² with
+    V_c = V clipped to ±V_sat (the response is monotone, and a table beyond the range reads
+    saturated on its own side for either sign of κ) and drift offset + rate·t."""
     th = np.asarray(theta, dtype=float)
     c = _COL
     amp = rows[..., c["vibration.amplitude"]]
@@ -548,7 +550,8 @@ def detector_stage(
     y = detector.gain * detector.distance * np.tan(tilt * np.sin(phi)) / detector.sensitivity
     kappa = rows[..., c["detector_nonlinearity.kappa"]]
     vs = detector.saturation_voltage
-    x = x * (1.0 + kappa * (x / vs) ** 2)
+    xc = np.clip(x, -vs, vs)  # the cubic acts inside the linear range; beyond it the output
+    x = x + kappa * xc * (xc / vs) ** 2  # rises on to the clip: monotone for |κ| < 1/3
     x = x + rows[..., c["sensor_drift.offset"]] + rows[..., c["sensor_drift.rate"]] * t
     return x, y
 

@@ -1,0 +1,119 @@
+"""Online step-size gains: how far the plant really steps, against what the map predicts.
+
+A controller built on the nominal step map (:mod:`controllers.step_map`) meets plants that
+step differently, and not by one factor: the thesis calibration's turntable (``turntable
+benchmark``'s ``calibrated`` set) steps 1.24–5.23× the nominal plant from 2 V up,
+depending on amplitude and frequency (``python experiments/step_gain_survey.py``). So the
+gain is kept per direction d and amplitude A (pooled over the frequencies and over moves
+from rest and running):
+
+    ρ = (Δθ_measured − Δθ_scan) / D_map(A, f, d),     γ[d, A] ← γ[d, A] + λ·(clip(ρ) − γ[d, A])
+
+(the first measurement of an amplitude replaces the prior 1; λ the forgetting rate). An
+amplitude not yet measured takes a kernel average over its direction's measured ones,
+geometric, weighted by exp(−½(ΔA/σ_A)²) + ε in amplitude (σ_A = ``width``, 1 V; the gain
+of a plant that differs from the map varies mostly with the amplitude; ε = 10⁻³ lets
+distant amplitudes decide where no near one is measured); 1 when nothing is measured.
+Its **upper bound** is ``spread``× the larger of that average and 1 (2: the calibrated
+plant's gain varies about 2× between neighbouring amplitudes; and the map itself stays a
+bound, because a small gain near the stick–slip onset, where a plant with more friction
+barely slips, says nothing about the larger amplitudes) or, with nothing measured in
+that direction, ``caution``× 1 (4). A
+planner that lets no move's upper bound pass the target makes its first moves small
+enough for such a plant, and grows them as it learns.
+
+An amplitude whose measured gain is below ``STALL`` (0.2) is **stalled**: the plant
+barely steps there (a plant with more friction below its onset). It is left out of the
+kernel average, and :meth:`StepGains.stalled` tells a planner not to use it: a stalled
+amplitude must not win as the only "known" move while the table stands still.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["StepGains"]
+
+KERNEL_FLOOR = 1e-3  # ε, the weight every measured setting keeps [-]
+STALL = 0.2  # a measured gain below it: the plant barely steps at that amplitude [-]
+
+
+class StepGains:
+    """Per-direction, per-amplitude step-size gains (module docstring).
+
+    Args:
+        rate: λ, the forgetting rate of repeated measurements [-].
+        bounds: clip of a single ratio ρ [-].
+        caution: the upper bound of a gain with nothing measured in its direction, × 1 [-].
+        spread: the upper bound of an unmeasured amplitude's gain, × max(its kernel
+            average, 1) [-].
+        width: σ_A, the kernel's width in amplitude [V].
+    """
+
+    def __init__(
+        self,
+        *,
+        rate: float = 0.5,
+        bounds: tuple[float, float] = (0.1, 10.0),
+        caution: float = 4.0,
+        spread: float = 2.0,
+        width: float = 1.0,
+    ) -> None:
+        bad_bounds = not 0.0 < bounds[0] < bounds[1]
+        if not 0.0 < rate <= 1.0 or min(caution, spread) < 1.0 or bad_bounds or width <= 0.0:
+            raise ValueError(
+                f"StepGains: rate={rate!r}, bounds={bounds!r}, caution={caution!r}, "
+                f"spread={spread!r}, width={width!r}"
+            )
+        self.rate, self.bounds = rate, bounds
+        self.caution, self.spread, self.width = caution, spread, width
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every measurement (γ = 1, nothing known)."""
+        self.gain: dict[int, dict[float, float]] = {1: {}, -1: {}}
+
+    @staticmethod
+    def _key(amplitude: float) -> float:
+        return round(abs(float(amplitude)), 6)
+
+    def update(self, direction: int, amplitude: float, ratio: float) -> None:
+        """One measured ratio ρ = measured / map displacement at amplitude A [V]."""
+        cells = self.gain[1 if direction > 0 else -1]
+        key = self._key(amplitude)
+        r = float(np.clip(ratio, *self.bounds))
+        cells[key] = r if key not in cells else cells[key] + self.rate * (r - cells[key])
+
+    def estimate(
+        self, direction: int, amplitude: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(γ, upper bound) for each amplitude [V] of direction d (module docstring)."""
+        cells = self.gain[1 if direction > 0 else -1]
+        a = np.atleast_1d(np.asarray(amplitude, dtype=float))
+        if not cells:
+            est = np.ones(a.shape)
+            return est, est * self.caution
+        live = {k: v for k, v in cells.items() if v >= STALL}
+        if not live:
+            est = np.ones(a.shape)
+            return est, est * self.spread
+        amps = np.array(list(live))
+        logs = np.log(np.array(list(live.values())))
+        w = np.exp(-0.5 * ((np.abs(a)[:, None] - amps[None, :]) / self.width) ** 2) + KERNEL_FLOOR
+        est = np.exp((w * logs).sum(axis=1) / w.sum(axis=1))
+        upper = np.maximum(est, 1.0) * self.spread  # evidence never bounds below the map
+        for i, ai in enumerate(a):
+            g = cells.get(self._key(ai))
+            if g is not None:
+                est[i] = upper[i] = g
+        return est, upper
+
+    def stalled(self, direction: int, amplitude: np.ndarray | float) -> np.ndarray:
+        """Whether each amplitude [V] of direction d has a measured gain below ``STALL``."""
+        cells = self.gain[1 if direction > 0 else -1]
+        a = np.atleast_1d(np.asarray(amplitude, dtype=float))
+        return np.array([cells.get(self._key(x), 1.0) < STALL for x in a], dtype=bool)
+
+    def learned(self, direction: int) -> bool:
+        """Whether any amplitude of direction d has been measured."""
+        return bool(self.gain[1 if direction > 0 else -1])
