@@ -2,6 +2,7 @@
 
 import json
 import math
+import pickle
 from dataclasses import replace
 
 import numpy as np
@@ -161,6 +162,12 @@ def test_divergence_names_time_and_state(real_model):
     assert 0.0 < e.time < 0.01
     assert f"t = {e.time:.9g} s" in str(e)
     assert any(w in e.variable for w in ("tube", "table", "contact"))
+    # a worker process (benchmark cells, calibration starts) raises it in the driver: it
+    # must survive pickling, or the pool breaks with an unrelated TypeError
+    back = pickle.loads(pickle.dumps(e))
+    assert (type(back), back.reason, back.time, back.variable, str(back)) == (
+        SimulationError, e.reason, e.time, e.variable, str(e)
+    )
 
 
 def test_simulate_rejects_bad_input(real_model):

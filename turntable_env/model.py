@@ -92,6 +92,10 @@ class SimulationError(RuntimeError):
         }[reason]
         super().__init__(f"simulation stopped at t = {time:.9g} s: {variable} {what}")
 
+    def __reduce__(self) -> tuple[type, tuple[str, float, str]]:
+        """Pickled by its fields (a worker process or Ray task raises it in the driver)."""
+        return (type(self), (self.reason, self.time, self.variable))
+
 
 def _variable_name(index: int) -> str:
     """Name of a state variable from the kernel's index (see integrator._first_bad)."""
