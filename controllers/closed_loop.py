@@ -1,18 +1,20 @@
 """Closed-loop step-count controller that re-estimates the step size online.
 
 Same planner as the feed-forward controller (:class:`~controllers.feedforward.MapPlanner`),
-but the map's displacements are scaled by a gain γ_d per direction d, estimated from the
-detector: after every stepping interval whose start and end readings are both inside
-the linear range and whose expected move exceeds ``min_learn`` (well above the
-detector noise),
+but it replans from the detector every interval, with the map's displacements scaled by
+the online step gains (:class:`~controllers.step_gain.StepGains`): per direction d and
+amplitude A, after every stepping interval whose start and end readings are both inside
+the linear range and whose map move exceeds ``min_learn`` (well above the detector noise),
 
-    ρ = (Δθ_measured − K·Δu_scan) / D_map,      γ_d ← γ_d + λ·(clip(ρ, 0, 3) − γ_d),
+    ρ = (Δθ_measured − K·Δu_scan) / D_map,      γ[d, A] ← γ[d, A] + λ·(clip(ρ) − γ[d, A]),
 
-a recursive estimate with forgetting factor 1 − λ (λ = 0.5). γ starts at 1 (the
-nominal plant). The angle estimate is the reading whenever it is valid, the expected
-move (γ·D) otherwise; a saturated reading places the table beyond the edge on its side.
-So the controller survives a plant whose friction, preload or amplifier differ from the
-model: it replans every interval from what it measures.
+a recursive estimate with forgetting factor 1 − λ (λ = 0.5), the first measurement of an
+amplitude replacing the prior 1. No move may pass the target at its gain's upper bound
+(``caution``× the map with nothing measured, ``spread``× the estimate for an amplitude not
+yet measured). The angle estimate is the reading whenever it is valid, the expected move
+(γ·D) otherwise; a saturated reading places the table beyond the edge on its side, and a
+lost spot is searched for (:class:`~controllers.base.StepScanController`). So the
+controller meets a plant whose friction, preload, amplifier or rig differ from the model.
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ class ClosedLoopStepController(StepScanController):
 
     Args:
         ctx: plant context; step_map: map (default: the shipped one);
-        learning_rate: λ [-]; min_learn: smallest expected move that updates γ [rad].
+        learning_rate: λ [-]; min_learn: smallest map move that updates γ [rad];
+        caution, spread: the gains' upper bounds (:class:`~controllers.step_gain.StepGains`).
     """
 
     name = "closed_loop"
