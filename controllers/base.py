@@ -25,7 +25,7 @@ import abc
 import functools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -53,12 +53,10 @@ class ControllerContext:
 
     Attributes:
         params: nominal parameter set; axis: "A"/"B"/"C"; control_interval: Δt [s];
-        scaling: action scaling; angle_range: the table angle at the edge of the
-        detector's linear range [rad] (θ_lin of Eq. 4.1 converted with the rig's mirror tilt
-        and gain, :meth:`Detector.table_angle`); scan_gain: K, angle per scan-offset volt
-        of the stick plant [rad/V]; input_limit: amplifier input limit u_max [V];
-        tolerance: success band [rad]; detector: the detector model of the plant the
-        controller was built for (what its lab's calibration knows of the rig).
+        scaling: action scaling; scan_gain: K, angle per scan-offset volt of the stick
+        plant [rad/V]; input_limit: amplifier input limit u_max [V]; tolerance: success
+        band [rad]; detector: the detector model of the plant the controller was built for
+        (what its lab's calibration knows of the rig).
 
     A controller reads the table angle from an observation with :meth:`lab_observation`:
     the env's ``measured_angle_rad`` is the Eq. 4.1 reading, which a rig with a tilted
@@ -70,11 +68,10 @@ class ControllerContext:
     axis: str
     control_interval: float
     scaling: ActionScaling
-    angle_range: float
     scan_gain: float
     input_limit: float
     tolerance: float
-    detector: Detector = field(default_factory=Detector)
+    detector: Detector
 
     @classmethod
     def from_config(cls, config: EnvConfig) -> ControllerContext:
@@ -84,7 +81,6 @@ class ControllerContext:
             axis=config.axis,
             control_interval=config.control_interval,
             scaling=config.scaling,
-            angle_range=float(ps.detector.table_angle(ps.detector.angle_range)),
             scan_gain=_scan_design(ps, config.axis, config.control_interval)[0],
             input_limit=ps.amplifier.input_limit,
             tolerance=config.tolerance,
@@ -109,6 +105,12 @@ class ControllerContext:
         out = np.array(obs, dtype=float, copy=True)
         out[..., OBS.measured_angle_rad] = det.table_angle(out[..., OBS.measured_angle_rad])
         return out
+
+    @property
+    def angle_range(self) -> float:
+        """The table angle at the edge of the detector's linear range [rad]: θ_lin of
+        Eq. 4.1 converted with the rig's mirror tilt and gain (:meth:`Detector.table_angle`)."""
+        return float(self.detector.table_angle(self.detector.angle_range))
 
     @property
     def scan_range(self) -> float:
