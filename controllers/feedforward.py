@@ -88,17 +88,16 @@ class MapPlanner:
         tolerance: float,
         *,
         from_rest: bool,
-        gain: float = 1.0,
         gains: StepGains | None = None,
         amplitude_limit: float = np.inf,
     ) -> Move | None:
         """The largest move towards ``remaining`` [rad] that does not pass the target, or
         None when |remaining| ≤ ``tolerance`` [rad] (the scan finishes) or no move fits.
 
-        ``gain`` scales the map's displacements (one estimate of the plant); ``gains``, when
-        given, instead scales each amplitude's by its own estimate, no move may pass the
-        target at its upper bound, and stalled amplitudes are not used
-        (:class:`~controllers.step_gain.StepGains`)."""
+        ``gains``, when given, scales each amplitude's map displacement by its own
+        estimate, no move may pass the target at its upper bound, and stalled amplitudes
+        are not used (:class:`~controllers.step_gain.StepGains`); without it, the map as
+        it is."""
         if abs(remaining) <= tolerance:
             return None
         d = 1 if remaining > 0 else -1
@@ -109,7 +108,7 @@ class MapPlanner:
             g, upper = gains.estimate(d, mv[:, 0])
             usable &= ~gains.stalled(d, mv[:, 0])
         else:
-            g = upper = np.full(nominal.shape, gain)
+            g = upper = np.ones(nominal.shape)
         disp, reach = nominal * g, nominal * upper
         ok = (reach <= abs(remaining)) & usable
         if not ok.any():
