@@ -610,3 +610,24 @@ def test_record_video_writes_an_mp4(tmp_path):
     env.close()
     videos = list(tmp_path.glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="known defect (issue 32): the 3-D env's reset off zero is not at rest; with no "
+    "drive the table jumps in the first interval (after three: by -0.094 mrad from a 0.3 "
+    "mrad start, by +1.27 mrad from 2 mrad), and from 8 mrad the run diverges (table CoM "
+    "z), so the benchmark's 3-D set leaves out the 200 µm move (20 mrad)",
+)
+@pytest.mark.parametrize("start", [3e-4, 2e-3, 2e-2])
+def test_the_3d_env_holds_a_table_reset_off_zero(start):
+    """With no drive, a table reset at ``start`` stays there (to 0.1 µrad) over three
+    intervals, as the reduced model's does (to rounding)."""
+    for fidelity in ("reduced", "full"):
+        env = gym.make("PiezoTurntable-v0", fidelity=fidelity, terminate_on_success=False,
+                       noise=False)  # fmt: skip
+        env.reset(seed=0, options={"start_angle": start, "target_angle": 0.0})
+        for _ in range(3):
+            *_, info = env.step(np.zeros(5, dtype=np.float32))
+        assert info["angle_rad"] == pytest.approx(start, abs=1e-7), fidelity

@@ -537,8 +537,9 @@ def detector_stage(
     vibration adds A·sin(2πft + φ) to θ; the beam turns by twice the mirror's tilt
     (``detector.tilt_factor``·θ, Eq. 4.1), read as 2θ·cos φ (x) and 2θ·sin φ (y) for a
     misalignment φ, times the photodiode's ``gain``; the photodiode adds κ·V_c³/V_sat² with
-    V_c = V clipped to ±V_sat (the response is monotone, and a table beyond the range reads
-    saturated on its own side for either sign of κ) and drift offset + rate·t."""
+    V_c = V clipped to ±V_sat (the response is monotone for |κ| < 1/3, and a table beyond
+    the range reads on its own side, saturated once V passes (1 + |κ|)·V_sat) and drift
+    offset + rate·t."""
     th = np.asarray(theta, dtype=float)
     c = _COL
     amp = rows[..., c["vibration.amplitude"]]
