@@ -84,35 +84,41 @@ class StepGains:
         r = float(np.clip(ratio, *self.bounds))
         cells[key] = r if key not in cells else cells[key] + self.rate * (r - cells[key])
 
+    def _measured(self, direction: int, amplitude: np.ndarray | float) -> tuple[np.ndarray, ...]:
+        """(|A| (n,), measured (n,) bool, measured gain (n,), NaN where none) of direction d."""
+        cells = self.gain[1 if direction > 0 else -1]
+        a = np.abs(np.atleast_1d(np.asarray(amplitude, dtype=float)))
+        keys = np.round(a, 6)
+        amps = np.fromiter(cells, dtype=float, count=len(cells))
+        vals = np.fromiter(cells.values(), dtype=float, count=len(cells))
+        hit = keys[:, None] == amps[None, :]
+        known = hit.any(axis=1)
+        g = np.where(known, vals[hit.argmax(axis=1)] if cells else np.nan, np.nan)
+        return a, known, g
+
     def estimate(
         self, direction: int, amplitude: np.ndarray | float
     ) -> tuple[np.ndarray, np.ndarray]:
         """(γ, upper bound) for each amplitude [V] of direction d (module docstring)."""
+        a, known, g = self._measured(direction, amplitude)
         cells = self.gain[1 if direction > 0 else -1]
-        a = np.atleast_1d(np.asarray(amplitude, dtype=float))
-        if not cells:
-            est = np.ones(a.shape)
-            return est, est * self.caution
         live = {k: v for k, v in cells.items() if v >= STALL}
-        if not live:
-            est = np.ones(a.shape)
-            return est, est * self.spread
-        amps = np.array(list(live))
-        logs = np.log(np.array(list(live.values())))
-        w = np.exp(-0.5 * ((np.abs(a)[:, None] - amps[None, :]) / self.width) ** 2) + KERNEL_FLOOR
-        est = np.exp((w * logs).sum(axis=1) / w.sum(axis=1))
-        upper = np.maximum(est, 1.0) * self.spread  # evidence never bounds below the map
-        for i, ai in enumerate(a):
-            g = cells.get(self._key(ai))
-            if g is not None:
-                est[i] = upper[i] = g
-        return est, upper
+        if not cells:
+            est, upper = np.ones(a.shape), np.full(a.shape, self.caution)
+        elif not live:  # every measured amplitude stalled: the map, bounded by ``spread``
+            return np.ones(a.shape), np.full(a.shape, self.spread)
+        else:
+            amps = np.array(list(live))
+            logs = np.log(np.array(list(live.values())))
+            w = np.exp(-0.5 * ((a[:, None] - amps[None, :]) / self.width) ** 2) + KERNEL_FLOOR
+            est = np.exp((w * logs).sum(axis=1) / w.sum(axis=1))
+            upper = np.maximum(est, 1.0) * self.spread  # evidence never bounds below the map
+        return np.where(known, g, est), np.where(known, g, upper)
 
     def stalled(self, direction: int, amplitude: np.ndarray | float) -> np.ndarray:
         """Whether each amplitude [V] of direction d has a measured gain below ``STALL``."""
-        cells = self.gain[1 if direction > 0 else -1]
-        a = np.atleast_1d(np.asarray(amplitude, dtype=float))
-        return np.array([cells.get(self._key(x), 1.0) < STALL for x in a], dtype=bool)
+        _a, known, g = self._measured(direction, amplitude)
+        return known & (np.nan_to_num(g, nan=1.0) < STALL)
 
     def learned(self, direction: int) -> bool:
         """Whether any amplitude of direction d has been measured."""

@@ -23,6 +23,7 @@ from controllers.episode import EpisodeResult
 from controllers.lab import LabBrief
 from controllers.scan_pid import ScanPID, design_scan_pid, pid_transfer_function
 from controllers.step_map import sweep_step_map
+from turntable_env.envs.config import OBS
 from turntable_env.linear import scan_plant, stick_plant
 
 R_TABLE = 0.01  # m
@@ -271,7 +272,8 @@ def test_controllers_read_the_table_angle_through_their_rigs_calibration(name):
     res = run_episode(env, make(name, ctx), seed=0, options=opts, brief=_known(opts))
     assert res.metrics()["final_error_nm"] <= 30.0
     obs, _ = env.reset(seed=0, options=opts)
-    assert ctx.lab_observation(obs)[0] == pytest.approx(opts["start_angle"], rel=1e-3)
+    read = ctx.lab_observation(obs)[OBS.measured_angle_rad]
+    assert read == pytest.approx(opts["start_angle"], rel=1e-3)
 
 
 @pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
