@@ -73,11 +73,6 @@ DEFAULT_PLANT_SETS = ("nominal", "randomized", "held_out", "calibrated", "full_3
 # the 3-D model runs at ≈ 0.1–0.3× real time (turntable bench): every task at its full
 # horizon, but fewer seeds (issue 32: 3 seeds × 6 controllers ≈ 11 min of the run)
 FULL_3D_SEEDS = 3
-# tasks the 3-D model cannot run, with the reason (benchmark.json's settings carry it)
-FULL_3D_EXCLUDED = {
-    "point_200um": "the 3-D env's reset at a start ≥ 8 mrad diverges within 2 ms (table CoM z) "
-    "with no drive; the 200 µm move starts at 20 mrad",
-}
 PRIMARY = {"point": "settle_time_s", "tracking": "tracking_rms_nm", "disturbance": "settle_time_s"}
 QUICK: dict[str, Any] = {
     "seeds": 4,
@@ -378,8 +373,7 @@ def run_benchmark(
     Args:
         controllers: registered names (default: all, after :func:`load_plugins`).
         plant_sets: names from :data:`~controllers.plant_sets.PLANT_SETS`; ``full_3d`` runs
-            runs at most :data:`FULL_3D_SEEDS` seeds per cell and not the tasks of
-            :data:`FULL_3D_EXCLUDED`.
+            at most :data:`FULL_3D_SEEDS` seeds per cell.
         tasks: names from :data:`~controllers.tasks.TASKS` (default: all).
         seeds: episodes per cell (paired across controllers).
         progress: a tqdm bar over the cells' control intervals (in this process).
@@ -406,11 +400,7 @@ def run_benchmark(
         raise ValueError(f"seeds={seeds!r}: must be an integer >= 2 (intervals need pairs)")
     if not names or not plant_sets or not task_list:
         raise ValueError("controllers, plant_sets and tasks must not be empty")
-    jobs = [(p, t) for p in plant_sets for t in task_list
-            if p != "full_3d" or t not in FULL_3D_EXCLUDED]  # fmt: skip
-    if not jobs:
-        why = "; ".join(f"{t}: {FULL_3D_EXCLUDED[t]}" for t in task_list if t in FULL_3D_EXCLUDED)
-        raise ValueError(f"plant_sets=['full_3d'], tasks={task_list}: nothing to run ({why})")
+    jobs = [(p, t) for p in plant_sets for t in task_list]
     if backend is not None:
         resolve_backend(backend, address)
     t0 = time.perf_counter()
@@ -486,7 +476,6 @@ def _result(
             for t in task_list
         },
         "full_3d_seeds": FULL_3D_SEEDS,
-        "full_3d_excluded": dict(FULL_3D_EXCLUDED),
         "seeds": seeds,
         "axis": axis,
         "suite_seed": suite_seed,

@@ -272,13 +272,8 @@ def test_step_controllers_meet_the_calibrated_plant_without_running_away():
     assert df["runaway_um"].max() <= RUNAWAY_LIMIT * 1e6
 
 
-def test_the_3d_set_runs_every_task_but_the_excluded_with_fewer_seeds():
-    """Issue 32: the 3-D plant set meets every task (at most FULL_3D_SEEDS seeds a cell); a
-    task the 3-D model cannot start is excluded with its reason, and asking only for it
-    is refused before any work."""
-    from controllers.benchmark import FULL_3D_EXCLUDED, FULL_3D_SEEDS, _seeds
+def test_the_3d_set_runs_every_task_with_fewer_seeds():
+    """Issue 32: the 3-D plant set meets every task, at most FULL_3D_SEEDS seeds a cell."""
+    from controllers.benchmark import FULL_3D_SEEDS, _seeds
 
     assert _seeds("full_3d", 20) == FULL_3D_SEEDS < 20 and _seeds("calibrated", 20) == 20
-    assert set(FULL_3D_EXCLUDED) < set(TASKS) and len(FULL_3D_EXCLUDED) <= 1
-    with pytest.raises(ValueError, match="point_200um: the 3-D env's reset"):
-        run_benchmark(["scan_pid"], plant_sets=["full_3d"], tasks=["point_200um"], seeds=2)

@@ -613,17 +613,12 @@ def test_record_video_writes_an_mp4(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="known defect (issue 32): the 3-D env's reset off zero is not at rest; with no "
-    "drive the table jumps in the first interval (after three: by -0.094 mrad from a 0.3 "
-    "mrad start, by +1.27 mrad from 2 mrad), and from 8 mrad the run diverges (table CoM "
-    "z), so the benchmark's 3-D set leaves out the 200 µm move (20 mrad)",
-)
 @pytest.mark.parametrize("start", [3e-4, 2e-3, 2e-2])
 def test_the_3d_env_holds_a_table_reset_off_zero(start):
     """With no drive, a table reset at ``start`` stays there (to 0.1 µrad) over three
-    intervals, as the reduced model's does (to rounding)."""
+    intervals, as the reduced model's does (to rounding). The 3-D reset turns the table
+    about its centre: turned about its CoM, the centre moved by (R − I)c and the table
+    jumped (−0.094 mrad from 0.3 mrad) or diverged (from 8 mrad)."""
     for fidelity in ("reduced", "full"):
         env = gym.make("PiezoTurntable-v0", fidelity=fidelity, terminate_on_success=False,
                        noise=False)  # fmt: skip

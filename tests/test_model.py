@@ -153,6 +153,26 @@ def test_no_drift_in_stick_after_stepping(real_model):
     assert np.all(r.n_stick[r.time >= t0] == 5)
 
 
+def test_a_turned_rest_state_turns_the_table_about_its_centre(real_model):
+    """A table at rest turned by R keeps its centre (the sphere's, on which the contacts
+    lie) at the equilibrium's: the CoM, c below it, moves by (R − I)c. A matrix that is
+    not a rotation is refused by name."""
+    from turntable_env.screw import exp_so3
+
+    c = real_model.packed["c_body"]
+    flat = real_model.rest_state()
+    for theta in (3e-4, 2e-2):  # rad, about B
+        rot = exp_so3(theta * real_model.layout.axis_units[1])
+        st = real_model.rest_state(rotation=rot)
+        centre = st.pc_disp + (np.eye(3) - st.rot) @ c
+        np.testing.assert_allclose(centre, flat.pc_disp, rtol=0, atol=1e-15)
+        assert np.linalg.norm(st.pc_disp - flat.pc_disp) == pytest.approx(
+            theta * np.linalg.norm(np.cross(real_model.layout.axis_units[1], c)), rel=1e-3
+        )
+    with pytest.raises(ValueError, match="rotation"):
+        real_model.rest_state(rotation=2.0 * np.eye(3))
+
+
 # --- evidence 7: divergence is an error naming time and state ----------------------------
 def test_divergence_names_time_and_state(real_model):
     with pytest.raises(SimulationError) as exc:

@@ -132,13 +132,13 @@ class FullState(NamedTuple):
     """State of the 3-D model (modified in place by the kernel).
 
     Attributes:
-        pc_disp: table-centre displacement from the nominal pose [m]; vc: CoM velocity
-        [m/s]; rot: (3, 3) table orientation; lam: angular momentum about the CoM
-        [kg·m²/s]; xi, xid: (3, 6) tube-top twists [rad, m] and rates; gf: (3, n_e, 2) GMS
-        element forces [N]; gst: (3, n_e) 1 stick / 0 slip; vch: (4,) channel voltages
-        [V]; acc: (5,) energy accumulators [J] (W_elec, W_interface, D_tube, D_contact,
-        gross |W_elec|); amp_slow, amp_fast: (4,) each channel amplifier's slow and fast
-        paths [V] (:mod:`turntable_env.amplifier`).
+        pc_disp: CoM displacement from the nominal pose [m] (the table centre's is
+        pc_disp + (I − R)c); vc: CoM velocity [m/s]; rot: (3, 3) table orientation; lam:
+        angular momentum about the CoM [kg·m²/s]; xi, xid: (3, 6) tube-top twists [rad, m]
+        and rates; gf: (3, n_e, 2) GMS element forces [N]; gst: (3, n_e) 1 stick / 0 slip;
+        vch: (4,) channel voltages [V]; acc: (5,) energy accumulators [J] (W_elec,
+        W_interface, D_tube, D_contact, gross |W_elec|); amp_slow, amp_fast: (4,) each
+        channel amplifier's slow and fast paths [V] (:mod:`turntable_env.amplifier`).
     """
 
     pc_disp: np.ndarray

@@ -502,16 +502,29 @@ class TurntableModel:
                 raise ValueError(f"drive[{axis!r}]={sig!r}: must be a DriveSignal or a Waveform")
         return out
 
-    def rest_state(self, channel_voltages: np.ndarray | None = None) -> FullState:
-        """Integrator state at the static equilibrium (R = I, every GMS element stuck and
-        unloaded, zero velocities) for the channel output voltages [V] (A, B, C, Z)."""
+    def rest_state(
+        self, channel_voltages: np.ndarray | None = None, rotation: np.ndarray | None = None
+    ) -> FullState:
+        """Integrator state at the static equilibrium (every GMS element stuck and unloaded,
+        zero velocities) for the channel output voltages [V] (A, B, C, Z).
+
+        ``rotation`` (3×3, default I) turns the table about its centre, the sphere's: the
+        contact points stay on the sphere, so the contact geometry is the equilibrium's, and
+        the CoM, c below the centre, moves by (R − I)c. The pendulum torque of the turned CoM
+        (k_g θ, :class:`~turntable_env.reduced.AxisParameters`) then loads the stuck elements
+        in the first microseconds (presliding, of order 1e-6 of θ).
+        """
         vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
+        rot = np.eye(3) if rotation is None else np.asarray(rotation, float)
+        if rot.shape != (3, 3) or not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
+            raise ValueError(f"rotation: not a 3×3 rotation matrix: {rotation!r}")
         x = self.static_equilibrium(vch)
         ne = self.packed["gnu"].size
+        c_body = self.packed["c_body"]  # CoM from the table centre at R = I [m]
         return FullState(
-            pc_disp=x[:3].copy(),  # R = I: CoM displacement = centre displacement [m]
+            pc_disp=x[:3] + rot @ c_body - c_body,  # CoM displacement [m]
             vc=np.zeros(3),
-            rot=np.eye(3),
+            rot=rot.copy(),
             lam=np.zeros(3),
             xi=x[3:].reshape(3, 6).copy(),
             xid=np.zeros((3, 6)),

@@ -177,9 +177,7 @@ class _FullBackend:
     def reset(self, b: int, angle: float, time: float, voltage: float) -> None:
         vch = np.zeros(4)
         vch[self.c] = voltage
-        st = self.models[b].rest_state(vch)
-        st.rot[:] = exp_so3(angle * self.unit)
-        self.states[b] = st
+        self.states[b] = self.models[b].rest_state(vch, exp_so3(angle * self.unit))
         self.n[b] = round(time / self.grid)
 
     def displace(self, b: int, delta: float) -> None:
