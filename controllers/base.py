@@ -44,6 +44,10 @@ __all__ = ["Controller", "ControllerContext", "Move", "StepScanController"]
 SATURATION_FRACTION = 0.995  # of θ_lin: readings beyond it count as saturated
 UNWIND_FRACTION = 0.5  # of u_max: a larger scan offset is ramped to 0 before stepping
 LOST_EXCESS = 0.05  # of θ_lin: first guess of a lost spot's distance beyond the edge (doubles)
+# the blind-travel budget: believed travel with the reading saturated before the safety
+# monitor stops stepping (a plant that steps backwards there would otherwise run away)
+BLIND_FACTOR = 3.0  # × the dead-reckoned distance to the detector, with its stated error
+LOST_SEARCH = 8.0  # of θ_lin: search allowed for a spot lost inside the episode
 MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
 
 
@@ -235,6 +239,11 @@ class StepScanController(Controller):
         self.last_measured: float | None = None if self.saturated(meas) else meas
         self._offset_before = 0.0  # V, the scan offset a stepping interval ramped from
         self._excess = LOST_EXCESS  # of θ_lin: the lost spot's believed distance beyond the edge
+        self._blind = 0.0  # rad, believed travel of the moves made with the reading saturated
+        self._blind_budget = LOST_SEARCH * self.ctx.angle_range  # rad
+        if self.saturated(meas):  # beyond the detector from the start: dead-reckon to it
+            dist = max(abs(self.estimate) - self.ctx.angle_range, self.ctx.angle_range)
+            self._blind_budget = BLIND_FACTOR * (1.0 + brief.start_error) * dist
         if self.gains is not None:
             self.gains.reset()
         self.pid.reset(0.0)
@@ -294,13 +303,17 @@ class StepScanController(Controller):
         self.learn(meas, sat)
         self.observe(meas, sat)
         k_scan = self.ctx.scan_gain
+        lim = self.ctx.angle_range
         if sat:  # beyond the detector: at least at its edge on the reading's side; a belief
             # the reading contradicts is a lost spot: search on with a doubling excess
-            lim = self.ctx.angle_range
             if abs(self.estimate) < lim * (1.0 + LOST_EXCESS) or self.estimate * meas <= 0.0:
                 self.estimate = math.copysign(lim * (1.0 + self._excess), meas)
-                self._excess *= 2.0
+                self._excess = min(2.0 * self._excess, self._blind_budget / lim)
+            if self._blind >= self._blind_budget:  # the safety monitor: stop, do not run away
+                return self._hold()
         else:
+            if self._blind > 0.0:  # found again: a later loss gets the lost spot's budget
+                self._blind, self._blind_budget = 0.0, LOST_SEARCH * lim
             self._excess = LOST_EXCESS
         if self.mode == "scan":
             err = self.target - meas
@@ -326,11 +339,22 @@ class StepScanController(Controller):
             self.pid.reset(self.offset)
             return self._scan(self.target - meas if not sat else 0.0, meas)
         self.last_move = move
+        if sat:
+            self._blind += abs(move.expected)
         self.estimate -= k_scan * self.offset
         self._offset_before = self.offset
         self.offset = 0.0
         self.last_measured = None if sat else meas
         return self.ctx.scaling.encode(move.amplitude, move.frequency, move.a, move.k, 0.0)
+
+    def _hold(self) -> np.ndarray:
+        """One interval with the generator idle and the scan offset kept: the blind-travel
+        budget is spent without the spot appearing, so the steps do not go where the
+        controller believes (a plant stepping backwards): it stops rather than run away."""
+        self.mode = "scan"
+        self.last_move = None
+        self.last_measured = None
+        return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, self.offset)
 
     def _unwind(self) -> np.ndarray:
         """One interval with the generator idle and the scan offset ramped to 0 (the table
