@@ -5,7 +5,8 @@ Tasks (:mod:`controllers.tasks`): point-to-point moves that need stepping (2 µm
 the detector's edge), tracking (a constant-velocity scan, waypoints, back and forth) and
 a knock. Plant sets (:mod:`controllers.plant_sets`): ``nominal``, ``randomized`` (the RL
 training distribution), ``held_out`` (outside the training ranges, one catalogue effect
-each), ``calibrated`` and ``full_3d``.
+each), ``calibrated``, ``full_3d`` and ``independent`` (the independent test plant, a
+formulation no controller was designed or trained on).
 
 How a cell (plant set × task) runs: one :class:`~turntable_env.envs.core.TurntableTask`
 holds every controller × seed as a row, so the plants advance in one compiled batched call
@@ -67,12 +68,17 @@ __all__ = [
     "write_outputs",
 ]
 
-BENCHMARK_VERSION = "2.1"  # tasks, plant sets and metrics of this protocol; bump on change
+BENCHMARK_VERSION = "2.2"  # tasks, plant sets and metrics of this protocol; bump on change
 SUITE_SEED = 2026
-DEFAULT_PLANT_SETS = ("nominal", "randomized", "held_out", "calibrated", "full_3d")
+DEFAULT_PLANT_SETS = (
+    "nominal", "randomized", "held_out", "calibrated", "full_3d", "independent"
+)  # fmt: skip
 # the 3-D model runs at ≈ 0.1–0.3× real time (turntable bench): every task at its full
 # horizon, but fewer seeds (issue 32: 3 seeds × 6 controllers ≈ 11 min of the run)
 FULL_3D_SEEDS = 3
+# the independent plant integrates at a fixed 0.25 µs in Python-driven calls per interval
+# (≈ 3 ms of CPU per turntable and interval): every task, fewer seeds
+INDEPENDENT_SEEDS = 5
 PRIMARY = {"point": "settle_time_s", "tracking": "tracking_rms_nm", "disturbance": "settle_time_s"}
 QUICK: dict[str, Any] = {
     "seeds": 4,
@@ -278,8 +284,10 @@ def _task(plant_set: str, name: str) -> Task:
 
 
 def _seeds(plant_set: str, seeds: int) -> int:
-    """Episodes per cell on a plant set (at most :data:`FULL_3D_SEEDS` on the 3-D model)."""
-    return min(seeds, FULL_3D_SEEDS) if plant_set == "full_3d" else seeds
+    """Episodes per cell on a plant set (at most :data:`FULL_3D_SEEDS` on the 3-D model and
+    :data:`INDEPENDENT_SEEDS` on the independent plant)."""
+    cap = {"full_3d": FULL_3D_SEEDS, "independent": INDEPENDENT_SEEDS}.get(plant_set, seeds)
+    return min(seeds, cap)
 
 
 def _run_cell(
@@ -373,7 +381,8 @@ def run_benchmark(
     Args:
         controllers: registered names (default: all, after :func:`load_plugins`).
         plant_sets: names from :data:`~controllers.plant_sets.PLANT_SETS`; ``full_3d`` runs
-            at most :data:`FULL_3D_SEEDS` seeds per cell.
+            at most :data:`FULL_3D_SEEDS` seeds per cell, ``independent`` at most
+            :data:`INDEPENDENT_SEEDS`.
         tasks: names from :data:`~controllers.tasks.TASKS` (default: all).
         seeds: episodes per cell (paired across controllers).
         progress: a tqdm bar over the cells' control intervals (in this process).
@@ -476,6 +485,7 @@ def _result(
             for t in task_list
         },
         "full_3d_seeds": FULL_3D_SEEDS,
+        "independent_seeds": INDEPENDENT_SEEDS,
         "seeds": seeds,
         "axis": axis,
         "suite_seed": suite_seed,

@@ -17,6 +17,10 @@ set            plants (one per seed)
                the real turntable with the rig its figures ask for), reduced model
 ``full_3d``    the real turntable on the full 3-D model (SE(3) table, three tubes, 2-D GMS
                Hertz–Mindlin contacts), which the step map and the agents never saw
+``independent`` the project's independent test plant (:mod:`turntable_env.plant.independent`:
+               LuGre friction, lumped tubes, its own parameters derived apart from Table
+               D.1, written without the package's model code), its factors drawn as
+               ``randomized``'s: a formulation no controller was designed or trained on
 =============  ===========================================================================
 
 Train and test ranges are disjoint by construction (tested). Every draw comes from a
@@ -142,5 +146,10 @@ PLANT_SETS: dict[str, Callable[[], PlantSet]] = {
     ),
     "full_3d": lambda: PlantSet(
         "full_3d", Plant("real", fidelity="full"), "Table D.1 on the full 3-D model", _same
+    ),
+    "independent": lambda: PlantSet(
+        "independent", Plant("real", fidelity="independent"),
+        "the independent test plant (LuGre, its own parameters), training-range factors",
+        _randomized,
     ),
 }

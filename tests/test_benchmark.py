@@ -272,8 +272,12 @@ def test_step_controllers_meet_the_calibrated_plant_without_running_away():
     assert df["runaway_um"].max() <= RUNAWAY_LIMIT * 1e6
 
 
-def test_the_3d_set_runs_every_task_with_fewer_seeds():
-    """Issue 32: the 3-D plant set meets every task, at most FULL_3D_SEEDS seeds a cell."""
-    from controllers.benchmark import FULL_3D_SEEDS, _seeds
+def test_the_3d_and_independent_sets_run_every_task_with_fewer_seeds():
+    """Issue 32: the 3-D and the independent plant sets meet every task, at most
+    FULL_3D_SEEDS and INDEPENDENT_SEEDS seeds a cell; both are in the default run."""
+    from controllers.benchmark import DEFAULT_PLANT_SETS, FULL_3D_SEEDS, INDEPENDENT_SEEDS, _seeds
 
     assert _seeds("full_3d", 20) == FULL_3D_SEEDS < 20 and _seeds("calibrated", 20) == 20
+    assert _seeds("independent", 20) == INDEPENDENT_SEEDS < 20
+    assert {"full_3d", "independent"} <= set(DEFAULT_PLANT_SETS)
+    assert PLANT_SETS["independent"]().base.fidelity == "independent"

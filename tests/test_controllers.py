@@ -276,6 +276,18 @@ def test_controllers_read_the_table_angle_through_their_rigs_calibration(name):
 
 
 @pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
+def test_the_step_controllers_settle_on_the_independent_plant(name):
+    """The independent test plant (LuGre friction, its own parameters: a formulation none
+    of them was designed on; its scan range is 1.4× the nominal one) from beyond the
+    detector, dead reckoning ±30 %: each step controller settles a 50 µm move within 10 nm
+    and 1.5 s, seeing only its readings."""
+    env = _env(plant=Plant("real", fidelity="independent"), max_episode_steps=150, noise=False)
+    opts = _move(50e-6)
+    res = run_episode(env, make(name, env), seed=0, options=opts, brief=_known(opts, 0.3))
+    assert res.metrics()["final_error_nm"] <= 10.0
+
+
+@pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
 def test_a_plant_stepping_backwards_beyond_the_detector_is_stopped_not_run_away(name):
     """Friction worn by the travel (β = 0.2 per 10 µm on a plant with friction ×0.65) makes
     the fast settings step backwards after some tens of µm, beyond the detector where no

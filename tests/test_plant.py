@@ -356,3 +356,67 @@ def test_named_plants_and_sets_are_refused_by_an_unknown_name():
         Plant.named("wishful")
     with pytest.raises(ValueError, match="must be one of real, thesis, calibrated"):
         parameter_set("wishful")
+
+
+# --- the independent plant behind the plant layer (issue 32, item 5) -------------------------
+def _sawtooth(periods=6, f=500.0, amplitude=3.0):
+    """Breakpoints on the 62.5 ns grid: a ramp to ``amplitude`` [V input] over 0.9 of each
+    period, then back to 0 V within one grid step."""
+    g = 62.5e-9
+    n_per = round(1.0 / f / g)
+    t, u = [0.0], [0.0]
+    for k in range(periods):
+        top = k * n_per + round(0.9 * n_per)
+        t += [top * g, (top + 1) * g, (k + 1) * n_per * g]
+        u += [amplitude, 0.0, 0.0]
+    return np.array(t), np.array(u)
+
+
+def test_the_independent_fidelity_is_the_independent_plant_resumed():
+    """``Plant(fidelity="independent")`` runs :mod:`turntable_env.testing.independent_plant`:
+    resumed after two of six periods, the stepper's records equal the plant's own run from
+    rest on the same samples (to 1e-12: the drive passes the stepper's 62.5 ns grid); a
+    knock at rest moves the table and the contacts hold it there (within 1e-9 rad)."""
+    from turntable_env.drive import Waveform
+    from turntable_env.plant.independent import independent_params
+    from turntable_env.testing.independent_plant import simulate
+
+    plant = Plant("real", fidelity="independent")
+    t, u = _sawtooth()
+    odt, split = 1e-4, 0.004  # s; the split falls on a period's start
+    st = PlantStepper([plant], noise=False)
+    head, tail = t <= split + 1e-12, t >= split - 1e-12
+    parts = [
+        st.run_waveform([Waveform(t[head], u[head])], split, odt)[0],
+        st.run_waveform([Waveform(t[tail] - split, u[tail])], 0.006 - split, odt)[0],
+    ]
+    g = st.grid
+    n = np.unique(np.round(np.concatenate([t, np.arange(0, 0.006, odt)]) / g))
+    ref, _x, _y = simulate(independent_params(plant.params), n * g, np.interp(n * g, t, u))
+    for rec in parts:
+        at = np.isin(n, np.round(rec.time / g))
+        assert at.sum() == rec.time.size
+        np.testing.assert_allclose(rec.angle, ref[at], rtol=1e-12, atol=1e-18)
+    assert parts[1].angle[-1] > 1e-4  # it stepped (0.1 mrad in six periods)
+    hold = [Waveform(np.array([0.0, 0.02]), np.zeros(2))]  # 0 V: amplifier and ring settle
+    st.run_waveform(hold, 0.02, 1e-3)
+    st.displace(0, 2e-3)
+    knocked = st.angle[0]
+    rest = st.run_waveform(hold, 0.02, 1e-3)[0]
+    np.testing.assert_allclose(rest.angle, knocked, rtol=0, atol=1e-9)
+
+
+def test_the_independent_plant_takes_the_plants_factors():
+    """Friction, preload and amplifier factors scale the independent plant's own values."""
+    from turntable_env.plant.independent import independent_params
+    from turntable_env.testing.independent_plant import PlantParams
+
+    p0 = PlantParams()
+    p = independent_params(
+        Plant("real", factors={"friction": 0.8, "preload": 1.25, "amplifier": 0.5}).params
+    )
+    assert p.static_friction_coefficient == pytest.approx(0.8 * p0.static_friction_coefficient)
+    assert p.coulomb_friction_coefficient == pytest.approx(0.8 * p0.coulomb_friction_coefficient)
+    assert p.normal_force_N == pytest.approx(1.25 * p0.normal_force_N)
+    assert p.amplifier_current_limit_A == pytest.approx(0.5 * p0.amplifier_current_limit_A)
+    assert p.tube_mass_kg == p0.tube_mass_kg  # not an uncertain value

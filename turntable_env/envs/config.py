@@ -18,7 +18,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from ..params import ParameterSet
-from ..plant import DEFAULT_RANDOMIZATION, PARAMETER_SETS, Plant
+from ..plant import DEFAULT_RANDOMIZATION, FIDELITIES, PARAMETER_SETS, Plant
 from ..validation import check_nonnegative, check_positive
 
 __all__ = [
@@ -178,8 +178,10 @@ class EnvConfig:
         params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2),
             ``"calibrated"`` (the real turntable with the rig the thesis's figures ask for)
             or a ParameterSet, without effects; give ``plant`` or ``params``, not both.
-        fidelity: ``"reduced"`` (per-axis model) or ``"full"`` (3-D model; ``turntable
-            bench`` compares the two real-time factors); default: the plant's (reduced).
+        fidelity: ``"reduced"`` (per-axis model), ``"full"`` (3-D model; ``turntable
+            bench`` compares the two real-time factors) or ``"independent"`` (the
+            independent test plant, :mod:`turntable_env.plant.independent`); default: the
+            plant's (reduced).
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.
         control_interval: time per env step [s] (0.01: one period of the 100 Hz nominal drive).
         randomize: domain randomisation per episode (:meth:`Plant.sample`): False; True —
@@ -212,7 +214,7 @@ class EnvConfig:
 
     plant: Plant | str | os.PathLike[str] | None = None
     params: str | ParameterSet | None = None
-    fidelity: Literal["reduced", "full"] | None = None
+    fidelity: Literal["reduced", "full", "independent"] | None = None
     axis: str = "B"
     control_interval: float = 0.01
     randomize: bool | Mapping[str, tuple[float, float]] = False
@@ -230,8 +232,8 @@ class EnvConfig:
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict, init=False)
 
     def __post_init__(self) -> None:
-        if self.fidelity not in (None, "reduced", "full"):
-            raise ValueError(f"fidelity={self.fidelity!r}: must be 'reduced' or 'full'")
+        if self.fidelity is not None and self.fidelity not in FIDELITIES:
+            raise ValueError(f"fidelity={self.fidelity!r}: must be one of {', '.join(FIDELITIES)}")
         if self.sensor_noise is not None:
             check_nonnegative("sensor_noise", self.sensor_noise)
         object.__setattr__(self, "plant", self._resolve_plant())

@@ -42,6 +42,7 @@ from ..reduced import H_MIN, REDUCED_AXES, ReducedBatch
 from ..reduced_kernel import N_REC
 from ..screw import exp_so3, log_so3
 from ..validation import check_finite
+from .independent import IndependentBackend, Records
 from .models import load_capacitance, output_capacitance, reduced_model, turntable_model
 from .value import Plant
 
@@ -65,13 +66,6 @@ class IntervalResult(NamedTuple):
     flybacks: np.ndarray
     energy: np.ndarray
     phase: np.ndarray
-
-
-class Records(NamedTuple):
-    """Recorded true angles of one turntable: time [s], angle [rad]."""
-
-    time: np.ndarray
-    angle: np.ndarray
 
 
 class Backend(Protocol):
@@ -284,7 +278,8 @@ class PlantStepper:
         self.noise = bool(noise)
         n = len(plants)
         params = [p.params for p in plants]
-        backend = _ReducedBackend if plants[0].fidelity == "reduced" else _FullBackend
+        backend = {"reduced": _ReducedBackend, "full": _FullBackend,
+                   "independent": IndependentBackend}[plants[0].fidelity]  # fmt: skip
         self._physics: Backend = backend(params, axis)
         self.grid = self._physics.grid
         self.kernel_seconds = 0.0

@@ -36,7 +36,7 @@ __all__ = [
     "parameter_set",
 ]
 
-FIDELITIES = ("reduced", "full")
+FIDELITIES = ("reduced", "full", "independent")
 # Domain randomisation: multiplicative factors drawn uniformly per episode.
 DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
     "friction": (0.8, 1.2),  # µ_s and µ_c together (dry-contact scatter, ±20 %)
@@ -112,7 +112,7 @@ class Plant:
     base: str | ParameterSet = "real"
     factors: Mapping[str, float] = field(default_factory=dict)
     effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
-    fidelity: Literal["reduced", "full"] = "reduced"
+    fidelity: Literal["reduced", "full", "independent"] = "reduced"
     sensor_noise: float = SENSOR_NOISE
     ideal_amplifier: bool = False
     uncertainty: Mapping[str, float] = field(default_factory=dict)
@@ -129,7 +129,7 @@ class Plant:
         elif not isinstance(self.base, ParameterSet):
             raise ValueError(f"base={self.base!r}: must be 'real', 'thesis' or a ParameterSet")
         if self.fidelity not in FIDELITIES:
-            raise ValueError(f"fidelity={self.fidelity!r}: must be 'reduced' or 'full'")
+            raise ValueError(f"fidelity={self.fidelity!r}: must be one of {', '.join(FIDELITIES)}")
         if not isinstance(self.ideal_amplifier, bool):
             raise ValueError(f"ideal_amplifier={self.ideal_amplifier!r}: must be a bool")
         check_nonnegative("sensor_noise", self.sensor_noise)

@@ -64,6 +64,7 @@ __all__ = [
     "EFFECT_NAMES",
     "JUMP_WIDTH_S",
     "PROTOCOLS",
+    "STATE_LAYOUT",
     "AxisMisalignment",
     "Burst",
     "Creep",
@@ -83,8 +84,10 @@ __all__ = [
     "SlowAmplifier",
     "adapted_hold_time",
     "build_drive",
+    "rest_state",
     "simulate",
     "simulate_detailed",
+    "simulate_from",
     "write_trace",
 ]
 
@@ -537,6 +540,7 @@ def _integrate(
     preload,
     asym,
     h_max,
+    state,
     out,
 ):
     J = mech[0]
@@ -563,31 +567,14 @@ def _integrate(
     pre_on = preload[0] > 0.0
     hyst_on = hyst[0] != 0.0 or hyst[1] != 0.0 or hyst[2] != 0.0
 
-    # initial state: at rest, in equilibrium with the first drive value
-    uc0 = min(max(u[0], -amp[1]), amp[1])
-    y = amp[0] * uc0
-    y1 = y
-    hb = 0.0
-    vh = y
-    w = np.empty(nc)
-    cs = 0.0
-    for k in range(nc):
-        w[k] = vh
-        cs += creep_w[k] * vh
-    x = np.empty(2)
-    vx = np.zeros(2)
-    xf = np.empty(2)
-    z = np.zeros(2)
-    for i in range(2):
-        xf[i] = d[i] * (vh + cs)
-        x[i] = xf[i]
-    th = 0.0
-    om = 0.0
-    pb = 0.0
-    qb = 0.0
-    ps = 0.0
-    qs = 0.0
-    work = 0.0
+    # the state (STATE_LAYOUT): resumed where the last call left it
+    y, y1, hb, th, om = state[0], state[1], state[2], state[3], state[4]
+    pb, qb, ps, qs, work = state[5], state[6], state[7], state[8], state[9]
+    x = state[10:12].copy()
+    vx = state[12:14].copy()
+    xf = state[14:16].copy()
+    z = state[16:18].copy()
+    w = state[18 : 18 + nc].copy()
     dec = np.empty(nc)
     xf_new = np.empty(2)
     force = np.empty(2)
@@ -688,7 +675,76 @@ def _integrate(
         out[j, 2] = work
         out[j, 3] = e
         out[j, 4] = y
+    state[0], state[1], state[2], state[3], state[4] = y, y1, hb, th, om
+    state[5], state[6], state[7], state[8], state[9] = pb, qb, ps, qs, work
+    state[10:12] = x
+    state[12:14] = vx
+    state[14:16] = xf
+    state[16:18] = z
+    state[18 : 18 + nc] = w
     return out
+
+
+STATE_LAYOUT = (
+    "amplifier output y [V]", "amplifier main-loop y1 [V]", "hysteresis h [V]",
+    "table angle θ [rad]", "table rate [rad/s]", "base angle [rad]", "base rate [rad/s]",
+    "mirror angle [rad]", "mirror rate [rad/s]", "drive work [J]",
+    "tube contacts x (2) [m]", "their velocities (2) [m/s]", "free strokes X (2) [m]",
+    "bristles z (2) [m]", "creep states w (n) [V]",
+)  # fmt: skip
+
+
+def rest_state(
+    params: PlantParams, effects: Effects | None = None, input_V: float = 0.0,
+    angle_rad: float = 0.0,
+) -> np.ndarray:
+    """The integrator state (:data:`STATE_LAYOUT`) at rest: the amplifier settled on the input
+    ``input_V`` [V], every creep element and the tubes in equilibrium with it, the table at
+    ``angle_rad`` [rad] held by the bristles against the pendulum torque (k_g·θ shared by the
+    two contacts, r_c·σ₀·(z₁ + z₂) = k_g·θ, each tube bent back by its contact force).
+    Raises ValueError if that torque exceeds the contacts' static friction."""
+    eff = Effects() if effects is None else effects
+    _finite("input_V", input_V)
+    _finite("angle_rad", angle_rad)
+    p = params
+    amp = _amp_array(p, eff)
+    creep_w = eff.creep.elements()[1] if eff.creep is not None else np.zeros(0)
+    y = amp[0] * min(max(input_V, -amp[1]), amp[1])
+    vh = y
+    cs = 0.0
+    for wk in creep_w:  # in the integrator's order (bit for bit)
+        cs += wk * vh
+    d = np.array([1.0, p.second_tube_stroke_ratio]) * p.stroke_per_volt_m_per_V
+    xf = d * (vh + cs)
+    force = p.gravity_stiffness_N_m_per_rad * angle_rad / (2.0 * p.contact_arm_m)  # N each
+    if abs(force) >= p.static_friction_coefficient * p.normal_force_N:
+        raise ValueError(f"angle_rad={angle_rad!r}: friction cannot hold the table there")
+    z = np.full(2, force / p.bristle_stiffness_N_per_m)
+    x = xf - force / p.tube_stiffness_N_per_m
+    st = np.zeros(18 + creep_w.size)
+    st[0] = st[1] = y
+    st[3] = angle_rad
+    st[10:12], st[14:16], st[16:18] = x, xf, z
+    st[18:] = vh
+    return st
+
+
+def simulate_from(
+    params: PlantParams, state: np.ndarray, time: np.ndarray, drive: np.ndarray,
+    effects: Effects | None = None, *, max_step_s: float = DEFAULT_STEP_S,
+) -> np.ndarray:
+    """Continue from ``state`` (:func:`rest_state` or an earlier call's; updated in place) at
+    ``time[0]`` [s] under the amplifier input ``drive`` [V] (linear between the strictly
+    increasing sample times); the table angle θ [rad] at every sample time."""
+    t, u = _check_series(time, drive)
+    eff = Effects() if effects is None else effects
+    args = _kernel_arrays(params, eff)
+    nc = args[2].size
+    if state.shape != (18 + nc,) or state.dtype != np.float64:
+        raise ValueError(f"state: need a float array of {18 + nc} (rest_state), got {state.shape}")
+    out = np.empty((t.size, 5))
+    _integrate(t, u, *args, float(max_step_s), state, out)
+    return out[:, 0].copy()
 
 
 # ---------------------------------------------------------------------------------------
@@ -742,29 +798,9 @@ def _check_series(time: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.n
     return t, u
 
 
-def simulate_detailed(
-    params: PlantParams,
-    time: np.ndarray,
-    drive: np.ndarray,
-    effects: Effects | None = None,
-    noise_std: float = 0.0,
-    rng: np.random.Generator | None = None,
-    *,
-    max_step_s: float = DEFAULT_STEP_S,
-) -> SimulationResult:
-    """Simulate the plant for an amplifier input ``drive`` [V] given at ``time`` [s]
-    (strictly increasing; linear between samples); the state starts at rest in
-    equilibrium with drive[0]. Returns every signal at the sample times."""
-    t, u = _check_series(time, drive)
-    if not isinstance(params, PlantParams):
-        raise ValueError(f"params={params!r}: must be a PlantParams")
-    eff = Effects() if effects is None else effects
-    if not isinstance(eff, Effects):
-        raise ValueError(f"effects={effects!r}: must be an Effects or None")
-    _nonnegative("noise_std", noise_std)
-    _positive("max_step_s", max_step_s)
-    if max_step_s > 2e-6:
-        raise ValueError(f"max_step_s={max_step_s!r}: must be <= 2e-6 s (contact dynamics)")
+def _kernel_arrays(params: PlantParams, eff: Effects) -> tuple[np.ndarray, ...]:
+    """The compiled integrator's arrays: mech, amp, creep τ and weights, hysteresis, floor
+    vibration (amplitudes, frequencies, phases, base), mirror mount, preload, asymmetry."""
     p = params
     mech = np.array(
         [
@@ -818,25 +854,37 @@ def simulate_detailed(
     pr = eff.preload_relaxation
     preload = np.array([pr.fraction, pr.time_constant_s] if pr else [0.0, 1.0])
     asym = np.array([eff.friction_asymmetry.asymmetry if eff.friction_asymmetry else 0.0])
+    return (mech, amp, creep_tau, creep_w, hyst, vib_a, vib_f, vib_p, base, mirror, preload,
+            asym)  # fmt: skip
+
+
+def simulate_detailed(
+    params: PlantParams,
+    time: np.ndarray,
+    drive: np.ndarray,
+    effects: Effects | None = None,
+    noise_std: float = 0.0,
+    rng: np.random.Generator | None = None,
+    *,
+    max_step_s: float = DEFAULT_STEP_S,
+) -> SimulationResult:
+    """Simulate the plant for an amplifier input ``drive`` [V] given at ``time`` [s]
+    (strictly increasing; linear between samples); the state starts at rest in
+    equilibrium with drive[0]. Returns every signal at the sample times."""
+    t, u = _check_series(time, drive)
+    if not isinstance(params, PlantParams):
+        raise ValueError(f"params={params!r}: must be a PlantParams")
+    eff = Effects() if effects is None else effects
+    if not isinstance(eff, Effects):
+        raise ValueError(f"effects={effects!r}: must be an Effects or None")
+    _nonnegative("noise_std", noise_std)
+    _positive("max_step_s", max_step_s)
+    if max_step_s > 2e-6:
+        raise ValueError(f"max_step_s={max_step_s!r}: must be <= 2e-6 s (contact dynamics)")
+    p = params
     out = np.empty((t.size, 5))
-    _integrate(
-        t,
-        u,
-        mech,
-        amp,
-        creep_tau,
-        creep_w,
-        hyst,
-        vib_a,
-        vib_f,
-        vib_p,
-        base,
-        mirror,
-        preload,
-        asym,
-        float(max_step_s),
-        out,
-    )
+    state = rest_state(p, eff, float(u[0]))
+    _integrate(t, u, *_kernel_arrays(p, eff), float(max_step_s), state, out)
     vx, vy = _detector(p, eff, t, out[:, 1], noise_std, rng)
     return SimulationResult(
         time_s=t,
