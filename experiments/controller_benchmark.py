@@ -2,8 +2,9 @@
 
 Same run as ``turntable benchmark --out experiments/results/benchmark``: point moves that
 need stepping, tracking tasks and a knock on the nominal, randomized, held_out,
-calibrated and full_3d plant sets, 20 paired seeds per cell; writes benchmark.json,
-episodes.csv, leaderboard.md/.html and trajectory plots, then prints the summary.
+calibrated, full_3d and independent plant sets, 20 paired seeds per cell (3 and 5 on the
+last two); writes benchmark.json, episodes.csv, leaderboard.md/.html and trajectory plots,
+then prints the summary.
 
     python experiments/controller_benchmark.py [--seeds 20] [--out DIR] [--backend processes]
     python experiments/controller_benchmark.py --summarize [--out DIR]    (from the files)

@@ -23,6 +23,7 @@ implementation of the reduced model — it measures, in one process:
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -35,7 +36,16 @@ from .reduced import ReducedModel, simulate_batch
 from .simulation import simulate, stepping_drive
 from .validation import check_int, check_positive
 
-__all__ = ["STANDARD", "SWEEP", "accuracy_sweep", "converge", "env_throughput", "run_bench"]
+__all__ = [
+    "STANDARD",
+    "SWEEP",
+    "accuracy_sweep",
+    "converge",
+    "env_throughput",
+    "reduced_vs_full_sweep",
+    "run_bench",
+    "vs_full_summary",
+]
 
 STANDARD = {"amplitude": 2.0, "frequency": 100.0, "a": 0.95, "amplifier": "adapted"}
 REF_PERIODS = 10  # periods over which step errors are measured
@@ -53,6 +63,17 @@ SWEEP = {
 SWEEP_PERIODS = 3  # periods per case (the mean |step| of the last two)
 SWEEP_HALVINGS = 5  # at most; the reference is the last halving
 SCIPY_WINDOW = 0.011  # s simulated by the SciPy baseline (one flyback)
+# reduced vs 3-D over the drive range (issue 32): every combination, both directions
+VS_FULL = {
+    "amplifier": ("adapted", "unadapted", "ideal"),
+    "amplitude_V": (20.0, 90.0, 200.0),  # on the tubes (input × 45)
+    "frequency_Hz": (10.0, 100.0, 2000.0),
+    "a": (0.5, 0.95, 0.99),
+}
+VS_FULL_QUICK = {"amplifier": ("adapted",), "amplitude_V": (90.0,), "frequency_Hz": (100.0,),
+                 "a": (0.95,)}  # fmt: skip
+VS_FULL_PERIODS = 3
+STEP_FLOOR_NM = 1.0  # nm per period: below it a relative difference measures nothing
 
 
 def converge(
@@ -137,6 +158,55 @@ def accuracy_sweep(ps: Any, full: Any, quick: bool = False) -> list[dict[str, An
     return rows
 
 
+def reduced_vs_full_sweep(quick: bool = False) -> list[dict[str, Any]]:
+    """Mean |step| per period [nm] of the reduced and the 3-D model (real parameters, axis
+    B, :data:`VS_FULL_PERIODS` periods, the 3-D model's adaptive step) for every case of
+    :data:`VS_FULL` (``quick``: :data:`VS_FULL_QUICK`), both directions, and their relative
+    difference (reduced/full − 1; None where the full step is under
+    :data:`STEP_FLOOR_NM` or the adapted flyback does not fit the period, with the note)."""
+    grid = VS_FULL_QUICK if quick else VS_FULL
+    rows: list[dict[str, Any]] = []
+    models: dict[str, ReducedModel] = {}
+    for mode, amp, f, a, sgn in itertools.product(*grid.values(), (1.0, -1.0)):
+        row: dict[str, Any] = {"amplifier": mode, "amplitude_V": sgn * amp, "frequency_Hz": f,
+                               "a": a}  # fmt: skip
+        try:
+            drive, ps = stepping_drive("real", amplitude=sgn * amp / 45.0, frequency=f,
+                                       periods=VS_FULL_PERIODS, a=a, amplifier=mode)  # fmt: skip
+            if mode not in models:
+                models[mode] = ReducedModel(ps, "B")
+            rm = models[mode]
+            odt = min(1e-5, 0.01 / f)
+            s_full = simulate(rm.params, drive, axis="B", model=rm.full,
+                              coarse_factor=FULL_COARSE, output_dt=odt).step_size  # fmt: skip
+            s_red = simulate_batch([rm], [drive], drive.duration, output_dt=odt)[0].step_size
+        except ValueError as exc:  # the adapted flyback does not fit the period
+            rows.append({**row, "full_step_nm": None, "reduced_step_nm": None,
+                         "rel_diff": None, "note": str(exc)[:80]})  # fmt: skip
+            continue
+        ok = s_full * 1e9 >= STEP_FLOOR_NM
+        rows.append({**row, "full_step_nm": 1e9 * s_full, "reduced_step_nm": 1e9 * s_red,
+                     "rel_diff": s_red / s_full - 1.0 if ok else None,
+                     "note": "" if ok else f"full step < {STEP_FLOOR_NM} nm"})  # fmt: skip
+    return rows
+
+
+def vs_full_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """``turntable bench``'s figures of a :func:`reduced_vs_full_sweep`: the worst |relative
+    difference| (``reduced_vs_full_max``) with its case, the median, the share within 5 %."""
+    ok = [r for r in rows if r["rel_diff"] is not None]
+    worst = max(ok, key=lambda r: abs(r["rel_diff"]))
+    diffs = np.abs([r["rel_diff"] for r in ok])
+    return {
+        "reduced_vs_full_max": float(abs(worst["rel_diff"])),
+        "reduced_vs_full_worst_case": worst,
+        "reduced_vs_full_median": float(np.median(diffs)),
+        "reduced_vs_full_within_5pct": float(np.mean(diffs <= 0.05)),
+        "reduced_vs_full_cases": len(ok),
+        "reduced_vs_full_sweep": rows,
+    }
+
+
 def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> dict[str, Any]:
     """Run every path on the standard scenario; returns the figures (see module docstring).
 
@@ -218,6 +288,7 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     out["reduced_step_error_analytic"] = abs(fast_an - ref) / ref
     out["reduced_reference"] = {"step_scale": hist[-1][0], "step_um": ref * 1e6}
     out["reduced_vs_full"] = out["reduced_step_um"] / out["full_step_um"] - 1.0
+    out.update(vs_full_summary(reduced_vs_full_sweep(quick)))
     sweep = accuracy_sweep(ps, full, quick=quick)
     out["reduced_step_error_sweep"] = sweep
     worst = max(sweep, key=lambda row: row["error"])
@@ -363,6 +434,15 @@ def format_table(res: dict[str, Any]) -> str:
         f"compile/cache load {res['compile_s']:.2f} s; batched per turntable "
         f"{res['batched_rtf_per_turntable']:.3g}; reduced vs full step "
         f"{100 * res['reduced_vs_full']:+.1f} %"
+    )
+    w = res["reduced_vs_full_worst_case"]
+    lines.append(
+        f"reduced vs full over {res['reduced_vs_full_cases']} cases (full step ≥ "
+        f"{STEP_FLOOR_NM:g} nm): median |difference| {100 * res['reduced_vs_full_median']:.1f} %, "
+        f"{100 * res['reduced_vs_full_within_5pct']:.0f} % within 5 %, max "
+        f"{100 * res['reduced_vs_full_max']:.1f} % ({w['amplitude_V']:+.0f} V, "
+        f"{w['frequency_Hz']:g} Hz, a = {w['a']}, {w['amplifier']}: full {w['full_step_nm']:.3g} "
+        f"nm, reduced {w['reduced_step_nm']:.3g} nm)"
     )
     if "env_steps_per_s_random" in res:
         lines.append("\n" + format_env_table(res))

@@ -3,7 +3,8 @@
 A :class:`Plant` is what a laboratory would call "the turntable as we know it": a
 parameter set (Table D.1, D.2 or a calibrated one) with multiplicative factors on its
 uncertain values (friction, preload, amplifier), a fidelity (``"reduced"`` per-axis
-model or ``"full"`` 3-D model), the effects of the catalogue (:mod:`turntable_env.effects`)
+model, ``"full"`` 3-D model, or ``"independent"``: the independent test plant,
+:mod:`turntable_env.plant.independent`), the effects of the catalogue (:mod:`turntable_env.effects`)
 with their parameters, the detector noise and the amplifier setting. It is immutable,
 hashable and picklable; :meth:`Plant.from_report` reads the plant a calibration report
 describes, :meth:`Plant.sample` draws a randomised one.
@@ -36,7 +37,8 @@ stepper. Explicit drives (a measured trace) enter at step 4 (:meth:`PlantStepper
 
 Which effects each fidelity supports: all of them. Parameter, input and output stages are
 independent of the mechanics; the friction stage rescales μ_s and μ_c of the reduced
-model's 1-D GMS or of the 3-D model's three 2-D GMS contacts.
+model's 1-D GMS, of the 3-D model's three 2-D GMS contacts or of the independent plant's
+LuGre contacts.
 
 Modules: :mod:`.value` (the :class:`Plant` value and the named sets it resolves),
 :mod:`.store` (named plants as TOML files, reports read back), :mod:`.models` (the models
