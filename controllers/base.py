@@ -17,6 +17,13 @@ scaling, the detector range and the scan gain of the linear stick plant.
   :mod:`controllers.scan_pid` drives the scan offset from the detector reading. It hands
   back to step mode when the error leaves the scan range K·u_max (or the reading
   saturates).
+
+The safety monitor: a saturated reading against a belief inside the detector is a lost
+spot, searched with a doubling believed excess beyond the edge; a search step is taken
+when no planned move fits; and the believed travel with the reading saturated is bounded
+(``BLIND_FACTOR`` × the lab's dead-reckoned distance to the detector with its stated
+error, or ``LOST_SEARCH`` θ_lin after a loss): past it the controller holds, since its
+steps are not going where it believes (a plant stepping backwards beyond the detector).
 """
 
 from __future__ import annotations
@@ -311,9 +318,8 @@ class StepScanController(Controller):
                 self._excess = min(2.0 * self._excess, self._blind_budget / lim)
             if self._blind >= self._blind_budget:  # the safety monitor: stop, do not run away
                 return self._hold()
-        else:
-            if self._blind > 0.0:  # found again: a later loss gets the lost spot's budget
-                self._blind, self._blind_budget = 0.0, LOST_SEARCH * lim
+        else:  # a valid reading: a later loss gets the lost spot's budget
+            self._blind, self._blind_budget = 0.0, LOST_SEARCH * lim
             self._excess = LOST_EXCESS
         if self.mode == "scan":
             err = self.target - meas

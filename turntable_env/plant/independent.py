@@ -25,11 +25,12 @@ import numpy as np
 
 from ..kernel_types import DriveArrays
 from ..params import ParameterSet, get_parameter_set
+from ..reduced import H_MIN
 from ..testing.independent_plant import JUMP_WIDTH_S, PlantParams, rest_state, simulate_from
 
 __all__ = ["IndependentBackend", "Records", "independent_params"]
 
-GRID = 62.5e-9  # s, the breakpoint grid shared with the reduced model (H_MIN)
+GRID = H_MIN  # s, the breakpoint grid the stepper shares with the reduced model
 
 
 class Records(NamedTuple):
