@@ -42,6 +42,23 @@ QUOTED = [  # (plant set, task, pair, metric): the paired differences the README
 ]
 
 
+def simulated_scan_range(cfg: object, ctx: object, intervals: int = 5) -> float:
+    """The table's turn [rad] after ``intervals`` control intervals with the scan offset at
+    +u_max and the generator idle, from rest at 0, on the config's plant (any fidelity,
+    noise-free): the plant's own K·u_max, which its controllers do not know."""
+    import numpy as np
+
+    from turntable_env.envs.core import TurntableTask
+
+    sim = TurntableTask(cfg, 1)
+    rng = np.random.default_rng(0)
+    sim.reset_row(0, rng, {"start_angle": 0.0}, plant=cfg.plant.replace(sensor_noise=0.0))
+    action = ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, ctx.input_limit)[None, :]
+    for _ in range(intervals):
+        sim.step(action, rng)
+    return float(sim.angle[0])
+
+
 def summarize(out: Path) -> None:
     """Print the summary of a benchmark directory (module docstring)."""
     from controllers.base import ControllerContext
@@ -70,14 +87,19 @@ def summarize(out: Path) -> None:
         v = res[ps][task]["paired"][pair][metric]
         print(f"  {ps}/{task} {pair} {metric}: {v['mean']:+.3g} "
               f"[{v['ci_low']:+.3g}, {v['ci_high']:+.3g}]")  # fmt: skip
-    print("\nplant sets: scan range K·u_max and detector noise floor at R_table")
+    print(
+        "\nplant sets: scan range K·u_max the controllers are given (their model's) and the "
+        "set's base plant's, simulated; detector range and noise floor at R_table"
+    )
     for ps in res:
         cfg = EnvConfig(plant=PLANT_SETS[ps]().base)
         ctx = ControllerContext.from_config(cfg)
         det = cfg.parameter_set.detector
         floor = noise_floor(cfg.plant.sensor_noise, det)
-        print(f"  {ps:<11} scan range {ctx.scan_range * det.table_radius * 1e6:.2f} µm, "
-              f"detector ±{det.angle_range * det.table_radius * 1e6:.2f} µm, "
+        r_um = det.table_radius * 1e6
+        print(f"  {ps:<11} scan range {ctx.scan_range * r_um:.2f} µm "
+              f"(plant {simulated_scan_range(cfg, ctx) * r_um:.2f} µm), "
+              f"detector ±{det.angle_range * r_um:.2f} µm, "
               f"noise floor {floor * 1e9:.2f} nm")  # fmt: skip
     with (out / "episodes.csv").open(encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
@@ -111,8 +133,12 @@ def main() -> None:
     ap.add_argument("--controllers", default=None, help="comma-separated (default: all)")
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     ap.add_argument("--summarize", action="store_true", help="only print the summary of --out")
-    ap.add_argument("--backend", choices=("auto", "ray", "processes"), default=None,
-                    help="run the cells in parallel (as turntable benchmark --backend)")
+    ap.add_argument(
+        "--backend",
+        choices=("auto", "ray", "processes"),
+        default=None,
+        help="run the cells in parallel (as turntable benchmark --backend)",
+    )
     ap.add_argument("--workers", type=int, default=None, help="processes for --backend processes")
     args = ap.parse_args()
     out = Path(args.out)
