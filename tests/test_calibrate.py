@@ -40,6 +40,16 @@ def test_undeclared_effect_is_named_and_the_error_drops(name):
     assert res.error_unit == "nm"
 
 
+def test_a_misalignment_the_other_way_is_named():
+    """The tilt goes either way: a y channel leaning against x (φ < 0, as the second
+    independent plant's rotated axes) is named, with its sign, and the error drops 3×."""
+    res = _run({"axis_misalignment": {"phi": -0.1}})
+    assert "axis_misalignment" in res.selected_effects
+    phi = res.parameters["axis_misalignment"]["phi"]
+    assert phi["value"] == pytest.approx(-0.1, abs=5 * phi["std"] + 0.01)
+    assert res.error_before >= 3.0 * res.error_after
+
+
 def test_clean_data_selects_nothing_and_is_white():
     res = _run({})
     assert res.selected_effects == []

@@ -92,11 +92,12 @@ def test_vibration_adds_a_sinusoidal_angle(ps, drive, clean):
     np.testing.assert_allclose(dth, expect, atol=2e-8)
 
 
-def test_misalignment_moves_the_other_channel_by_tan_phi(ps, drive, clean):
-    res = _trace(ps, drive, {"axis_misalignment": {"phi": 0.1}})
+@pytest.mark.parametrize("phi", [0.1, -0.1])  # the tilt goes either way
+def test_misalignment_moves_the_other_channel_by_tan_phi(ps, drive, clean, phi):
+    res = _trace(ps, drive, {"axis_misalignment": {"phi": phi}})
     big = np.abs(res.detector_v) > 0.2
     ratio = res.detector_y_v[big] / res.detector_v[big]
-    np.testing.assert_allclose(ratio, math.tan(0.1), rtol=2e-3)
+    np.testing.assert_allclose(ratio, math.tan(phi), rtol=2e-3)
     assert np.abs(clean.detector_y_v).max() < 1e-12
 
 

@@ -24,7 +24,8 @@ friction_asymmetry      friction    μ_s, μ_c × (1 + ``alpha``·sign of the ta
 friction_wear           friction    μ_s, μ_c × (1 + ``beta``·travel/10 µm) (at least ×0.2): the
                                     contacts flatten or roughen with use (§4.3 mentions wear)
 axis_misalignment       output      the axes are not perpendicular (§4.3): the detector's x channel
-                                    sees θ·cos φ, its y channel θ·sin φ (``phi`` [rad])
+                                    sees θ·cos φ, its y channel θ·sin φ (``phi`` [rad], signed:
+                                    the tilt goes either way)
 detector_nonlinearity   output      photodiode: V + κ·V_c³/V_sat², V_c = V clipped to ±V_sat
                                     (``kappa``)
 sensor_drift            output      laser/photodiode drift: offset + rate·t (``offset`` [V],
@@ -216,7 +217,8 @@ CATALOGUE: dict[str, Effect] = {
         Effect(
             "axis_misalignment",
             "output",
-            (_P("phi", "rad", 0.0, 0.3, 0.0, 0.1, "tilt of the turning axis to the detector's"),),
+            (_P("phi", "rad", -0.3, 0.3, 0.0, 0.1,
+                "tilt of the turning axis to the detector's, either way"),),
             "§4.3: the axes are not perpendicular, so rotations are not about the expected "
             "axis: the detector's channel sees θ·cos φ and the other channel θ·sin φ.",
         ),

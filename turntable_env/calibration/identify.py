@@ -254,7 +254,7 @@ class SignatureSearch:
         elif name == "axis_misalignment":
             k = [i for i, g in enumerate(d.groups) if g == "y"]
             if k:
-                start = {"phi": float(abs(math.atan(d.value[k[0]])))}
+                start = {"phi": float(math.atan(d.value[k[0]]))}  # signed: y leans either way
         return {p.name: float(np.clip(start.get(p.name, p.typical), p.low, p.high))
                 for p in e.parameters}  # fmt: skip
 

@@ -624,7 +624,7 @@ def _start_values(name: str, problem: TraceProblem, x: np.ndarray, effects) -> d
         }
     elif name == "axis_misalignment" and td.has_y and m.detector_y_v is not None:
         xv, yv = m.detector_v, m.detector_y_v
-        start = {"phi": float(abs(np.arctan2(xv @ yv, xv @ xv)))}
+        start = {"phi": float(np.arctan2(xv @ yv, xv @ xv))}  # signed: y leans either way
     elif name == "detector_nonlinearity":
         v = m.detector_v[mask]
         vs = m.detector.saturation_voltage
