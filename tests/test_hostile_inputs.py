@@ -88,22 +88,32 @@ def test_a_new_report_replaces_the_old_one_whole(tmp_path):
 def test_a_failed_report_leaves_the_old_one_untouched(tmp_path):
     d = tmp_path / "rx"
     d.mkdir()
+    (d / MARKER).write_text("")
     (d / "report.json").write_text("old")
     with pytest.raises(RuntimeError), output_directory(d) as tmp:
         (tmp / "report.json").write_text("half")
         raise RuntimeError("plot failed")
-    assert [p.name for p in d.iterdir()] == ["report.json"]
+    assert sorted(p.name for p in d.iterdir()) == sorted([MARKER, "report.json"])
     assert (d / "report.json").read_text() == "old"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
 
-def test_a_directory_of_other_files_is_not_emptied(tmp_path, capsys):
+@pytest.mark.parametrize("main_file", [None, "index.html", "report.json"])
+def test_a_directory_of_other_files_is_not_emptied(tmp_path, capsys, main_file):
+    """Only the project's marker makes a directory its own: a web site's index.html or
+    another tool's report.json beside the user's files does not."""
     d = tmp_path / "mine"
     d.mkdir()
     (d / "thesis.tex").write_text("precious")
+    if main_file is not None:
+        (d / main_file).write_text("theirs")
     rc = main(["calibrate", "--thesis", "--report", str(d)])
     _one_line_exit_2(capsys, rc, "--report", "not an earlier output")
     assert (d / "thesis.tex").read_text() == "precious"
+    with pytest.raises(ValueError, match="not an earlier output"), output_directory(d):
+        pass
+    kept = ["thesis.tex"] + ([main_file] if main_file else [])
+    assert sorted(p.name for p in d.iterdir()) == sorted(kept)
 
 
 def test_sigterm_while_writing_leaves_no_temporary_directory(tmp_path):

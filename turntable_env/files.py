@@ -11,8 +11,9 @@ whole when everything was written — an atomic exchange of the two directories
 (``renameat2(RENAME_EXCHANGE)`` on Linux; two renames elsewhere), then the old one is
 removed — so no file of an earlier report survives beside the new ones and a failure leaves
 the old directory as it was. It replaces only a directory this project wrote (it holds
-:data:`MARKER`, or a report's main file) or an empty one: a directory of other files is
-refused rather than emptied. SIGTERM is turned into the same clean-up as Ctrl-C
+:data:`MARKER`) or an empty one: a directory of other files is refused rather than emptied,
+even one with an ``index.html`` or a ``report.json`` in it (a web site, another tool's
+report). SIGTERM is turned into the same clean-up as Ctrl-C
 (:func:`terminate_cleanly`).
 
 :func:`check_writable` refuses, before any work starts, an output path whose directory does
@@ -46,7 +47,6 @@ __all__ = [
 ]
 
 MARKER = ".turntable-output"  # written into every output directory: "ours to replace"
-REPORT_FILES = ("report.json", "summary.json", "benchmark.json", "index.html")
 
 
 def plain_json(x: Any, nonfinite: Literal["null", "string"] = "null") -> Any:
@@ -128,10 +128,10 @@ def _check_replaceable(name: str, d: Path) -> None:
         entries = [e.name for e in os.scandir(d)]
     except OSError as exc:
         raise ValueError(f"{name}={str(d)!r}: cannot be read ({exc.strerror})") from None
-    if entries and MARKER not in entries and not any(f in entries for f in REPORT_FILES):
+    if entries and MARKER not in entries:  # a file name alone (index.html) proves nothing
         raise ValueError(
-            f"{name}={str(d)!r}: holds {len(entries)} entries that are not an earlier output "
-            "of this project; give a new or an empty directory"
+            f"{name}={str(d)!r}: holds {len(entries)} entries and no {MARKER}: not an earlier "
+            "output of this project; give a new or an empty directory"
         )
 
 
