@@ -131,6 +131,22 @@ def test_sigterm_while_writing_leaves_no_temporary_directory(tmp_path):
     assert not d.exists() and list(tmp_path.iterdir()) == []
 
 
+def test_the_calibration_workers_die_on_sigterm_as_the_group_does():
+    """The calibration's forked workers do not keep the parent's SIGTERM handler: raised
+    inside a worker's wait on the task queue it left the queue's lock held, and
+    ``timeout turntable calibrate …`` (SIGTERM to the group) sometimes never exited."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from turntable_env.calibration.trace_fit import _init_worker
+    from turntable_env.files import terminate_cleanly
+
+    with terminate_cleanly():
+        assert signal.getsignal(signal.SIGTERM) not in (signal.SIG_DFL, None)
+        with ProcessPoolExecutor(1, initializer=_init_worker, initargs=(None,)) as ex:
+            in_worker = ex.submit(signal.getsignal, signal.SIGTERM).result(timeout=60)
+    assert in_worker == signal.SIG_DFL
+
+
 # --- 3. the summary-TOML path is validated like the CSV path ------------------------------
 def _summary(tmp_path: Path, old: str, new: str) -> Path:
     text = THESIS_DATA_FILE.read_text(encoding="utf-8")

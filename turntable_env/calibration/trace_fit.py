@@ -450,9 +450,17 @@ _WORKER: TraceProblem | None = None
 
 
 def _init_worker(problem: TraceProblem) -> None:
+    """A worker process (forked): one BLAS thread, its copy of the problem, and SIGTERM's
+    default action — the parent's handler (:func:`~turntable_env.files.terminate_cleanly`)
+    would raise inside the worker's wait on the task queue and leave its lock held, so the
+    other workers, and the parent joining them, waited for ever after a SIGTERM to the
+    process group (``timeout``, a batch scheduler)."""
     global _WORKER
+    import signal
+
     import threadpoolctl
 
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     threadpoolctl.threadpool_limits(1)
     _WORKER = problem
 
