@@ -21,7 +21,7 @@ from turntable_env.envs import (
     PiezoTurntableVectorEnv,
 )
 from turntable_env.envs.config import OBS
-from turntable_env.plant import reduced_model
+from turntable_env.plant import Plant, reduced_model
 
 ENV_ID = "PiezoTurntable-v0"
 # Warnings the checkers may raise for this env, each with its reason. None today.
@@ -136,6 +136,12 @@ def test_out_of_range_action_is_clipped():
         ({"tolerance": -1.0}, "tolerance"),
         ({"randomize": {"gravity": (0.9, 1.1)}}, "randomize"),
         ({"params": "thesis", "randomize": True}, "randomize"),
+        # a range whose draws leave the factor's bounds (0.1…10) fails at make, not at
+        # the reset that first draws beyond them
+        ({"randomize": {"friction": (0.5, 12.0)}}, r"randomize\['friction'\]"),
+        ({"plant": Plant(factors={"preload": 5.0}), "randomize": {"preload": (0.5, 2.5)}},
+         "preload"),
+        ({"ranges": {}}, "ranges: not an option"),  # derived from randomize, not an option
         ({"render_mode": "ascii"}, "render_mode"),
         ({"terminate_on_success": 1}, "terminate_on_success"),
         ({"move_range": (1e-3, 1e-4)}, "move_range"),

@@ -91,6 +91,28 @@ def test_sample_draws_default_ranges_and_multiplies_the_plants_factors():
         assert not drawn.uncertainty
 
 
+@pytest.mark.parametrize(
+    ("rng", "ranges", "match"),
+    [
+        (5, None, "rng=5"),  # a seed is not a generator
+        ("a", None, "rng='a'"),
+        (np.random.default_rng(0), {"friction": (0.5, 20.0)}, r"ranges\['friction'\]"),
+        (np.random.default_rng(0), {"preload": (0.0, 1.0)}, r"ranges\['preload'\]"),
+        (np.random.default_rng(0), {"sensor_noise": (2.0, 1.0)}, "low <= high"),
+        (np.random.default_rng(0), {"gravity": (0.9, 1.1)}, "unknown"),
+    ],
+)
+def test_sample_refuses_what_it_cannot_draw_from_before_drawing(rng, ranges, match):
+    with pytest.raises(ValueError, match=match):
+        Plant(factors={"friction": 1.5}).sample(rng, ranges=ranges)
+
+
+def test_replace_names_an_unknown_field():
+    with pytest.raises(ValueError, match="bogus: not a field of Plant"):
+        Plant().replace(bogus=1)
+    assert Plant().replace(sensor_noise=2e-3).sensor_noise == 2e-3
+
+
 def test_sample_from_a_calibration_posterior_has_its_mean_and_spread():
     plant = Plant(
         factors={"friction": 1.2},

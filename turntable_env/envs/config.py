@@ -126,7 +126,7 @@ class ActionScaling:
 def make_config(options: Mapping[str, Any]) -> EnvConfig:
     """An :class:`EnvConfig` from keyword options (``gym.make``'s); an unknown option is a
     ValueError naming it and the ones there are."""
-    known = {f.name for f in dataclasses.fields(EnvConfig)}
+    known = {f.name for f in dataclasses.fields(EnvConfig) if f.init}  # not the derived ranges
     unknown = sorted(set(options) - known)
     if unknown:
         raise ValueError(f"{unknown[0]}: not an option of the env ({', '.join(sorted(known))})")
@@ -263,6 +263,10 @@ class EnvConfig:
         if self.reward not in ("linear", "log"):
             raise ValueError(f"reward={self.reward!r}: must be 'linear' or 'log'")
         object.__setattr__(self, "ranges", _randomization_ranges(self.randomize))
+        try:  # every draw of a reset stays within the factors' bounds
+            self.plant.check_ranges(self.ranges)
+        except ValueError as exc:
+            raise ValueError(str(exc).replace("ranges[", "randomize[", 1)) from None
         needs_unlisted = {"friction", "preload"} & set(
             self.ranges or (DEFAULT_RANDOMIZATION if not self.plant.uncertainty else ())
         )

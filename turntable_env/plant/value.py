@@ -210,7 +210,12 @@ class Plant:
                        ideal_amplifier=False, uncertainty={})  # fmt: skip
 
     def replace(self, **changes: Any) -> Plant:
-        """A copy with fields changed (dataclasses.replace)."""
+        """A copy with fields changed (dataclasses.replace); an unknown field is a
+        ValueError naming it and the fields there are."""
+        known = [f.name for f in fields(self) if f.init]
+        for name in changes:
+            if name not in known:
+                raise ValueError(f"{name}: not a field of Plant ({', '.join(known)})")
         return replace(self, **changes)
 
     # --- randomisation -------------------------------------------------------------------
@@ -230,24 +235,47 @@ class Plant:
         ``spread``, and multiply the plant's own factors and noise.
         """
         s = check_nonnegative("spread", spread)
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng={rng!r}: must be a numpy.random.Generator")
         if ranges is None and self.uncertainty:
             return self._sample_posterior(rng, s)
-        r = DEFAULT_RANDOMIZATION if ranges is None else ranges
-        draw: dict[str, float] = {}
-        for key, (lo, hi) in r.items():
-            if key not in DEFAULT_RANDOMIZATION:
-                raise ValueError(
-                    f"ranges[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
-                )
-            if s != 1.0:
-                lo, hi = 1.0 + s * (lo - 1.0), 1.0 + s * (hi - 1.0)
-            draw[key] = float(rng.uniform(lo, hi))
+        r = self.check_ranges(DEFAULT_RANDOMIZATION if ranges is None else ranges, s)
+        draw = {key: float(rng.uniform(lo, hi)) for key, (lo, hi) in r.items()}
         factors = dict(self.factors)
         for key in FACTORS:
             if key in draw:
                 factors[key] = factors.get(key, 1.0) * draw[key]
         noise = self.sensor_noise * draw.get("sensor_noise", 1.0)
         return replace(self, factors=factors, sensor_noise=noise, uncertainty={}), draw
+
+    def check_ranges(
+        self, ranges: Mapping[str, tuple[float, float]], spread: float = 1.0
+    ) -> dict[str, tuple[float, float]]:
+        """``ranges`` widened by ``spread`` (:meth:`sample`), checked before any draw: known
+        keys, positive finite bounds, low ≤ high, and this plant's own factor times either
+        bound within the factor's physical bounds (:data:`FACTORS`), so no later draw fails.
+        ValueError naming the key and the range otherwise."""
+        out = {}
+        for key, rng in ranges.items():
+            if key not in DEFAULT_RANDOMIZATION:
+                raise ValueError(
+                    f"ranges[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
+                )
+            lo, hi = (float(x) for x in rng)
+            if spread != 1.0:
+                lo, hi = 1.0 + spread * (lo - 1.0), 1.0 + spread * (hi - 1.0)
+            if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
+                raise ValueError(f"ranges[{key!r}]=({lo:g}, {hi:g}): need 0 < low <= high")
+            if key in FACTORS:
+                own = self.factors.get(key, 1.0)
+                b_lo, b_hi, _ = FACTORS[key]
+                if own * lo < b_lo or own * hi > b_hi:
+                    raise ValueError(
+                        f"ranges[{key!r}]=({lo:g}, {hi:g}): times the plant's factor {own:g} "
+                        f"it leaves the factor's bounds {b_lo:g}…{b_hi:g}"
+                    )
+            out[key] = (lo, hi)
+        return out
 
     def _sample_posterior(self, rng: np.random.Generator, spread: float) -> tuple[Plant, dict]:
         factors = dict(self.factors)
