@@ -11,6 +11,7 @@ import pytest
 
 from turntable_env import __version__
 from turntable_env.cli import main
+from turntable_env.files import MARKER
 
 NOT_A_DIR = "/etc/hostname/x"  # below a regular file: unwritable, root or not
 
@@ -38,6 +39,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["simulate", "--settle", "1e9"], "--settle"),
         (["simulate", "--output-dt", "0"], "--output-dt"),
         (["simulate", "--output-dt", "1e-15"], "--output-dt"),
+        (["simulate", "--periods", "1", "--dt-factor", "1e-12"], "--dt-factor"),  # 4e15 steps
         (["simulate", "--frequency", "0.001", "--periods", "100000"], "--periods"),
         (["simulate", "--out", "/nonexistent/x.csv"], "--out"),
         (["simulate", "--out", "/tmp"], "--out"),
@@ -47,12 +49,20 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["benchmark", "--seeds", "1"], "--seeds"),
         (["benchmark", "--controllers", "nope", "--quick"], "controllers"),
         (["benchmark", "--plant-sets", "lunar"], "plant_sets"),
+        (["benchmark", "--controllers", ""], "--controllers"),  # not "all of them"
+        (["benchmark", "--controllers", "fuzzy,fuzzy"], "--controllers"),
+        (["benchmark", "--tasks", ","], "--tasks"),
         (["benchmark", "--out", NOT_A_DIR], "--out"),
         (["benchmark", "--workers", "2"], "--workers"),
         (["benchmark", "--backend", "slurm"], "--backend"),
         (["virtual-lab", "--noise", "nan", "--out", "v.csv"], "--noise"),
         (["virtual-lab", "--noise", "-1", "--out", "v.csv"], "--noise"),
         (["virtual-lab", "--effects", "piezo_creep=5", "--out", "v.csv"], "piezo_creep"),
+        (["virtual-lab", "--effects", "piezo_creep=0.02,piezo_creep=0.03", "--out", "v.csv"],
+         "piezo_creep"),  # not the last one silently
+        (["virtual-lab", "--effects", "piezo_creep.gamma=0.02,piezo_creep=0.03", "--out", "v.csv"],
+         "twice"),
+        (["virtual-lab", "--effects", ",", "--out", "v.csv"], "--effects"),
         (["virtual-lab", "--out", NOT_A_DIR], "--out"),
         (["virtual-lab", "--out", "/tmp"], "--out"),
         (["calibrate", "--thesis", "--report", NOT_A_DIR], "--report"),
@@ -104,6 +114,7 @@ def test_a_failing_report_leaves_the_directory_untouched(tmp_path, monkeypatch):
 
     out = tmp_path / "rep"
     out.mkdir()
+    (out / MARKER).write_text("")  # an earlier report of this project
     (out / "report.json").write_text("old")
 
     def boom(*_a, **_k):
@@ -118,6 +129,6 @@ def test_a_failing_report_leaves_the_directory_untouched(tmp_path, monkeypatch):
     monkeypatch.setattr(cal, "plot_residual", lambda *_a, **_k: None)
     with pytest.raises(RuntimeError, match="plot failed"):
         cal.write_report(R(), out)
-    assert [p.name for p in out.iterdir()] == ["report.json"]
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, "report.json"])
     assert (out / "report.json").read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["rep"]  # no temporary left

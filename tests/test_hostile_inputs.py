@@ -170,6 +170,10 @@ def _summary(tmp_path: Path, old: str, new: str) -> Path:
         ("slew_V_per_us = 0.9", 'slew_V_per_us = "fast"', "slew_V_per_us = 'fast'"),
         ('[detector]  # §4.1.1, Fig. 4.4', 'detector = "x"\n[y]', "detector"),
         ('amplifier = "adapted"', 'amplifier = "turbo"', "amplifier = 'turbo'"),
+        # the [amplifier] table is checked though the model's amplifier is the parameter set's
+        ("gain = 45.0", "gain = nan", "[amplifier]: gain = nan"),
+        ("current_limit_A = 0.025", "current_limit_A = -1e9", "current_limit_A"),
+        ("input_limit_V = 10.0", 'input_limit_V = 10.0\nbogus = "x"', "bogus is not part"),
     ],
 )
 def test_bad_summary_files_are_refused_naming_key_and_value(old, new, needle, tmp_path, capsys):

@@ -28,6 +28,7 @@ __all__ = ["main"]
 
 MAX_SAMPLES = 20_000_000  # samples a simulate run may record (≈ 1 GB of response arrays)
 MAX_DURATION = 1000.0  # s of turntable time one simulate run may cover
+MAX_STEPS = 1e10  # fine integration steps (duration·ω_max/--dt-factor) of a full-model run
 
 
 class _Parser(argparse.ArgumentParser):
@@ -130,6 +131,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"--output-dt={output_dt:g} s over {duration:g} s (drive and --settle) would record "
             f"{duration / output_dt:.3g} samples, more than {MAX_SAMPLES:g}: raise --output-dt"
         )
+    if args.model == "full":  # the 3-D model's fine step is dt-factor/ω_max
+        from .plant.models import turntable_model
+
+        omega = turntable_model(plant.params).omega_max  # rad/s
+        if duration * omega / args.dt_factor > MAX_STEPS:
+            raise ValueError(
+                f"--dt-factor={args.dt_factor:g}: {duration * omega / args.dt_factor:.3g} "
+                f"integration steps over {duration:g} s (step = factor/ω_max, ω_max = "
+                f"{omega:.4g} rad/s), more than {MAX_STEPS:g}: raise --dt-factor"
+            )
     try:
         if args.model == "reduced":
             (r,) = simulate_axes([plant], [drive], axis=args.axis, settle=settle,
@@ -223,18 +234,27 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 def _cmd_benchmark(args: argparse.Namespace) -> int:
     from controllers.benchmark import QUICK, run_benchmark, write_outputs
 
-    def split(x: str | None) -> list[str] | None:
-        return [v for v in x.split(",") if v] if x else None
+    def split(option: str, x: str | None) -> list[str] | None:
+        """A comma-separated list of names; empty entries or a name twice → ValueError."""
+        if x is None:
+            return None
+        names = [v.strip() for v in x.split(",")]
+        if not all(names):
+            raise ValueError(f"{option}={x!r}: an empty name")
+        twice = sorted({v for v in names if names.count(v) > 1})
+        if twice:
+            raise ValueError(f"{option}={x!r}: {twice[0]!r} given twice")
+        return names
 
     check_writable("--out", args.out, directory=True)
     kw: dict[str, object] = dict(QUICK) if args.quick else {}
     if args.seeds is not None:
         kw["seeds"] = args.seeds
-    if args.plant_sets:
-        kw["plant_sets"] = split(args.plant_sets)
-    if args.tasks:
-        kw["tasks"] = split(args.tasks)
-    names = split(args.controllers)
+    if args.plant_sets is not None:
+        kw["plant_sets"] = split("--plant-sets", args.plant_sets)
+    if args.tasks is not None:
+        kw["tasks"] = split("--tasks", args.tasks)
+    names = split("--controllers", args.controllers)
     if args.agent:
         from agents import register_run
 

@@ -278,13 +278,21 @@ def parse_effects(spec: str) -> dict[str, dict[str, float]]:
     effect's other parameters stay neutral); a bare ``name`` switches it on at its typical
     values."""
     raw: dict[str, dict[str, float]] = {}
-    for item in filter(None, (s.strip() for s in spec.split(","))):
+    items = [s.strip() for s in spec.split(",")] if spec.strip() else []
+    seen: set[str] = set()
+    for item in items:
+        if not item:
+            raise ValueError(f"--effects={spec!r}: an empty entry between commas")
         key, sep, val = item.partition("=")
         name, _, param = key.partition(".")
         if name not in CATALOGUE:
             raise ValueError(
                 f"--effects: {name!r} is not in the catalogue ({', '.join(CATALOGUE)})"
             )
+        label = f"{name}.{param or CATALOGUE[name].parameters[0].name}" if sep else name
+        if label in seen:  # not the last one silently
+            raise ValueError(f"--effects: {key!r} given twice in {spec!r}")
+        seen.add(label)
         if not sep:
             raw.setdefault(name, CATALOGUE[name].defaults())
             continue

@@ -77,7 +77,15 @@ def _load(path: Path) -> Fields:
     """The summary file as :class:`~turntable_env.inputs.Fields` (read and bounded by
     :func:`~turntable_env.inputs.load_toml`), its tables known."""
     f = Fields(load_toml(path, "summary file (TOML)", max_bytes=2**20), str(path))
-    return f.known("detector", "amplifier", "amplifier_step", "stepping", "observation")
+    f.known("detector", "amplifier", "amplifier_step", "stepping", "observation")
+    if "amplifier" in f.table:  # the rig's amplifier (§4.1.1), checked though the model's
+        # own comes from the parameter set: a wrong entry is refused, not ignored
+        a = f.sub("amplifier").known("source", "gain", "input_limit_V", "current_limit_A")
+        a.text("source", default="")
+        a.number("gain", low=0.0, high=1e4, open_low=True, default=1.0)
+        a.number("input_limit_V", low=0.0, high=1e3, open_low=True, default=1.0)
+        a.number("current_limit_A", low=0.0, high=100.0, open_low=True, default=1.0)
+    return f
 
 
 def thesis_detector(path: str | Path = THESIS_DATA_FILE) -> Detector:
