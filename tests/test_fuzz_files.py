@@ -163,6 +163,7 @@ def _good(n: int = 40, axis: str = "B", drives: tuple[str, ...] = ("B",)) -> str
         (_good(n=3), f"at least {MIN_SAMPLES} samples, found 3"),
         (_good().replace("0.5\n", "1_0\n", 1).replace(",0.5,", ",1_0,", 1), "is not a number"),
         (_good().replace("\n0.0001,", "\n10.0001,"), "not increasing"),
+        (_good(drives=("B", "B")), "column 'drive_B_V' appears twice"),  # which one, named
     ],
 )
 def test_the_loader_refuses_what_the_calibrator_cannot_use(text, match, tmp_path):
@@ -177,8 +178,8 @@ def test_a_time_gap_is_refused_and_a_bom_is_read(tmp_path):
     lines[-1] = "10.0," + lines[-1].split(",", 1)[1]
     p = tmp_path / "gap.csv"
     p.write_text("\n".join(lines) + "\n")
-    with pytest.raises(ValueError, match="jumps"):
-        load_measurement(p)
+    with pytest.raises(ValueError, match=rf"gap.csv:{len(lines)}: column 't_s' jumps .* t = \d"):
+        load_measurement(p)  # the line of the sample after the gap, the time as a number
     q = tmp_path / "bom.csv"
     q.write_text("\ufeff" + _good(), encoding="utf-8")
     assert load_measurement(q).axis == "B"

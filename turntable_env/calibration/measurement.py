@@ -228,8 +228,9 @@ def load_measurement(path: str | Path) -> Measurement:
             raise ValueError(f"{p}:{header_line}: column {c!r} missing")
     if not drive_cols:
         raise ValueError(f"{p}:{header_line}: no drive_<axis>_V column")
-    if len(set(header)) != len(header):
-        raise ValueError(f"{p}:{header_line}: a column appears twice")
+    twice = [c for i, c in enumerate(header) if c in header[:i]]
+    if twice:
+        raise ValueError(f"{p}:{header_line}: column {twice[0]!r} appears twice")
     if f"drive_{axis}_V" not in header:
         raise ValueError(
             f"{p}:{header_line}: column 'drive_{axis}_V' missing: the watched axis "
@@ -284,7 +285,8 @@ def load_measurement(path: str | Path) -> Measurement:
     k = int(np.argmax(dt))
     if dt[k] > MAX_GAP_FACTOR * float(np.median(dt)):
         raise ValueError(
-            f"{p}: column 't_s' jumps {dt[k]:.6g} s after t = {t[k]!r} s, more than "
+            f"{p}:{header_line + k + 2}: column 't_s' jumps {dt[k]:.6g} s after "
+            f"t = {float(t[k]):.6g} s, more than "
             f"{MAX_GAP_FACTOR:g}× the median interval {float(np.median(dt)):.6g} s (a record "
             "with a gap: split it into files)"
         )
