@@ -249,29 +249,30 @@ class Plant:
         return replace(self, factors=factors, sensor_noise=noise, uncertainty={}), draw
 
     def check_ranges(
-        self, ranges: Mapping[str, tuple[float, float]], spread: float = 1.0
-    ) -> dict[str, tuple[float, float]]:
+        self, ranges: Mapping[str, tuple[float, float]], spread: float = 1.0,
+        name: str = "ranges",
+    ) -> dict[str, tuple[float, float]]:  # fmt: skip
         """``ranges`` widened by ``spread`` (:meth:`sample`), checked before any draw: known
         keys, positive finite bounds, low ≤ high, and this plant's own factor times either
         bound within the factor's physical bounds (:data:`FACTORS`), so no later draw fails.
-        ValueError naming the key and the range otherwise."""
+        ValueError naming ``name``, the key and the range otherwise."""
         out = {}
         for key, rng in ranges.items():
             if key not in DEFAULT_RANDOMIZATION:
                 raise ValueError(
-                    f"ranges[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
+                    f"{name}[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
                 )
             lo, hi = (float(x) for x in rng)
             if spread != 1.0:
                 lo, hi = 1.0 + spread * (lo - 1.0), 1.0 + spread * (hi - 1.0)
             if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
-                raise ValueError(f"ranges[{key!r}]=({lo:g}, {hi:g}): need 0 < low <= high")
+                raise ValueError(f"{name}[{key!r}]=({lo:g}, {hi:g}): need 0 < low <= high")
             if key in FACTORS:
                 own = self.factors.get(key, 1.0)
                 b_lo, b_hi, _ = FACTORS[key]
                 if own * lo < b_lo or own * hi > b_hi:
                     raise ValueError(
-                        f"ranges[{key!r}]=({lo:g}, {hi:g}): times the plant's factor {own:g} "
+                        f"{name}[{key!r}]=({lo:g}, {hi:g}): times the plant's factor {own:g} "
                         f"it leaves the factor's bounds {b_lo:g}…{b_hi:g}"
                     )
             out[key] = (lo, hi)
