@@ -40,6 +40,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["simulate", "--output-dt", "0"], "--output-dt"),
         (["simulate", "--output-dt", "1e-15"], "--output-dt"),
         (["simulate", "--periods", "1", "--dt-factor", "1e-12"], "--dt-factor"),  # 4e15 steps
+        (["simulate", "--cycles", "2"], "--cycles"),  # not silently ignored without --signal two
         (["simulate", "--frequency", "0.001", "--periods", "100000"], "--periods"),
         (["simulate", "--out", "/nonexistent/x.csv"], "--out"),
         (["simulate", "--out", "/tmp"], "--out"),

@@ -330,7 +330,9 @@ def test_reset_refuses_options_that_are_not_a_dict():
     ("options", "match"),
     [
         ({"reference": [0.0, 1.0]}, r"reference'\]\[1\]"),  # beyond the detector
-        ({"reference": [0.0, float("nan")]}, r"reference'\]\[1\]"),
+        ({"reference": [0.0, float("nan")]}, r"reference'\]\[1\]=nan:"),  # a plain nan
+        ({"start_angle": "0"}, "start_angle"),  # text is not an angle
+        ({"start_angle": True}, "start_angle"),
         ({"reference": []}, "reference"),
         ({"reference": [0.0], "target_angle": 0.0}, "not both"),
         ({"knock": (0.0, 1e-5)}, "knock"),

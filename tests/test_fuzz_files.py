@@ -164,6 +164,7 @@ def _good(n: int = 40, axis: str = "B", drives: tuple[str, ...] = ("B",)) -> str
         (_good().replace("0.5\n", "1_0\n", 1).replace(",0.5,", ",1_0,", 1), "is not a number"),
         (_good().replace("\n0.0001,", "\n10.0001,"), "not increasing"),
         (_good(drives=("B", "B")), "column 'drive_B_V' appears twice"),  # which one, named
+        ("# drive_recording: bogus\n" + _good(), r"m.csv:1: metadata 'drive_recording' = 'bogus'"),
     ],
 )
 def test_the_loader_refuses_what_the_calibrator_cannot_use(text, match, tmp_path):

@@ -104,6 +104,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from .plant import as_plant
     from .simulation import simulate, simulate_axes, stepping_drive
 
+    if args.cycles is not None and args.signal != "two":
+        raise ValueError(f"--cycles={args.cycles}: only with --signal two (forward-back cycles)")
     if args.out is not None:
         check_writable("--out", args.out)
     named = as_plant(args.params)  # a named plant whole: factors, rig and every effect

@@ -45,6 +45,7 @@ import numpy as np
 from ..detector import Detector
 from ..files import write_atomic
 from ..inputs import read_input
+from .segments import RECORDINGS
 
 __all__ = ["AXES", "Measurement", "load_measurement"]
 
@@ -211,6 +212,12 @@ def load_measurement(path: str | Path) -> Measurement:
     if axis not in AXES:
         raise ValueError(f"{p}:{ln}: metadata 'axis' = {axis!r}, must be one of {', '.join(AXES)}")
     values = {k: _meta_float(p, meta[k][0], k, meta[k][1]) for k in META_RANGES}
+    if "drive_recording" in meta and meta["drive_recording"][1] not in RECORDINGS:
+        ln, rec = meta["drive_recording"]
+        raise ValueError(
+            f"{p}:{ln}: metadata 'drive_recording' = {rec!r}, must be one of "
+            f"{', '.join(RECORDINGS)}"
+        )
     if i >= len(lines):
         raise ValueError(f"{p}: no header row")
     header_line = i + 1

@@ -272,7 +272,8 @@ def _option_reference(value: Any, limit: float) -> np.ndarray | None:
     if bad.size:
         i = int(bad[0])
         raise ValueError(
-            f"options['reference'][{i}]={ref[i]!r}: must be finite with |angle| <= {limit:.4g} rad"
+            f"options['reference'][{i}]={float(ref[i])!r}: must be finite with "
+            f"|angle| <= {limit:.4g} rad"
         )
     ref.setflags(write=False)
     return ref
@@ -294,6 +295,8 @@ def _option_knock(value: Any, interval: float, limit: float) -> tuple[int, float
 
 
 def _option_angle(name: str, value: Any, limit: float) -> float:
+    if isinstance(value, str | bytes | bool):  # '0' is text, True is not an angle
+        raise ValueError(f"options[{name!r}]={value!r}: must be a real number")
     try:
         x = float(value)
     except (TypeError, ValueError):
