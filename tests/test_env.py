@@ -142,6 +142,8 @@ def test_out_of_range_action_is_clipped():
         ({"plant": Plant(factors={"preload": 5.0}), "randomize": {"preload": (0.5, 2.5)}},
          "preload"),
         ({"ranges": {}}, "ranges: not an option"),  # derived from randomize, not an option
+        ({"sensor_noise": 10.0, "randomize": True}, "sensor_noise"),  # ×2 drawn: above 15 V
+        ({"sensor_noise": 1e300}, "sensor_noise"),
         ({"render_mode": "ascii"}, "render_mode"),
         ({"terminate_on_success": 1}, "terminate_on_success"),
         ({"move_range": (1e-3, 1e-4)}, "move_range"),
@@ -323,6 +325,12 @@ def test_step_refuses_what_is_not_five_real_numbers(action):
 def test_reset_refuses_options_that_are_not_a_dict():
     with pytest.raises(ValueError, match="options='x'"):
         gym.make(ENV_ID).unwrapped.reset(options="x")
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, True])
+def test_a_seed_that_is_not_a_non_negative_integer_is_a_value_error(seed):
+    with pytest.raises(ValueError, match="seed"):  # not gymnasium's own error type
+        gym.make(ENV_ID).reset(seed=seed)
 
 
 # --- the task's physics and reward ---------------------------------------------------------------

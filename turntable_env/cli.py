@@ -21,7 +21,7 @@ from typing import Any, NoReturn
 
 from . import __version__
 from .files import Terminated, check_writable, terminate_cleanly, write_atomic
-from .plant import PARAMETER_SETS, parameter_set
+from .plant import MAX_SENSOR_NOISE, PARAMETER_SETS, parameter_set
 from .scale import BACKENDS
 
 __all__ = ["main"]
@@ -499,7 +499,8 @@ def _add_virtual_lab(sub: Any) -> None:
     pv.add_argument("--protocol", default="standard", choices=["standard", "long", "thesis"])
     pv.add_argument("--axis", default="B", choices=["A", "B", "C"])
     pv.add_argument(
-        "--noise", type=_real(0.0, 15.0), default=1e-3, help="detector noise std [V], 0…15"
+        "--noise", type=_real(0.0, MAX_SENSOR_NOISE), default=1e-3,
+        help=f"detector noise std [V], 0…{MAX_SENSOR_NOISE:g}"
     )
     pv.add_argument("--seed", type=_int(0, 2**63 - 1), default=0)
     pv.add_argument("--out", required=True, help="measurement file to write")

@@ -264,6 +264,8 @@ class EnvConfig:
             raise ValueError(f"reward={self.reward!r}: must be 'linear' or 'log'")
         # every draw of a reset within the factors' bounds, checked now (Plant.check_ranges)
         ranges = self.plant.check_ranges(_randomization_ranges(self.randomize), name="randomize")
+        if self.randomize is True and not self.plant.uncertainty:  # the default ranges
+            self.plant.check_ranges(DEFAULT_RANDOMIZATION, name="randomize")
         object.__setattr__(self, "ranges", ranges)
         needs_unlisted = {"friction", "preload"} & set(
             self.ranges or (DEFAULT_RANDOMIZATION if not self.plant.uncertainty else ())

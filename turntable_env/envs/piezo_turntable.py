@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ..plant import Plant
+from ..validation import check_int
 from .config import ACTION_NAMES, OBSERVATION_NAMES, check_action, make_config
 from .core import TurntableTask
 
@@ -196,6 +197,8 @@ class PiezoTurntableEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        if seed is not None:  # gymnasium's own check raises its own error type
+            check_int("seed", seed, 0)
         super().reset(seed=seed)
         self.task.reset_row(0, self.np_random, options)
         t = self.task

@@ -54,6 +54,7 @@ from .store import CALIBRATED_FILE, NAMED_PLANTS, plant_toml
 from .value import (
     DEFAULT_RANDOMIZATION,
     FIDELITIES,
+    MAX_SENSOR_NOISE,
     PARAMETER_SETS,
     SENSOR_NOISE,
     Plant,
@@ -67,6 +68,7 @@ __all__ = [
     "DEFAULT_RANDOMIZATION",
     "FACTORS",
     "FIDELITIES",
+    "MAX_SENSOR_NOISE",
     "NAMED_PLANTS",
     "PARAMETER_SETS",
     "SENSOR_NOISE",

@@ -28,6 +28,7 @@ __all__ = [
     "DEFAULT_RANDOMIZATION",
     "FACTORS",
     "FIDELITIES",
+    "MAX_SENSOR_NOISE",
     "PARAMETER_SETS",
     "SENSOR_NOISE",
     "Plant",
@@ -45,6 +46,7 @@ DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
     "sensor_noise": (0.5, 2.0),  # detector noise standard deviation
 }
 SENSOR_NOISE = 1e-3  # V, default detector noise (the env's; the thesis gives none)
+MAX_SENSOR_NOISE = 15.0  # V, largest detector noise std: beyond the detector's ±10 V range
 
 
 class _Frozen(Mapping):
@@ -132,7 +134,10 @@ class Plant:
             raise ValueError(f"fidelity={self.fidelity!r}: must be one of {', '.join(FIDELITIES)}")
         if not isinstance(self.ideal_amplifier, bool):
             raise ValueError(f"ideal_amplifier={self.ideal_amplifier!r}: must be a bool")
-        check_nonnegative("sensor_noise", self.sensor_noise)
+        if check_nonnegative("sensor_noise", self.sensor_noise) > MAX_SENSOR_NOISE:
+            raise ValueError(
+                f"sensor_noise={self.sensor_noise!r}: must be <= {MAX_SENSOR_NOISE:g} V"
+            )
         if isinstance(self.rig, Mapping):
             try:
                 object.__setattr__(self, "rig", RigParams(**self.rig))
@@ -267,6 +272,11 @@ class Plant:
                 lo, hi = 1.0 + spread * (lo - 1.0), 1.0 + spread * (hi - 1.0)
             if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
                 raise ValueError(f"{name}[{key!r}]=({lo:g}, {hi:g}): need 0 < low <= high")
+            if key == "sensor_noise" and self.sensor_noise * hi > MAX_SENSOR_NOISE:
+                raise ValueError(
+                    f"{name}[{key!r}]=({lo:g}, {hi:g}): times the plant's noise "
+                    f"{self.sensor_noise:g} V it exceeds {MAX_SENSOR_NOISE:g} V"
+                )
             if key in FACTORS:
                 own = self.factors.get(key, 1.0)
                 b_lo, b_hi, _ = FACTORS[key]
