@@ -21,6 +21,11 @@ import argparse
 import csv
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from controllers.base import ControllerContext
+    from turntable_env.envs.config import EnvConfig
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "benchmark"
 QUOTED = [  # (plant set, task, pair, metric): the paired differences the README quotes
@@ -42,7 +47,9 @@ QUOTED = [  # (plant set, task, pair, metric): the paired differences the README
 ]
 
 
-def simulated_scan_range(cfg: object, ctx: object, intervals: int = 5) -> float:
+def simulated_scan_range(
+    cfg: EnvConfig, ctx: ControllerContext, intervals: int = 5
+) -> float:
     """The table's turn [rad] after ``intervals`` control intervals with the scan offset at
     +u_max and the generator idle, from rest at 0, on the config's plant (any fidelity,
     noise-free): the plant's own K·u_max, which its controllers do not know."""

@@ -100,6 +100,8 @@ def test_sample_draws_default_ranges_and_multiplies_the_plants_factors():
         (np.random.default_rng(0), {"preload": (0.0, 1.0)}, r"ranges\['preload'\]"),
         (np.random.default_rng(0), {"sensor_noise": (2.0, 1.0)}, "low <= high"),
         (np.random.default_rng(0), {"gravity": (0.9, 1.1)}, "unknown"),
+        (np.random.default_rng(0), {"friction": (0.9, 1.0, 1.1)}, r"must be \(low, high\)"),
+        (np.random.default_rng(0), {"friction": "wide"}, r"ranges\['friction'\]='wide'"),
     ],
 )
 def test_sample_refuses_what_it_cannot_draw_from_before_drawing(rng, ranges, match):

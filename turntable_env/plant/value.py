@@ -267,7 +267,10 @@ class Plant:
                 raise ValueError(
                     f"{name}[{key!r}]: unknown (choose from {', '.join(DEFAULT_RANDOMIZATION)})"
                 )
-            lo, hi = (float(x) for x in rng)
+            try:
+                lo, hi = (float(x) for x in rng)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name}[{key!r}]={rng!r}: must be (low, high)") from None
             if spread != 1.0:
                 lo, hi = 1.0 + spread * (lo - 1.0), 1.0 + spread * (hi - 1.0)
             if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
