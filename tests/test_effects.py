@@ -186,11 +186,16 @@ def test_amplifier_slew_scale_shrinks_the_adapted_steps(ps, drive, clean):
 
 @pytest.mark.parametrize("alpha", [0.25, -0.25])
 def test_friction_asymmetry_makes_forward_and_backward_steps_differ(ps, drive, clean, alpha):
+    """By the sliding direction: α > 0 raises μ while the table slides forward over the
+    tubes — a forward step's slip, when the tubes fly back under it — so forward steps
+    shrink and backward ones grow (the independent plants' asymmetry, phase by phase)."""
     res = _trace(ps, drive, {"friction_asymmetry": {"alpha": alpha}})
     fwd, back = _block_steps(ps, drive, res)
     f0, b0 = _block_steps(ps, drive, clean)
     assert abs(f0 + b0) < 0.05 * f0  # the nominal model is symmetric
     assert abs(fwd + back) > 0.1 * abs(fwd)
+    assert np.sign(abs(fwd) - abs(f0)) == -np.sign(alpha)
+    assert np.sign(abs(back) - abs(b0)) == np.sign(alpha)
     res_flip = _trace(ps, drive, {"friction_asymmetry": {"alpha": -alpha}})
     ff, bf = _block_steps(ps, drive, res_flip)
     assert np.sign(fwd + back) == -np.sign(ff + bf)

@@ -200,6 +200,22 @@ def test_simulate_rejects_bad_input(real_model):
         simulate(real_model.params, {"B": 3.0}, duration=1e-3, model=real_model)
 
 
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"friction_asymmetry": 1.0, "asymmetry_axis": (0.0, 0.0, 1.0)}, "friction_asymmetry"),
+        ({"friction_asymmetry": math.nan}, "friction_asymmetry"),
+        ({"friction_asymmetry": 0.2}, "asymmetry_axis"),
+        ({"friction_asymmetry": 0.2, "asymmetry_axis": (0.0, 0.0, 2.0)}, "asymmetry_axis"),
+    ],
+)
+def test_run_refuses_a_bad_sliding_asymmetry(real_model, kw, match):
+    """|α| < 1 (μ stays positive both ways) and a unit axis, before any integration."""
+    drive, _ = stepping_drive(real_model.params, periods=1)
+    with pytest.raises(ValueError, match=match):
+        real_model.run({"B": drive}, 1e-4, **kw)
+
+
 def test_arbitrary_waveform_drive(real_model):
     """Any piecewise-linear input: a slow ramp to 2 V moves the table with the tubes (stick)."""
     w = Waveform(np.array([0.0, 5e-3]), np.array([0.0, 2.0]))

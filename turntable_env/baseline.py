@@ -43,7 +43,7 @@ def simulate_scipy(
     ar = model.packed
     ap = model.axis_params
     nu, kk = ar["nu"], ar["kk"]
-    c_gms, mu_s, mu_c, v_s, delta, sigma2, beta_t = ar["gms"]
+    c_gms, mu_s, mu_c, v_s, delta, sigma2, beta_t, _alpha = ar["gms"]  # α: 0 in a model
     gain, tau, ideal, ulim, rate = ar["amp"][:5]
     if ar["amp"][5] != 0.0:
         raise ValueError("model: the SciPy baseline has the first-order amplifier only")

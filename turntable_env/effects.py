@@ -19,7 +19,9 @@ piezo_hysteresis        input       Prandtl–Ishlinskii operator on the drive: 
                                     10–15 % of stroke (``h``, ``width`` [V])
 piezo_creep             input       logarithmic creep, ``gamma`` per decade of time (1–2 % typical):
                                     u + γ·Σ_i LP_τi(u − u0), τ_i = 1 ms … 10 s, one per decade
-friction_asymmetry      friction    μ_s, μ_c × (1 + ``alpha``·sign of the table's motion): surface
+friction_asymmetry      friction    μ_s, μ_c × (1 ± ``alpha``) as the table slides forward (+) or
+                                    backward (−) over a tube, phase by phase in the integrator
+                                    (a forward step's slip is the forward sliding): surface
                                     texture / lay makes sliding one way harder (``alpha``)
 friction_wear           friction    μ_s, μ_c × (1 + ``beta``·travel/10 µm) (at least ×0.2): the
                                     contacts flatten or roughen with use (§4.3 mentions wear)
@@ -46,8 +48,10 @@ Stages, in the order the plant runs them:
   the creep's first-order modes exactly at breakpoints at most ``CREEP_PIECE`` apart. The
   input is the amplifier's: where the amplifier follows (scan, ramps) this is the piezo's
   voltage divided by the gain; the flyback passes through as a jump;
-* **friction** (:func:`friction_scale`): μ_s and μ_c scaled for the next segment of
-  ``FRICTION_SEGMENT`` by the direction and travel of the table in the previous ones;
+* **friction**: the asymmetry by each contact's sliding direction inside the
+  integrator (:func:`sliding_asymmetry`; every fidelity resolves the sliding), the wear
+  (:func:`friction_scale`) as μ_s and μ_c scaled for the next segment of
+  ``FRICTION_SEGMENT`` by the table's travel in the previous ones;
 * **output** (:func:`detector_stage`): what the laser and the quadrant photodiode report.
 
 Effect parameters cross into the stages as one row per plant (:func:`pack_effects`,
@@ -90,6 +94,7 @@ __all__ = [
     "input_stage_nb",
     "pack_effects",
     "parse_effects",
+    "sliding_asymmetry",
     "stages_of",
 ]
 
@@ -332,7 +337,7 @@ N_PLAY = 8  # play operators of the Prandtl–Ishlinskii model
 WEAR_LENGTH = 10e-6  # m of travel at the table radius per unit of friction_wear.beta
 CREEP_TAUS = (1e-3, 1e-2, 1e-1, 1.0, 10.0)  # s, one first-order mode per decade
 CREEP_PIECE = 0.5e-3  # s, longest piece between creep evaluations (CREEP_TAUS[0] / 2)
-FRICTION_SEGMENT = 5e-3  # s, friction-stage effects update μ this often
+FRICTION_SEGMENT = 5e-3  # s, friction wear updates μ this often
 
 
 def pack_effects(effects: Mapping[str, Mapping[str, float]]) -> np.ndarray:
@@ -523,19 +528,22 @@ def input_rest(level: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 # --- friction stage --------------------------------------------------------------------------
-def friction_scale(rows: np.ndarray, direction: np.ndarray, travel: np.ndarray) -> np.ndarray:
-    """Multiplier on μ_s, μ_c per row for the table's recent direction of motion (sign) and
-    its travel so far at the table radius [m]: (1 + α·sign)·max(1 + β·travel/10 µm, 0.2)."""
-    alpha = rows[..., _COL["friction_asymmetry.alpha"]]
+def friction_scale(rows: np.ndarray, travel: np.ndarray) -> np.ndarray:
+    """Multiplier on μ_s, μ_c per row for the table's travel so far at the table radius
+    [m] (``friction_wear``): max(1 + β·travel/10 µm, 0.2)."""
     beta = rows[..., _COL["friction_wear.beta"]]
-    return (1.0 + alpha * np.sign(direction)) * np.maximum(1.0 + beta * travel / WEAR_LENGTH, 0.2)
+    return np.maximum(1.0 + beta * travel / WEAR_LENGTH, 0.2)
+
+
+def sliding_asymmetry(rows: np.ndarray) -> np.ndarray:
+    """(N,) α of ``friction_asymmetry`` per row, for the integrator: μ_s, μ_c × (1 + α)
+    while the table slides forward over a tube and × (1 − α) backward, phase by phase."""
+    return rows[..., _COL["friction_asymmetry.alpha"]].copy()
 
 
 def friction_active(rows: np.ndarray) -> np.ndarray:
-    """(N,) True where a row has a friction-stage effect on."""
-    return (rows[..., _COL["friction_asymmetry.alpha"]] != 0.0) | (
-        rows[..., _COL["friction_wear.beta"]] != 0.0
-    )
+    """(N,) True where a row has a friction effect that runs in segments (wear)."""
+    return rows[..., _COL["friction_wear.beta"]] != 0.0
 
 
 # --- output stage (detector) -----------------------------------------------------------------

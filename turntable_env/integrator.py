@@ -48,7 +48,7 @@ STATUS_NAMES = {0: "ok", 1: "non-finite", 2: "diverging", 3: "rim"}
 
 # layout of the packed scalar arrays (documented here, filled by turntable_env.model)
 # table_p: [m, g, P, R_table, R_ball, r_nom, k_c, e, d_c, w_ball, w_table, bound_u, bound_delta]
-# gms_p:   [C, mu_s, mu_c, v_s, delta, sigma2, beta_t]
+# gms_p:   [C, mu_s, mu_c, v_s, delta, sigma2, beta_t, alpha, axis_x, axis_y, axis_z]
 # amp_p:   [gain, tau, ideal, input_limit, fast_fraction, fast_time]
 # energy accumulators acc: [W_elec, W_interface, D_tube, D_contact, gross |W_elec|]
 
@@ -154,6 +154,29 @@ def contact_kinematics(
         cinfo[k, 2] = vx
         cinfo[k, 3] = vy
         cinfo[k, 4] = rho_t
+
+
+@njit(cache=CACHE)
+def _asymmetry(gms_p, crt_k, cx_k, cy_k, vx, vy):
+    """Friction-level factor [-] of one contact for the sliding-direction asymmetry α =
+    gms_p[7] about the unit axis a = gms_p[8:11]: 1 + α·c with c = −(v·t)/(|v|·ρ), v = (vx,
+    vy) the tube-minus-table sliding velocity in the contact plane, t the plane projection
+    of a × ρ (the table's motion there under a positive turn), ρ = |crt_k|; ±1 for a tube
+    driving the axis, 0 for one on the axis (the per-axis model's 1 + α·sgn(−v))."""
+    alpha = gms_p[7]
+    speed = math.sqrt(vx * vx + vy * vy)
+    if alpha == 0.0 or speed == 0.0:
+        return 1.0
+    ax, ay, az = gms_p[8], gms_p[9], gms_p[10]
+    tx = ay * crt_k[2] - az * crt_k[1]
+    ty = az * crt_k[0] - ax * crt_k[2]
+    tz = ax * crt_k[1] - ay * crt_k[0]
+    rho = math.sqrt(crt_k[0] ** 2 + crt_k[1] ** 2 + crt_k[2] ** 2)
+    dx = tx * cx_k[0] + ty * cx_k[1] + tz * cx_k[2]
+    dy = tx * cy_k[0] + ty * cy_k[1] + tz * cy_k[2]
+    if rho == 0.0:
+        return 1.0
+    return 1.0 - alpha * (vx * dx + vy * dy) / (speed * rho)
 
 
 @njit(cache=CACHE)
@@ -459,7 +482,7 @@ def _is_quiet(
     (table rotation and tube-top rotation times their levers), and no amplifier channel
     would move more than ``quiet_volt`` [V] in a coarse step, nor its fast path still be
     settling by more than that."""
-    mu_s = gms_p[1]
+    mu_s = gms_p[1] * (1.0 - abs(gms_p[7]))  # the asymmetry's weaker direction
     kn_tangent = table_p[6] * table_p[7]  # × δ^(e−1) below: normal stiffness [N/m]
     for k in range(3):
         if table_p[7] != 1.0 and cinfo[k, 0] > 0.0:
@@ -761,6 +784,7 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
                     gf[k, i, 1] = 0.0
                     gst[k, i] = 1
             else:
+                m_k = _asymmetry(gms_p, crt[k], cx[k], cy[k], vx, vy)
                 gms2d_rates(
                     gf[k],
                     gst[k],
@@ -770,8 +794,8 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
                     gnu,
                     gk,
                     gms_p[0],
-                    gms_p[1],
-                    gms_p[2],
+                    gms_p[1] * m_k,
+                    gms_p[2] * m_k,
                     gms_p[3],
                     gms_p[4],
                     df,
@@ -781,15 +805,13 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
                     gf[k, i, 1] += dt * df[i, 1]
                 for i in range(ne):
                     was[i] = gst[k, i]
-                gms2d_update(
-                    gf[k], gst[k], vx, vy, fn_k, gnu, gms_p[1], gms_p[2], gms_p[3], gms_p[4]
-                )
+                gms2d_update(gf[k], gst[k], vx, vy, fn_k, gnu, gms_p[1] * m_k, gms_p[2] * m_k,
+                             gms_p[3], gms_p[4])  # fmt: skip
                 # no element holds more than its share ν_i|s(v)|: a sticking one when F_N
                 # drops, and one that broke away inside this step (its overshoot k_i v Δt
                 # past the breakaway instant would be a first-order error in Δt)
-                smag = stribeck_magnitude(
-                    math.sqrt(vx * vx + vy * vy), fn_k, gms_p[1], gms_p[2], gms_p[3], gms_p[4]
-                )
+                smag = stribeck_magnitude(math.sqrt(vx * vx + vy * vy), fn_k, gms_p[1] * m_k,
+                                          gms_p[2] * m_k, gms_p[3], gms_p[4])  # fmt: skip
                 for i in range(ne):
                     if gst[k, i] == 1 or was[i] == 1:
                         fm = math.sqrt(gf[k, i, 0] ** 2 + gf[k, i, 1] ** 2)

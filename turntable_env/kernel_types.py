@@ -74,7 +74,8 @@ class ReducedArrays(NamedTuple):
     :meth:`turntable_env.reduced.ReducedModel` for each field's derivation).
 
     ``mech`` [J, k_g, ρ1, ρ2, M1, M2, K1, K2, D1, D2, g1, g2, F_N1, F_N2]; ``gms`` [C, μ_s,
-    μ_c, v_s, δ, σ2, β_t]; ``amp`` [gain, τ, ideal, input limit, rate, fast fraction, τ_f] (as
+    μ_c, v_s, δ, σ2, β_t, α (sliding-direction asymmetry)]; ``amp`` [gain, τ, ideal, input
+    limit, rate, fast fraction, τ_f] (as
     :meth:`~turntable_env.amplifier.Amplifier.kernel_row`); ``ctl`` [quiet length
     [m], largest rung while an element slips]; ``nu``, ``kk`` the GMS elements; ``lvl``,
     ``nlvl`` stick-configuration levels; ``phi_*``, ``gam_*`` exact step matrices per
@@ -163,7 +164,8 @@ class FullArrays(NamedTuple):
     """Packed model of the 3-D turntable (filled by :class:`turntable_env.model.TurntableModel`).
 
     ``table_p`` [m, g, P, R_table, R_ball, r_nom, k_c, e, d_c, w_ball, w_table, bound_u,
-    bound_δ]; ``gms_p`` [C, μ_s, μ_c, v_s, δ, σ2, β_t]; ``amp_p`` [gain, τ, ideal, input
+    bound_δ]; ``gms_p`` [C, μ_s, μ_c, v_s, δ, σ2, β_t, α, axis (3)] (α, axis: the sliding-direction
+    asymmetry, :meth:`~turntable_env.model.TurntableModel.run`); ``amp_p`` [gain, τ, ideal, input
     limit]; ``amp_rate`` (4,) slew limit per channel [V/s]; the rest are the bodies' and
     tubes' matrices in the world frame.
     """

@@ -356,9 +356,10 @@ class TurntableModel:
         s = fr.stribeck
         gnu = np.asarray(fr.nu, dtype=float)
         gk = np.asarray(fr.k, dtype=float)
-        gms_p = np.array(
-            [fr.C, s.mu_s, s.mu_c, s.v_s, s.delta, s.sigma2, contact.tangential_damping]
-        )
+        gms_p = np.array(  # with no sliding-direction asymmetry (α, axis: run's arguments)
+            [fr.C, s.mu_s, s.mu_c, s.v_s, s.delta, s.sigma2, contact.tangential_damping,
+             0.0, 0.0, 0.0, 0.0]
+        )  # fmt: skip
         table_p = np.array(
             [
                 m,
@@ -554,6 +555,8 @@ class TurntableModel:
         start: float = 0.0,
         initial_state: FullState | None = None,
         friction_scale: float = 1.0,
+        friction_asymmetry: float = 0.0,
+        asymmetry_axis: np.ndarray | None = None,
     ) -> dict:
         """Integrate from rest (static equilibrium) for ``duration`` [s]; raw arrays.
 
@@ -573,6 +576,12 @@ class TurntableModel:
                 the static equilibrium.
             friction_scale: μ_s and μ_c × this factor for the run (friction-stage effects,
                 :mod:`turntable_env.effects`).
+            friction_asymmetry: α of the ``friction_asymmetry`` effect: at each contact μ_s
+                and μ_c × (1 + α·c), c = −v̂·t̂ the cosine between the tube-minus-table
+                sliding velocity and the table's own motion there under a positive turn
+                about ``asymmetry_axis`` (unit vector, world frame), weighted by how
+                much that contact drives the axis (|t|/ρ): ×(1 + α) where the table
+                slides forward over a driving tube, as the per-axis model.
 
         Raises:
             SimulationError: a state became non-finite or diverged (names time and state).
@@ -621,9 +630,17 @@ class TurntableModel:
                     raise ValueError(f"initial_state.{name}: not of shape {shape}")
             state = initial_state.copy()
         arrays = self.kernel_arrays
-        if friction_scale != 1.0:
+        alpha = check_finite("friction_asymmetry", friction_asymmetry)
+        if not abs(alpha) < 1.0:
+            raise ValueError(f"friction_asymmetry={alpha!r}: must be inside (-1, 1)")
+        if friction_scale != 1.0 or alpha != 0.0:
             gms_p = arrays.gms_p.copy()
             gms_p[1:3] *= check_positive("friction_scale", friction_scale)
+            if alpha != 0.0:
+                ax = np.asarray(asymmetry_axis if asymmetry_axis is not None else (), float)
+                if ax.shape != (3,) or not np.isclose(np.linalg.norm(ax), 1.0):
+                    raise ValueError(f"asymmetry_axis={asymmetry_axis!r}: need a unit 3-vector")
+                gms_p[7], gms_p[8:11] = alpha, ax
             arrays = arrays._replace(gms_p=gms_p)
         n_out = math.floor(dur / odt + 1e-9) + 1
         rec = FullRecording(

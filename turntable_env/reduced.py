@@ -383,6 +383,7 @@ class ReducedModel:
                     s.delta,
                     s.sigma2,
                     self.params.contact.tangential_damping,
+                    0.0,  # sliding-direction asymmetry α (friction_asymmetry, set per run)
                 ]  # type: ignore[union-attr]
             ),
             "nu": nu,
@@ -555,6 +556,12 @@ class ReducedBatch:
         """Scale μ_s and μ_c of turntables ``rows`` by ``scale`` [-] from their models' values
         (friction-stage effects, :mod:`turntable_env.effects`); 1 restores them."""
         self.arrays.gms[rows, 1:3] = self._mu[rows] * np.asarray(scale, dtype=float)[..., None]
+
+    def set_friction_asymmetry(self, rows: np.ndarray, alpha: np.ndarray) -> None:
+        """μ_s and μ_c of turntables ``rows`` × (1 + ``alpha``) while the table slides
+        forward over a tube and × (1 − ``alpha``) backward (the ``friction_asymmetry``
+        effect, :mod:`turntable_env.effects`); 0 restores symmetric friction."""
+        self.arrays.gms[rows, 7] = np.asarray(alpha, dtype=float)
 
     def set_state(self, b: int, state: dict[str, np.ndarray], time: float = 0.0) -> None:
         """Set turntable b's state (from :meth:`ReducedModel.rest_state`) at ``time`` [s]."""

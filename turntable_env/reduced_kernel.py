@@ -91,6 +91,19 @@ def _rel(y, mech, k):
 
 
 @njit(cache=CACHE)
+def _level(v, fn, gms):
+    """The Stribeck level |s(v)| [N] (Eq. 2.13–2.14) of a contact whose tube point moves at
+    v [m/s] relative to the table, times 1 − α·sgn v for the sliding-direction asymmetry
+    α = ``gms[7]`` (``friction_asymmetry``: μ × (1 + α) while the table slides forward
+    over the tube, v < 0; at v = 0 the level is symmetric)."""
+    s = stribeck_magnitude(v, fn, gms[1], gms[2], gms[3], gms[4])
+    a = gms[7]
+    if a != 0.0 and v != 0.0:
+        s *= 1.0 - a if v > 0.0 else 1.0 + a
+    return s
+
+
+@njit(cache=CACHE)
 def _amp_linear(v0, vs0, vf0, u0, slope, row, ideal):
     """True when the amplifier output [V] is linear in time (to FAST_QUIET) while its input
     ramps from u0 [V] at ``slope`` [V/s]: inside the slew limit and with the first-order
@@ -140,7 +153,7 @@ def _stick_check(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez, xs, vs
             sv += (c * lam[j]).real
         xs[k] = xq0[k] + xrate[k] * t + sx
         vs[k] = xrate[k] + sv
-        s1 = stribeck_magnitude(vs[k], fn[k], gms[1], gms[2], gms[3], gms[4])
+        s1 = _level(vs[k], fn[k], gms)
         for i in range(ne):
             fi = f0[k, i] + kk[i] * (xs[k] - x0[k])
             gi = nu[i] * s1 - abs(fi)
@@ -185,9 +198,11 @@ def _certified(t, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, fn, gms, ez):
             vamp += abs(c) * abs(lam[j])
         x = xq0[k] + xrate[k] * t + ring
         v = xrate[k] + ring_v
-        s0 = stribeck_magnitude(0.0, fn[k], gms[1], gms[2], gms[3], gms[4])
-        s_hi = stribeck_magnitude(abs(xrate[k]) + vamp, fn[k], gms[1], gms[2], gms[3], gms[4])
-        s_now = stribeck_magnitude(v, fn[k], gms[1], gms[2], gms[3], gms[4])
+        weak = 1.0 - abs(gms[7])  # the asymmetry's weaker direction bounds the capacity
+        s0 = weak * stribeck_magnitude(0.0, fn[k], gms[1], gms[2], gms[3], gms[4])
+        s_hi = weak * stribeck_magnitude(abs(xrate[k]) + vamp, fn[k], gms[1], gms[2], gms[3],
+                                         gms[4])  # fmt: skip
+        s_now = _level(v, fn[k], gms)
         s_lo = min(s0, s_hi)
         m_now = math.inf
         for i in range(ne):
@@ -377,7 +392,6 @@ def _run_one(b, state, model, drive, h_min, recording):
         r_tau += 1
     quiet_len = ctl[b, 0]
     r_slip = int(ctl[b, 1])
-    mu_s = gms[b, 1]
     n_acc = 0
     n_rej = 0
     status = 0
@@ -516,7 +530,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                     y[b, j] = yv[j]
                 for k in range(2):
                     x1, xd1 = _rel(y[b], mech[b], k)
-                    s1 = stribeck_magnitude(xd1, fnk[k], mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
+                    s1 = _level(xd1, fnk[k], gms[b])
                     for i in range(ne):
                         fi = f0[k, i] + kk[b, i] * (x1 - x0[k])
                         if abs(fi) >= nu[b, i] * s1 and fi * xd1 > 0.0:
@@ -600,8 +614,7 @@ def _run_one(b, state, model, drive, h_min, recording):
         vf1 = vf0
         u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
         for k in range(2):  # Stribeck level at the step start [N] (event interpolation)
-            s_start[k] = stribeck_magnitude(xd0[k], mech[b, 12 + k], mu_s, gms[b, 2], gms[b, 3],
-                                            gms[b, 4])  # fmt: skip
+            s_start[k] = _level(xd0[k], mech[b, 12 + k], gms[b])
         while True:
             dn = 1 << rung
             h = dn * h_min
@@ -635,8 +648,8 @@ def _run_one(b, state, model, drive, h_min, recording):
                 dx = x1 - x0[k]
                 vbar = 0.5 * (xd0[k] + xd1)
                 fn_k = mech[b, 12 + k]
-                sbar = stribeck_magnitude(vbar, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
-                s1 = stribeck_magnitude(xd1, fn_k, mu_s, gms[b, 2], gms[b, 3], gms[b, 4])
+                sbar = _level(vbar, fn_k, gms[b])
+                s1 = _level(xd1, fn_k, gms[b])
                 s_end[k] = s1
                 decay = math.exp(-gms[b, 0] * h / sbar)  # slipping elements' relaxation
                 sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)

@@ -26,7 +26,14 @@ import numpy as np
 from ..kernel_types import DriveArrays
 from ..params import ParameterSet, get_parameter_set
 from ..reduced import H_MIN
-from ..testing.independent_plant import JUMP_WIDTH_S, PlantParams, rest_state, simulate_from
+from ..testing.independent_plant import (
+    JUMP_WIDTH_S,
+    Effects,
+    FrictionAsymmetry,
+    PlantParams,
+    rest_state,
+    simulate_from,
+)
 
 __all__ = ["IndependentBackend", "Records", "independent_params"]
 
@@ -96,6 +103,7 @@ class IndependentBackend:
         self.grid = GRID
         self.params = [independent_params(ps) for ps in params]
         self.friction = list(self.params)  # with the friction stage's scale applied
+        self.effects: list[Effects | None] = [None] * len(self.params)  # its asymmetry
         self.states = [rest_state(p) for p in self.params]
         self.n = np.zeros(len(params), dtype=np.int64)
 
@@ -122,6 +130,13 @@ class IndependentBackend:
     def grid_time(self) -> np.ndarray:
         return self.n
 
+    def set_friction_asymmetry(self, rows: np.ndarray, alpha: np.ndarray) -> None:
+        # its own sliding asymmetry: ×(1 + ε) for tip-minus-table sliding v > 0, so ε = −α
+        for b, a in zip(np.atleast_1d(rows), np.atleast_1d(alpha), strict=True):
+            self.effects[b] = (
+                Effects(friction_asymmetry=FrictionAsymmetry(asymmetry=-float(a))) if a else None
+            )
+
     def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None:
         for b, s in zip(np.atleast_1d(rows), np.atleast_1d(scale), strict=True):
             p = self.params[b]
@@ -145,7 +160,8 @@ class IndependentBackend:
                 pts.append(np.arange(n0, n1, out_every, dtype=float))
             n = np.unique(np.concatenate(pts))  # grid times, strictly increasing
             u = np.interp(n, tk, vk) if nw else np.zeros(n.size)
-            theta = simulate_from(self.friction[b], self.states[b], n * self.grid, u)
+            theta = simulate_from(self.friction[b], self.states[b], n * self.grid, u,
+                                  self.effects[b])  # fmt: skip
             self.n[b] = n1
             if out_every > 0:
                 keep = ((n - n0) % out_every == 0) | (n == n1)

@@ -26,6 +26,7 @@ from ..effects import (
     input_rest,
     input_stage_nb,
     pack_effects,
+    sliding_asymmetry,
 )
 from ..generator import (
     MODE_ADAPTED,
@@ -79,6 +80,7 @@ class Backend(Protocol):
     def displace(self, b: int, delta: float) -> None: ...
     def grid_time(self) -> np.ndarray: ...
     def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None: ...
+    def set_friction_asymmetry(self, rows: np.ndarray, alpha: np.ndarray) -> None: ...
     def advance(self, drive: DriveArrays, n_end: np.ndarray, out_every: int) -> list[Records]: ...
     def angles(self) -> np.ndarray: ...
     def snapshot(self, b: int) -> dict[str, Any]: ...
@@ -113,6 +115,9 @@ class _ReducedBackend:
 
     def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None:
         self.batch.set_friction_scale(rows, scale)
+
+    def set_friction_asymmetry(self, rows: np.ndarray, alpha: np.ndarray) -> None:
+        self.batch.set_friction_asymmetry(rows, alpha)
 
     def advance(self, drive: DriveArrays, n_end: np.ndarray, out_every: int) -> list[Records]:
         nb = n_end.size
@@ -163,6 +168,7 @@ class _FullBackend:
         self.n = np.zeros(len(params), dtype=np.int64)
         self.grid = H_MIN  # s, breakpoint grid shared with the reduced model
         self.scale = np.ones(len(params))
+        self.alpha = np.zeros(len(params))  # sliding-direction asymmetry per turntable
 
     def set_params(self, b: int, ps: ParameterSet) -> None:
         if ps != self.models[b].params:
@@ -184,6 +190,9 @@ class _FullBackend:
     def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None:
         self.scale[rows] = scale
 
+    def set_friction_asymmetry(self, rows: np.ndarray, alpha: np.ndarray) -> None:
+        self.alpha[rows] = alpha
+
     def advance(self, drive: DriveArrays, n_end: np.ndarray, out_every: int) -> list[Records]:
         out = []
         for b in range(n_end.size):
@@ -197,6 +206,7 @@ class _FullBackend:
             raw = self.models[b].run(
                 {self.axis: wave}, t1 - t0, start=t0, initial_state=self.states[b],
                 coarse_factor=0.5, output_dt=odt, friction_scale=float(self.scale[b]),
+                friction_asymmetry=float(self.alpha[b]), asymmetry_axis=self.unit,
             )  # fmt: skip
             self.states[b] = raw["final"]
             self.n[b] = n_end[b]
@@ -301,7 +311,6 @@ class PlantStepper:
         self._offset = np.zeros(n)  # V, scan level at the last interval's end
         self._n_start = np.zeros(n, dtype=np.int64)  # grid time of the last reset
         self._plays, self._creep, self._ref = input_rest(np.zeros(n), n)
-        self._direction = np.zeros(n)  # sign of the table's last motion (friction stage)
         self._travel = np.zeros(n)  # m travelled at the table radius (friction stage)
 
     def __len__(self) -> int:
@@ -310,7 +319,7 @@ class PlantStepper:
     def _refresh_flags(self) -> None:
         """Which rows have input- and friction-stage effects, whether any has an output one."""
         self._input_on = input_active(self._rows)
-        self._friction_on = friction_active(self._rows)
+        self._friction_on = friction_active(self._rows)  # friction segments (wear)
         out = _OUTPUT_COLUMNS
         self._output_on = bool((self._rows[:, out] != self._neutral_row[out]).any())
 
@@ -347,7 +356,6 @@ class PlantStepper:
         self._n_start[b] = round(time / self.grid)
         plays, creep, ref = input_rest(np.array([lv]), 1)
         self._plays[b], self._creep[b], self._ref[b] = plays[0], creep[0], ref[0]
-        self._direction[b] = 0.0
         self._travel[b] = 0.0
 
     def displace(self, b: int, delta: float) -> None:
@@ -438,6 +446,8 @@ class PlantStepper:
         """The kernel to grid time n_end, in friction segments where friction effects act."""
         fric = self._friction_on
         phys = self._physics
+        # the asymmetry phase by phase in the integrator (a row may have changed)
+        phys.set_friction_asymmetry(np.arange(len(self)), sliding_asymmetry(self._rows))
         if not fric.any():
             return self._kernel(drive, n_end, out_every)
         seg = max(round(FRICTION_SEGMENT / self.grid), 1)
@@ -451,13 +461,10 @@ class PlantStepper:
                 break
             k = (n_now - self._n_start) // seg + 1
             seg_end = np.where(fric, np.minimum(n_end, self._n_start + k * seg), n_end)
-            phys.set_friction_scale(rows, friction_scale(self._rows[rows], self._direction[rows],
-                                                         self._travel[rows]))  # fmt: skip
+            phys.set_friction_scale(rows, friction_scale(self._rows[rows], self._travel[rows]))
             before = self.angle
             parts.append(self._kernel(drive, seg_end, out_every))
             dth = self.angle - before
-            moved = fric & (np.abs(dth) > 1e-9)
-            self._direction[moved] = np.sign(dth[moved])
             self._travel[fric] += np.abs(dth[fric]) * self._radius[fric]
         if out_every <= 0:
             return []
