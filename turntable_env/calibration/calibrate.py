@@ -191,15 +191,16 @@ def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
             f"Round {rnd['round']}: led by {named}{lead}." if dec.get("rejected") else
             f"Round {rnd['round']}: named {named}{lead}.",
             "",
-            "| candidate | groups | gain on them [nats] | over all [nats] | best at neutral "
-            "| values |",
-            "|---|---|---:|---:|---|---|",
+            "| candidate | groups | gain on them [nats] | least, one feature left out [nats] "
+            "| over all [nats] | best at neutral | values |",
+            "|---|---|---:|---:|---:|---|---|",
         ]
         for c in rnd["candidates"]:
             vals = ", ".join(f"{k}={v:.4g}" for k, v in c["values"].items())
             lines.append(
                 f"| {c['effect']} | {'+'.join(c['declared_groups'])} | "
-                f"{c['declared_nats']:.1f} | {c['total_nats']:.1f} | "
+                f"{c['declared_nats']:.1f} | {c['declared_nats_leave_one_out']:.1f} | "
+                f"{c['total_nats']:.1f} | "
                 f"{'yes' if c['at_neutral'] else 'no'} | {vals}"
                 f"{'; ' + c['note'] if c['note'] else ''} |"
             )

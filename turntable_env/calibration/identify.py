@@ -14,7 +14,11 @@ effects already named):
    from the profile's best point, in range-normalised coordinates.
 4. **Scores**: :func:`~.signatures.group_scores` against the current model per feature
    group, in nats. A candidate is *significant* when it gains ≥ ``SIGNIFICANT_NATS``
-   in the groups it declares (:data:`~.signatures.EFFECT_GROUPS`) and over all the
+   in the groups it declares (:data:`~.signatures.EFFECT_GROUPS`) — also with any one
+   feature of a declared group of ``JACKKNIFE_GROUPS`` left out (one quantity repeated
+   over the settings, the direction pairs: a gain that rests on one pair is that
+   setting's misfit, which a model of another structure leaves somewhere, not a
+   friction effect's signature) — and over all the
    signature groups (:data:`~.signatures.SIGNATURE_GROUPS`: not the step sizes and scan
    gains the nominal model is fitted to, which a refit restores); the profile and the
    search minimise the misfit of those groups alone (what a candidate does to the other
@@ -46,6 +50,8 @@ from ..effects import CATALOGUE
 from .signatures import EFFECT_GROUPS, SIGNATURE_GROUPS, Features, SignatureLayout, group_scores
 
 __all__ = [
+    "JACKKNIFE_GROUPS",
+    "JACKKNIFE_MIN",
     "LINE_P_VALUE",
     "SIGNIFICANT_NATS",
     "TIE_NATS",
@@ -54,6 +60,7 @@ __all__ = [
     "SignatureSearch",
     "decide",
     "free_parameters",
+    "leave_one_out",
     "main_at_bound",
 ]
 
@@ -61,6 +68,13 @@ SIGNIFICANT_NATS = 4.5  # χ² of 9 (3σ for one parameter) on its groups and ov
 TIE_NATS = 2.0  # a lead under this over the runner-up is a tie (likelihood ratio e² ≈ 7)
 LINE_P_VALUE = 1e-3  # false-alarm probability of a spectral line over the whole search
 POWELL_EVALS = 40  # objective evaluations of the bounded search per candidate
+JACKKNIFE_MIN = 3  # features a group needs for its leave-one-out check
+# groups whose features repeat one quantity over the protocol's settings, so an effect's
+# signature must show in more than one of them: the direction pairs (a friction level
+# changes every setting's ratio). Not the scan shapes (a detector's cubic shows in the
+# widest scan), the holds (creep follows the move before each) or the steps (an amplifier
+# effect shows in the fastest bursts).
+JACKKNIFE_GROUPS = ("direction",)
 # the parameter profiled (else an effect's first)
 MAIN_PARAMETER = {"sensor_drift": "rate", "vibration": "amplitude"}
 # held at their start: the line's frequency (found by the line search), the drift's offset
@@ -90,6 +104,9 @@ class CandidateFit:
     significant: bool
     note: str = ""
     size: float = 0.0  # RMS change of the predicted trace over the noise floor
+    # the declared gain with the feature it rests on most left out, and that feature
+    declared_nats_loo: float = math.nan
+    weakest_feature: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -105,6 +122,8 @@ class CandidateFit:
             "total_nats": self.total_nats,
             "group_nats": {g: s["nats"] for g, s in self.scores.items()},
             "significant": self.significant,
+            "declared_nats_leave_one_out": self.declared_nats_loo,
+            "rests_on": self.weakest_feature,
             "size_over_floor": self.size,
             "note": self.note,
         }
@@ -318,6 +337,7 @@ class SignatureSearch:
         scores = group_scores(d, base, feats, n_free=len(free))
         gain = sum(scores[g]["nats"] for g in declared if g in scores)
         total = sum(s["nats"] for g, s in scores.items() if g in SIGNATURE_GROUPS)
+        loo, weakest = leave_one_out(d, base, feats, declared, len(free))
         size = self._effect_size(x, effects, {**effects, name: best})
         notes = []
         if main_at_bound(name, best, p0.name):
@@ -325,14 +345,16 @@ class SignatureSearch:
                          "refit decides)")  # fmt: skip
         if size < 1.0:
             notes.append(f"changes the trace by {size:.2f}× the noise floor only")
+        if gain >= SIGNIFICANT_NATS > loo:
+            notes.append(f"its gain rests on one feature: {loo:.1f} nats without {weakest}")
         # at a bound is reported, not disqualifying: with the nominal model held at its fit
         # (itself a compromise without the effect) a true effect can ask for more
         ok = not at_neutral and size >= 1.0
         return CandidateFit(
             name, best, profile, j_best, j_neutral, bool(at_neutral), scores, float(gain),
             float(total),
-            bool(ok and gain >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
-            "; ".join(notes), float(size),
+            bool(ok and min(gain, loo) >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
+            "; ".join(notes), float(size), float(loo), weakest,
         )  # fmt: skip
 
     def _effect_size(self, x: np.ndarray, without: Effects, with_: Effects) -> float:
@@ -353,6 +375,30 @@ class SignatureSearch:
         """A candidate that was not searched, with the reason."""
         return CandidateFit(name, CATALOGUE[name].neutral(), [], math.nan, math.nan, True, {},
                             0.0, 0.0, False, why)  # fmt: skip
+
+
+def leave_one_out(
+    data: Features, a: Features, b: Features, declared: Sequence[str], n_free: int = 1
+) -> tuple[float, str]:
+    """Model b's gain over model a on the ``declared`` groups with each feature of a declared
+    group of :data:`JACKKNIFE_GROUPS` with at least :data:`JACKKNIFE_MIN` features left out
+    in turn: (the smallest, the feature left out there); (the whole gain, "") when no such
+    group has that many."""
+    counts = {g: sum(1 for x in data.groups if x == g) for g in declared}
+    worst = (math.inf, "")
+    for k, g in enumerate(data.groups):
+        if g not in declared or g not in JACKKNIFE_GROUPS or counts[g] < JACKKNIFE_MIN:
+            continue
+        keep = np.ones(len(data.groups), bool)
+        keep[k] = False
+        s = group_scores(data.subset(keep), a.subset(keep), b.subset(keep), n_free)
+        gain = sum(s[x]["nats"] for x in declared if x in s)
+        if gain < worst[0]:
+            worst = (gain, data.names[k])
+    if math.isinf(worst[0]):
+        s = group_scores(data, a, b, n_free)
+        return sum(s[x]["nats"] for x in declared if x in s), ""
+    return float(worst[0]), worst[1]
 
 
 def _profile_grid(low: float, high: float, neutral: float, start: float) -> np.ndarray:

@@ -111,6 +111,13 @@ class Features(NamedTuple):
     def group(self, g: str) -> np.ndarray:
         return np.array([k == g for k in self.groups], bool)
 
+    def subset(self, keep: np.ndarray) -> Features:
+        """The features where the boolean mask ``keep`` is true."""
+        k = np.asarray(keep, bool)
+        return Features(tuple(n for n, m in zip(self.names, k, strict=True) if m),
+                        tuple(g for g, m in zip(self.groups, k, strict=True) if m),
+                        self.value[k], self.noise[k])  # fmt: skip
+
 
 @dataclass(frozen=True, eq=False)
 class _Burst:
