@@ -23,7 +23,9 @@ spot, searched with a doubling believed excess beyond the edge; a search step is
 when no planned move fits; and the believed travel with the reading saturated is bounded
 (``BLIND_FACTOR`` × the lab's dead-reckoned distance to the detector with its stated
 error, or ``LOST_SEARCH`` θ_lin after a loss): past it the controller holds, since its
-steps are not going where it believes (a plant stepping backwards beyond the detector).
+steps are not going where it believes (a plant stepping backwards beyond the detector). A
+step move that loses the spot on the side against its own direction spends the budget at
+once: that setting steps backwards on this plant, and every blind step would add to it.
 """
 
 from __future__ import annotations
@@ -291,6 +293,19 @@ class StepScanController(Controller):
             if lower > float(self.gains.estimate(d, mv.amplitude)[0][0]):
                 self.gains.update(d, mv.amplitude, lower)
 
+    def went_the_wrong_way(self, measured: float, saturated: bool) -> bool:
+        """Whether the interval just ended was a step move that left the detector on the
+        side against its own direction, further than its scan offset's ramp explains: the
+        plant steps backwards at that setting (a friction asymmetry reverses the steps)."""
+        mv = self.last_move
+        if not saturated or mv is None or self.last_measured is None:
+            return False
+        d = 1 if mv.nominal > 0 else -1
+        scan = -self.ctx.scan_gain * self._offset_before  # the offset ramped to 0
+        # at least to the edge on the reading's side, from the reading before
+        moved = math.copysign(self.ctx.angle_range, measured) - self.last_measured - scan
+        return measured * d < 0.0 and moved * d < 0.0
+
     def search_move(self, direction: int) -> Move | None:
         """The safety monitor's step towards the target (``direction`` ±1) when no planned
         move fits but the table must move: the reading is saturated (the spot is lost), or
@@ -307,6 +322,8 @@ class StepScanController(Controller):
         meas = float(obs[OBS.measured_angle_rad])
         self.target = float(obs[OBS.target_angle_rad])  # the commanded target now
         sat = self.saturated(meas)
+        if self.went_the_wrong_way(meas, sat):  # the safety monitor: no blind travel at all
+            self._blind_budget = 0.0
         self.learn(meas, sat)
         self.observe(meas, sat)
         k_scan = self.ctx.scan_gain

@@ -310,6 +310,26 @@ def test_a_plant_stepping_backwards_beyond_the_detector_is_stopped_not_run_away(
 
 
 @pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
+def test_a_setting_that_steps_the_wrong_way_is_stopped_at_once(name):
+    """Held-out seed 10 of benchmark 2.2: friction ×1.32, preload ×1.39, amplifier ×0.71
+    and a sliding asymmetry α = −0.22 (μ lower while the table slides forward), on which a
+    backward setting can step forwards. A 2.8 µm move back from 2.9 µm: a controller whose
+    step leaves the detector on the side against its own direction holds there (closed_loop
+    stepped on, blind, 42 µm before its budget ran out); the others arrive."""
+    plant = Plant("real").replace(
+        factors={"friction": 1.322, "preload": 1.392, "amplifier": 0.711},
+        effects={"friction_asymmetry": {"alpha": -0.218}},
+    )
+    env = _env(plant=plant, max_episode_steps=100, noise=False)
+    start = 2.92e-6 / R_TABLE
+    opts = {"start_angle": start, "target_angle": 0.14e-6 / R_TABLE}
+    res = run_episode(env, make(name, env), seed=0, options=opts, brief=_known(opts))
+    excursion = (np.abs(res.angle).max() - start) * R_TABLE
+    arrived = res.metrics()["final_error_nm"] <= 10.0
+    assert arrived or (excursion <= 15e-6 and res.steps[-50:].sum() == 0), (arrived, excursion)
+
+
+@pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
 def test_a_lost_spot_is_searched_for_not_held_at_the_edge(name):
     """The lab's dead reckoning is wrong beyond its stated ±30 % (it says 60 µm, the table
     is 100 µm out): the believed angle enters the detector while the reading stays
