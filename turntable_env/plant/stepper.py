@@ -328,6 +328,8 @@ class PlantStepper:
         if ps.detector != self._detector:
             raise ValueError(f"plants[{b}]: its detector differs from the others'")
         self._rows[b] = plant.effect_row
+        # the friction asymmetry acts phase by phase inside the integrator
+        self._physics.set_friction_asymmetry(np.array([b]), sliding_asymmetry(plant.effect_row))
         self._c_load[b] = load_capacitance(ps, self.axis)  # the energy's load
         self._amp[b] = ps.amplifier.kernel_row(output_capacitance(ps, self.axis))
         self._radius[b] = ps.table.radius
@@ -446,8 +448,6 @@ class PlantStepper:
         """The kernel to grid time n_end, in friction segments where friction effects act."""
         fric = self._friction_on
         phys = self._physics
-        # the asymmetry phase by phase in the integrator (a row may have changed)
-        phys.set_friction_asymmetry(np.arange(len(self)), sliding_asymmetry(self._rows))
         if not fric.any():
             return self._kernel(drive, n_end, out_every)
         seg = max(round(FRICTION_SEGMENT / self.grid), 1)
