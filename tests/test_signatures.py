@@ -11,11 +11,14 @@ import pytest
 
 from turntable_env.calibration.identify import (
     SIGNIFICANT_NATS,
+    SUPPORT_NATS,
     TIE_NATS,
     CandidateFit,
+    SignatureSearch,
     _profile_grid,
     decide,
     leave_one_out,
+    supports,
 )
 from turntable_env.calibration.segments import Segment
 from turntable_env.calibration.signatures import Features, SignatureLayout, group_scores
@@ -222,6 +225,37 @@ def _cand(name, nats, sig=True):
 def test_decide_names_only_with_a_margin(fits, named, undecided):
     d = decide(fits)
     assert d.named == named and d.undecided == undecided
+
+
+def _searched(name, nats, loo, at_neutral=False):
+    fit = CandidateFit(name, {}, [], 0.0, 1.0, at_neutral, {}, nats, nats, False)
+    fit.declared_nats_loo, fit.weakest_feature = loo, "trace 0: direction 2 V 100 Hz"
+    return fit
+
+
+@pytest.mark.parametrize(
+    ("fit", "backed"),
+    [
+        # the independent plants' clean sampled drives: wear's gain rests on one pair
+        (_searched("friction_wear", 2.9, -0.7), False),
+        (_searched("friction_wear", 2.2, 0.2), False),
+        # the second plant's contact wear, named by signature at 14.2 (8.8 without a pair)
+        (_searched("friction_wear", 14.2, 8.8), True),
+        (_searched("friction_asymmetry", SUPPORT_NATS + 0.1, SUPPORT_NATS + 0.1), True),
+        (_searched("piezo_creep", 30.0, 30.0, at_neutral=True), False),
+        # no spectral line: the vibration candidate was not searched
+        (SignatureSearch.not_run("vibration", "no spectral line"), False),
+        # the amplifier's signature is the step sizes a nominal refit restores: none to ask
+        (_searched("amplifier_dynamics", 0.2, 0.2), True),
+        (_searched("amplifier_fast_path", 0.0, 0.0, at_neutral=True), True),
+    ],
+)
+def test_the_trace_names_only_what_its_own_signature_backs(fit, backed):
+    ok, why = supports(fit)
+    assert ok is backed
+    assert (why == "") is backed  # a refusal says why, in the report's words
+    if not backed and not fit.at_neutral:
+        assert f"{fit.declared_nats:.1f} nats" in why
 
 
 @pytest.mark.parametrize(

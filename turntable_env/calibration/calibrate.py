@@ -139,6 +139,14 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
             f"| {k} | {f['cost']:.5g} | {f['heldout_rms']:.3g} | {f['max_distance_sigma']:.2g} |"
             for k, f in enumerate(d["starts"]["fits"])
         ],
+        *(["", "Basin hopping from the best start (cost under the same data weight):", "",
+           f"| hop | radius [σ] | cost before | costs reached | kept | held-out [{u}] |",
+           "|---:|---:|---:|---|---|---:|",
+           *[f"| {k} | {h['radius_sigma']:g} | {h['cost_before']:.5g} | "
+             f"{', '.join(f'{c:.5g}' for c in h['costs'])} | "
+             f"{'yes' if h['accepted'] else 'no'} | {h['heldout_rms']:.3g} |"
+             for k, h in enumerate(d["starts"].get("hops", []))]]
+          if d["starts"].get("hops") else []),
         "",
         "## Parameters",
         "",
@@ -204,6 +212,10 @@ def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
                 f"{'yes' if c['at_neutral'] else 'no'} | {vals}"
                 f"{'; ' + c['note'] if c['note'] else ''} |"
             )
+        if rnd.get("unsupported"):
+            lines += ["", "Not to be named by the held-out trace error (the signature does not "
+                      "back them): " + "; ".join(f"{k}: {v}" for k, v in
+                                                rnd["unsupported"].items()) + "."]  # fmt: skip
     return lines
 
 

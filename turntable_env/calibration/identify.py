@@ -54,6 +54,7 @@ __all__ = [
     "JACKKNIFE_MIN",
     "LINE_P_VALUE",
     "SIGNIFICANT_NATS",
+    "SUPPORT_NATS",
     "TIE_NATS",
     "CandidateFit",
     "Decision",
@@ -62,10 +63,14 @@ __all__ = [
     "free_parameters",
     "leave_one_out",
     "main_at_bound",
+    "supports",
 ]
 
 SIGNIFICANT_NATS = 4.5  # χ² of 9 (3σ for one parameter) on its groups and over all
 TIE_NATS = 2.0  # a lead under this over the runner-up is a tie (likelihood ratio e² ≈ 7)
+# the least a signature must favour an effect the held-out trace error names (with any one
+# direction pair left out): the likelihood ratio of a tie's margin, e² ≈ 7, not significance
+SUPPORT_NATS = TIE_NATS
 LINE_P_VALUE = 1e-3  # false-alarm probability of a spectral line over the whole search
 POWELL_EVALS = 40  # objective evaluations of the bounded search per candidate
 JACKKNIFE_MIN = 3  # features a group needs for its leave-one-out check
@@ -156,6 +161,30 @@ def decide(fits: Sequence[CandidateFit]) -> Decision:
         tied = [f.name for f in sig if sig[0].total_nats - f.total_nats < TIE_NATS]
         return Decision(None, margin, tied)
     return Decision(sig[0].name, margin)
+
+
+def supports(fit: CandidateFit) -> tuple[bool, str]:
+    """Whether an effect's own signature backs it where the held-out trace error would name
+    it: (backed, why not). An effect whose declared groups are all the nominal model's
+    (:data:`~.signatures.NOMINAL_GROUPS`: the amplifier's, whose signature is the step
+    sizes a refit restores) has no signature to ask and is judged by the trace alone.
+    Any other must gain at least :data:`SUPPORT_NATS` on its declared groups, also with
+    the direction pair its gain rests on most left out, away from its neutral value: an
+    improvement of the trace's prediction that its signature does not show is a misfit
+    of another structure that the effect's parameters happen to bend (the independent
+    plants' clean sampled drives, where friction wear's signature gain rested on one
+    pair, 2.9 nats and −0.7 without it), not that effect."""
+    if not any(g in SIGNATURE_GROUPS for g in EFFECT_GROUPS.get(fit.name, ())):
+        return True, ""
+    if fit.at_neutral:
+        return False, f"its signature is best at neutral ({fit.note or 'no gain'})"
+    gain = min(fit.declared_nats, fit.declared_nats_loo)
+    if not gain >= SUPPORT_NATS:  # nan (not searched) is no support either
+        loo = f", {fit.declared_nats_loo:.1f} without {fit.weakest_feature}" if (
+            fit.weakest_feature) else ""  # fmt: skip
+        return False, (f"its signature gains {fit.declared_nats:.1f} nats{loo}, under "
+                       f"{SUPPORT_NATS:.1f}")  # fmt: skip
+    return True, ""
 
 
 def free_parameters(name: str) -> list[Any]:
