@@ -173,7 +173,9 @@ def supports(fit: CandidateFit) -> tuple[bool, str]:
     improvement of the trace's prediction that its signature does not show is a misfit
     of another structure that the effect's parameters happen to bend (the independent
     plants' clean sampled drives, where friction wear's signature gain rested on one
-    pair, 2.9 nats and −0.7 without it), not that effect."""
+    pair, 2.9 nats and −0.7 without it), not that effect — unless it explains most of
+    the trace's structure, which the calibration checks (features can miss an effect
+    the trace shows plainly)."""
     if not any(g in SIGNATURE_GROUPS for g in EFFECT_GROUPS.get(fit.name, ())):
         return True, ""
     if fit.at_neutral:

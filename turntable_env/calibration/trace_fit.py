@@ -43,7 +43,8 @@
    on the held-out portion alone agrees with the fit portion's (within 3 σ, same sign) —
    a misfit nominal model is never "explained" by an effect — and, where the effect has a
    signature (not the amplifier's), that signature backs it by ≥ 2 nats also with its
-   strongest direction pair left out (:func:`~.identify.supports`).
+   strongest direction pair left out (:func:`~.identify.supports`), or, where it does
+   not, the effect leaves at most half of the structured held-out residual.
 6. **Diagnosis** of the final held-out residual against the floor: its structured part
    √(rms² − floor²), spectral peaks above 5 Hz, ringing after the flybacks,
    correlations with time, position, direction and drive level.
@@ -113,6 +114,12 @@ HOP_POINTS = 16
 HOP_RADII = (0.5, 1.0)
 HOP_STARTS = 2
 HOP_TOL = 0.01
+# the share of the structured held-out residual (√(rms² − floor²)) an effect its own
+# signature does not back may leave and still be named by the trace error: it must explain
+# most of what the current model leaves (friction wear of β = 0.3 on the virtual lab, the
+# slow test's case, whose features gain 0.1 nats: 26.3 → 2.85 nm, 2 % left; wear on the
+# independent plants' clean sampled drives at stop 40: 92 % and 96 % left)
+UNSEEN_SHARE = 0.5
 DIFF_STEP = 0.02  # finite-difference step on ln-factors (2 %) — the objective is piecewise
 STRUCTURED_FACTOR = 1.5  # residual RMS over the floor above which structure remains
 FLOOR_REACHED = 1.05  # held-out RMS over the floor at which no effect is searched (the
@@ -1128,13 +1135,21 @@ def _round(
         {"round": len(selected) + 1, "effect": c, "heldout_error": f.heldout_rms}
         for c, f in screened
     ]
-    # the trace may name only what the effect's own signature backs (:func:`~.identify.supports`)
+    # what the effect's own signature does not back (:func:`~.identify.supports`) the trace
+    # may name only when it explains most of the structure the current model leaves
     backing = {f.name: supports(f) for f in fits}
     rnd["unsupported"] = {c: why for c, (ok, why) in backing.items() if not ok}
+    left = _structured(current.heldout_rms, floor)
     for c, f in screened:
-        if c in rnd["unsupported"] and f.heldout_rms < current.heldout_rms:
-            say(f"  {c}: not named by the trace: {rnd['unsupported'][c]}")
-    screened = [(c, f) for c, f in screened if c not in rnd["unsupported"]]
+        if c in rnd["unsupported"]:
+            share = _structured(f.heldout_rms, floor) / left if left > 0 else 1.0
+            rnd["unsupported"][c] += f"; leaves {share:.0%} of the structured residual"
+            if share > UNSEEN_SHARE and f.heldout_rms < current.heldout_rms:
+                say(f"  {c}: not named by the trace: {rnd['unsupported'][c]}")
+    screened = [
+        (c, f) for c, f in screened if c not in rnd["unsupported"]
+        or _structured(f.heldout_rms, floor) <= UNSEEN_SHARE * left
+    ]  # fmt: skip
     if not screened:
         return current, None, ""
     top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
@@ -1143,6 +1158,11 @@ def _round(
         say("  no effect beats the nominal model on held-out data")
         return current, None, ""
     return accepted[1], accepted[0], "held-out trace error"
+
+
+def _structured(rms: float, floor: float) -> float:
+    """The structured part √(rms² − floor²) of a held-out error [nm] (0 at the floor)."""
+    return math.sqrt(max(rms * rms - floor * floor, 0.0))
 
 
 def _fitted(
