@@ -125,7 +125,7 @@ def test_a_file_loads_and_calibrates_or_is_refused_with_its_name(text, tmp_path)
         sim = simulate_trace(Plant("real"), m.axis, m.time, m.drives[m.axis])
         assert np.isfinite(sim.detector_v).all() and sim.detector_v.shape == m.time.shape
     try:
-        res = calibrate([path], global_points=2, starts=1, candidates=[], workers=1,
+        res = calibrate([path], global_points=2, starts=1, hops=0, candidates=[], workers=1,
                         progress=None)  # fmt: skip
     except ValueError as exc:
         _names_file(exc, path)

@@ -127,6 +127,8 @@ def test_a_protocol_without_holds_or_y_channel_cannot_identify_creep_or_misalign
         ({"min_improvement": 1.5}, "min_improvement"),
         ({"candidates": ["wobble"]}, "candidates"),
         ({"global_points": -1}, "global_points"),
+        ({"hops": -1}, "hops"),
+        ({"hops": 1.5}, "hops"),
         ({"workers": 0}, "workers"),
     ],
 )

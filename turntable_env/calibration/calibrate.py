@@ -31,7 +31,7 @@ __all__ = ["CalibrationResult", "calibrate", "write_report"]
 def calibrate(files: Sequence[str | Path | Measurement], **options: Any) -> CalibrationResult:
     """Calibrate measurement files: :func:`~.trace_fit.calibrate_traces` with its keyword
     arguments (base, candidates, max_effects, min_improvement, global_points, starts,
-    workers, seed, progress).
+    hops, workers, seed, progress).
 
     Runs with one BLAS thread: its linear algebra is small and dense, where OpenBLAS's
     worker threads only spin and slow every simulation down."""

@@ -733,6 +733,7 @@ def calibrate_traces(
     min_improvement: float = 0.05,
     global_points: int = 64,
     starts: int = 3,
+    hops: int = HOPS,
     workers: int | None = None,
     seed: int = 0,
     progress: Callable[[str], None] | None = print,
@@ -749,7 +750,8 @@ def calibrate_traces(
         min_improvement: relative held-out gain an effect must bring over the nominal
             model refitted with the same budget.
         global_points: Sobol points of the global stage; starts: local fits from the best
-            of them (and one from the prior).
+            of them (and one from the prior); hops: at most this many basin hops from the
+            best start (:func:`_basin_hops`; 0: none).
         workers: processes for the global stage, the nominal fit's starts and the effect
             candidates (default: the CPUs this process may use).
         seed: the Sobol design's scrambling seed.
@@ -759,7 +761,7 @@ def calibrate_traces(
     if not 0.0 <= min_improvement < 1.0:
         raise ValueError(f"min_improvement={min_improvement!r}: must be in [0, 1)")
     for name, v, lo in (("global_points", global_points, 0), ("starts", starts, 1),
-                        ("max_effects", max_effects, 0)):  # fmt: skip
+                        ("hops", hops, 0), ("max_effects", max_effects, 0)):  # fmt: skip
         if not isinstance(v, int) or v < lo:
             raise ValueError(f"{name}={v!r}: must be an integer ≥ {lo}")
     names = list(candidates) if candidates is not None else list(CATALOGUE)
@@ -808,7 +810,7 @@ def calibrate_traces(
     say(f"prior model: held-out error {before:.3g} {ERROR_UNIT}")
 
     nominal, spread = _fit_nominal(problem, x_prior, floor, global_points, starts, n_workers,
-                                   seed, bar, say)  # fmt: skip
+                                   seed, bar, say, hops)  # fmt: skip
     for n in names:
         if ident.get(n):
             warnings.append(f"{n}: not identifiable from this protocol ({ident[n]})")
@@ -859,7 +861,7 @@ def calibrate_traces(
 
 def _fit_nominal(
     problem: TraceProblem, x_prior: np.ndarray, floor: float, global_points: int, starts: int,
-    n_workers: int, seed: int, bar: Any, say: Callable[[str], None],
+    n_workers: int, seed: int, bar: Any, say: Callable[[str], None], hops: int = HOPS,
 ) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
     """The nominal model: the global stage's best points and the prior, each refined by
     least squares (``FIRST_NFEV`` iterations, the starts over ``n_workers`` processes);
@@ -884,26 +886,28 @@ def _fit_nominal(
     for k, f1 in enumerate(fits):
         say(f"  start {k}: held-out {f1.heldout_rms:.3g} {ERROR_UNIT} (cost {f1.cost:.4g}, "
             f"{f1.nfev} iterations)")  # fmt: skip
-    best, hops = _basin_hops(problem, min(fits, key=lambda f: f.cost), n_workers, seed, say)
+    best, hop_rows = _basin_hops(problem, min(fits, key=lambda f: f.cost), n_workers, seed,
+                                 say, hops)  # fmt: skip
     _reweight(problem, best, floor)
     nominal = local_fit(problem, best.x, {}, max_nfev=10)
     if nominal.heldout_rms > best.heldout_rms:
         nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
-    spread = {**_start_spread(fits, nominal), "hops": hops}
+    spread = {**_start_spread(fits, nominal), "hops": hop_rows}
     say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
     return nominal, spread
 
 
 def _basin_hops(
     problem: TraceProblem, best: LocalFit, n_workers: int, seed: int,
-    say: Callable[[str], None],
+    say: Callable[[str], None], hops: int = HOPS,
 ) -> tuple[LocalFit, list[dict[str, Any]]]:  # fmt: skip
     """Monotonic basin hopping (Wales & Doye 1997; Leary 2000) from the best start, under
     the data weight in force: each hop evaluates a scrambled Sobol cloud of
     :data:`HOP_POINTS` points within ±r prior σ of the best fit (r alternating over
     :data:`HOP_RADII`), continues least squares from its :data:`HOP_STARTS` best points
     (over the workers, ``START_NFEV`` iterations) and keeps the best optimum when it lowers
-    the cost by :data:`HOP_TOL`; two failed hops in a row, or :data:`HOPS`, end it.
+    the cost by :data:`HOP_TOL`; two failed hops in a row, or ``hops`` of them (default
+    :data:`HOPS`), end it.
     The stick–slip objective is piecewise (a step gained or lost), its local optima many
     and close: the first independent plant's 10 kHz trace ended its four starts at costs
     23–137 and 26.3 nm held out; three hops from the best reached 8.4 nm
@@ -913,7 +917,7 @@ def _basin_hops(
     mdl = problem.model
     rows: list[dict[str, Any]] = []
     failed = 0
-    for k in range(HOPS):
+    for k in range(hops):
         radius = HOP_RADII[k % len(HOP_RADII)]
         sob = scipy.stats.qmc.Sobol(len(mdl), scramble=True, seed=seed + 1 + k)
         u = sob.random_base2(max(0, math.ceil(math.log2(HOP_POINTS))))[:HOP_POINTS]
