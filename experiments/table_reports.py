@@ -2,11 +2,13 @@
 the signature decisions, what a stricter significance level would have named, and whose
 mode a ring after the flybacks is.
 
-    python experiments/table_reports.py DIR [DIR ...] [--rows]
+    python experiments/table_reports.py DIR [DIR ...] [--rows | --compare OLD_DIR ...]
 
 ``--rows`` prints the table's rows instead, one per trace, from every DIR's
 ``results.json`` (a later DIR's row replaces an earlier one's for the same trace: a
 table run in parts, or rows re-run), with the count of rows that pass.
+``--compare OLD_DIR ...`` prints the rows the DIRs and the earlier runs share side by
+side: nominal and final held-out error, the effects named and the verdict, old → new.
 
 Each DIR is an ``--out`` directory of ``experiments/independent_calibration.py`` (its
 ``results.json`` and one report directory per trace). For every round of every trace it
@@ -114,13 +116,34 @@ def _ring_table(reports: list[tuple[str, dict, dict]]) -> None:
         )
 
 
-def _rows(dirs: list[Path]) -> int:
-    from independent_calibration import HEADER, print_row  # the table's own format
-
+def _merged(dirs: list[Path]) -> dict[str, dict]:
+    """Each trace's row from the DIRs' results.json, a later DIR's replacing an earlier's."""
     rows: dict[str, dict] = {}
     for d in dirs:
         for row in json.loads((d / "results.json").read_text()):
             rows[row["trace"]] = {**row, "run": d.name}
+    return rows
+
+
+def _compare(old: list[Path], new: list[Path]) -> int:
+    """The rows both sets have: nominal and final held-out error and the verdict, old → new."""
+    a, b = _merged(old), _merged(new)
+    print("| trace | nominal [nm] | after [nm] | target [nm] | selected | passes |")
+    print("|---|---:|---:|---:|---|---|")
+    for t in (t for t in b if t in a):
+        r0, r1 = a[t], b[t]
+        sel = [", ".join(r["selected"]) or "none" for r in (r0, r1)]
+        print(f"| {t} | {r0['nominal_nm']:.1f} → {r1['nominal_nm']:.1f} | "
+              f"{r0['after_nm']:.1f} → {r1['after_nm']:.1f} | {r1['target_nm']:.1f} | "
+              f"{sel[0]} → {sel[1]} | {'yes' if r0['pass'] else 'no'} → "
+              f"{'yes' if r1['pass'] else 'no'} |")  # fmt: skip
+    return 0
+
+
+def _rows(dirs: list[Path]) -> int:
+    from independent_calibration import HEADER, print_row  # the table's own format
+
+    rows = _merged(dirs)
     print(HEADER)
     done = [print_row(r) for r in rows.values()]
     n = sum(r["pass"] for r in done)
@@ -132,12 +155,16 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="+", type=Path)
     ap.add_argument("--rows", action="store_true", help="print the merged table's rows")
+    ap.add_argument("--compare", nargs="+", type=Path, default=None, metavar="OLD_DIR",
+                    help="print the DIRs' rows beside these earlier runs' (merged alike)")
     args = ap.parse_args(argv)
-    for d in args.dirs:
+    for d in [*args.dirs, *(args.compare or [])]:
         if not (d / "results.json").exists():
             print(f"{d}: no results.json (an --out directory of independent_calibration.py)",
                   file=sys.stderr)  # fmt: skip
             return 2
+    if args.compare:
+        return _compare(args.compare, args.dirs)
     if args.rows:
         return _rows(args.dirs)
     reports = _reports(args.dirs)
