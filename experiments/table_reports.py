@@ -140,6 +140,30 @@ def _compare(old: list[Path], new: list[Path]) -> int:
     return 0
 
 
+def _unseen(dirs: list[Path]) -> int:
+    """Per trace: the candidates a round's signature did not back (``unsupported``) that
+    leave at most ``UNSEEN_SHARE`` of the structured held-out residual in that round's
+    screening — those the trace error may still name (a run made before that rule would
+    differ only there)."""
+    from turntable_env.calibration.trace_fit import UNSEEN_SHARE, _structured
+
+    for label, _row, rep in _reports(dirs):
+        floor, hist = rep["diagnosis"]["noise_floor"], rep["history"]
+        allowed = []
+        for rnd in rep["diagnosis"]["signatures"]["rounds"]:
+            k, uns = rnd["round"], rnd.get("unsupported") or {}
+            cur = hist[min(k - 1, len(hist) - 1)]["heldout_rms"]
+            left = _structured(cur, floor)
+            allowed += [
+                f"round {k} {c['effect']} ({_structured(c['heldout_error'], floor) / left:.0%})"
+                for c in rep["candidates"]
+                if c["round"] == k and c["effect"] in uns and left > 0
+                and _structured(c["heldout_error"], floor) <= UNSEEN_SHARE * left
+            ]  # fmt: skip
+        print(f"{label}: {', '.join(allowed) or 'none'}")
+    return 0
+
+
 def _rows(dirs: list[Path]) -> int:
     from independent_calibration import HEADER, print_row  # the table's own format
 
@@ -157,12 +181,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rows", action="store_true", help="print the merged table's rows")
     ap.add_argument("--compare", nargs="+", type=Path, default=None, metavar="OLD_DIR",
                     help="print the DIRs' rows beside these earlier runs' (merged alike)")
+    ap.add_argument("--unseen", action="store_true",
+                    help="per trace, the candidates without their signature's backing that "
+                    "the trace error may still name (they leave at most half the structure)")
     args = ap.parse_args(argv)
     for d in [*args.dirs, *(args.compare or [])]:
         if not (d / "results.json").exists():
             print(f"{d}: no results.json (an --out directory of independent_calibration.py)",
                   file=sys.stderr)  # fmt: skip
             return 2
+    if args.unseen:
+        return _unseen(args.dirs)
     if args.compare:
         return _compare(args.compare, args.dirs)
     if args.rows:
