@@ -910,8 +910,9 @@ def _basin_hops(
     :data:`HOPS`), end it.
     The stick–slip objective is piecewise (a step gained or lost), its local optima many
     and close: the first independent plant's 10 kHz trace ended its four starts at costs
-    23–137 and 26.3 nm held out; three hops from the best reached 8.4 nm
-    (report.json ``starts.hops``). scipy's ``basinhopping`` runs one local search per hop;
+    23–137, the best at 29.4 nm held out; two kept hops of five took it to cost 14.3 and
+    15.1 nm (``experiments/independent_calibration.py --plant first --only rate_10kHz``,
+    report.md's hop table). scipy's ``basinhopping`` runs one local search per hop;
     this screens a cloud first and runs its best starts side by side.
     (the best fit, one row per hop for the report)."""
     mdl = problem.model
