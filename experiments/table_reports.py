@@ -145,7 +145,8 @@ def _unseen(dirs: list[Path]) -> int:
     leave at most ``UNSEEN_SHARE`` of the structured held-out residual in that round's
     screening — those the trace error may still name (a run made before that rule would
     differ only there)."""
-    from turntable_env.calibration.trace_fit import UNSEEN_SHARE, _structured
+    from turntable_env.calibration.residual import structured_rms
+    from turntable_env.calibration.trace_fit import UNSEEN_SHARE
 
     for label, _row, rep in _reports(dirs):
         floor, hist = rep["diagnosis"]["noise_floor"], rep["history"]
@@ -153,12 +154,12 @@ def _unseen(dirs: list[Path]) -> int:
         for rnd in rep["diagnosis"]["signatures"]["rounds"]:
             k, uns = rnd["round"], rnd.get("unsupported") or {}
             cur = hist[min(k - 1, len(hist) - 1)]["heldout_rms"]
-            left = _structured(cur, floor)
+            left = structured_rms(cur, floor)
             allowed += [
-                f"round {k} {c['effect']} ({_structured(c['heldout_error'], floor) / left:.0%})"
+                f"round {k} {c['effect']} ({structured_rms(c['heldout_error'], floor) / left:.0%})"
                 for c in rep["candidates"]
                 if c["round"] == k and c["effect"] in uns and left > 0
-                and _structured(c["heldout_error"], floor) <= UNSEEN_SHARE * left
+                and structured_rms(c["heldout_error"], floor) <= UNSEEN_SHARE * left
             ]  # fmt: skip
         print(f"{label}: {', '.join(allowed) or 'none'}")
     return 0

@@ -81,6 +81,7 @@ from .residual import (
     residual_sigma,
     ringing,
     spectral_peaks,
+    structured_rms,
 )
 from .result import CalibrationResult
 from .segments import DriveReading, Segment, read_drive, segment_trace, split_portions
@@ -1144,16 +1145,16 @@ def _round(
     # may name only when it explains most of the structure the current model leaves
     backing = {f.name: supports(f) for f in fits}
     rnd["unsupported"] = {c: why for c, (ok, why) in backing.items() if not ok}
-    left = _structured(current.heldout_rms, floor)
+    left = structured_rms(current.heldout_rms, floor)
     for c, f in screened:
         if c in rnd["unsupported"]:
-            share = _structured(f.heldout_rms, floor) / left if left > 0 else 1.0
+            share = structured_rms(f.heldout_rms, floor) / left if left > 0 else 1.0
             rnd["unsupported"][c] += f"; leaves {share:.0%} of the structured residual"
             if share > UNSEEN_SHARE and f.heldout_rms < current.heldout_rms:
                 say(f"  {c}: not named by the trace: {rnd['unsupported'][c]}")
     screened = [
         (c, f) for c, f in screened if c not in rnd["unsupported"]
-        or _structured(f.heldout_rms, floor) <= UNSEEN_SHARE * left
+        or structured_rms(f.heldout_rms, floor) <= UNSEEN_SHARE * left
     ]  # fmt: skip
     if not screened:
         return current, None, ""
@@ -1163,11 +1164,6 @@ def _round(
         say("  no effect beats the nominal model on held-out data")
         return current, None, ""
     return accepted[1], accepted[0], "held-out trace error"
-
-
-def _structured(rms: float, floor: float) -> float:
-    """The structured part √(rms² − floor²) of a held-out error [nm] (0 at the floor)."""
-    return math.sqrt(max(rms * rms - floor * floor, 0.0))
 
 
 def _fitted(
@@ -1288,7 +1284,7 @@ def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, An
         if np.std(v) > 0 and np.std(res_x) > 0:
             corr[k] = float(np.corrcoef(v, res_x)[0, 1])
     rms = fit.heldout_rms
-    structured_part = math.sqrt(max(0.0, rms**2 - floor**2))
+    structured_part = structured_rms(rms, floor)
     ring = max(rings, key=lambda g: g["ratio"]) if rings else None
     structured = (
         rms > STRUCTURED_FACTOR * floor
