@@ -1146,16 +1146,14 @@ def _round(
     backing = {f.name: supports(f) for f in fits}
     rnd["unsupported"] = {c: why for c, (ok, why) in backing.items() if not ok}
     left = structured_rms(current.heldout_rms, floor)
+    share = {c: structured_rms(f.heldout_rms, floor) / left if left > 0 else 1.0
+             for c, f in screened if c in rnd["unsupported"]}  # fmt: skip
     for c, f in screened:
-        if c in rnd["unsupported"]:
-            share = structured_rms(f.heldout_rms, floor) / left if left > 0 else 1.0
-            rnd["unsupported"][c] += f"; leaves {share:.0%} of the structured residual"
-            if share > UNSEEN_SHARE and f.heldout_rms < current.heldout_rms:
+        if c in share:
+            rnd["unsupported"][c] += f"; leaves {share[c]:.0%} of the structured residual"
+            if share[c] > UNSEEN_SHARE and f.heldout_rms < current.heldout_rms:
                 say(f"  {c}: not named by the trace: {rnd['unsupported'][c]}")
-    screened = [
-        (c, f) for c, f in screened if c not in rnd["unsupported"]
-        or structured_rms(f.heldout_rms, floor) <= UNSEEN_SHARE * left
-    ]  # fmt: skip
+    screened = [(c, f) for c, f in screened if share.get(c, 0.0) <= UNSEEN_SHARE]
     if not screened:
         return current, None, ""
     top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
