@@ -8,6 +8,7 @@ away it reaches the lowest one."""
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -42,12 +43,12 @@ def landscape(monkeypatch):
     problem = SimpleNamespace(model=_Model(np.ones(n), np.full(n, -5.0), np.full(n, 5.0)))
     runs = {"local": 0}
 
-    def local_fits(_problem, starts, _workers, _nfev):
+    def local_fits(_problem, starts, _workers, _nfev, *_effects):
         runs["local"] += len(starts)
         return [_fit(x) for x in starts]
 
     monkeypatch.setattr(trace_fit, "_objectives",
-                        lambda _p, pts, _w, _b: np.array([_cost(x) for x in pts]))  # fmt: skip
+                        lambda _p, pts, _w, _b, *_e: np.array([_cost(x) for x in pts]))  # fmt: skip
     monkeypatch.setattr(trace_fit, "_local_fits", local_fits)
     return problem, runs
 
@@ -86,3 +87,55 @@ def test_two_failed_hops_end_the_search(landscape):
     assert best.cost == start.cost
     assert [r["accepted"] for r in rows] == [False, False]
     assert runs["local"] == 2 * trace_fit.HOP_STARTS
+
+
+def test_hops_with_effects_hold_them_in_the_cloud_and_fit_the_free_ones(monkeypatch):
+    """With named effects (the joint refit of an effect round), the cloud moves the nominal
+    factors only and is evaluated with the fit's effects at their values; the least squares
+    from its best points fit the free effects too, and a kept hop carries its effects."""
+    n = CENTRE.size
+    problem = SimpleNamespace(model=_Model(np.ones(n), np.full(n, -5.0), np.full(n, 5.0)))
+    seen: dict[str, list] = {"objective": [], "local": []}
+    effects = {"piezo_hysteresis": {"h": 0.1, "width": 2.0}}
+
+    def objectives(_p, pts, _w, _b, eff=None):
+        seen["objective"].append(eff)
+        return np.array([_cost(x) for x in pts])
+
+    def local_fits(_p, starts, _w, _nfev, eff=None, free=()):
+        seen["local"].append((eff, tuple(free)))
+        return [replace(_fit(x), effects={"piezo_hysteresis": {"h": 0.12, "width": 2.0}})
+                for x in starts]  # fmt: skip
+
+    monkeypatch.setattr(trace_fit, "_objectives", objectives)
+    monkeypatch.setattr(trace_fit, "_local_fits", local_fits)
+    start = replace(_fit(CENTRE + np.array([1.2, -0.9, 1.5])), effects=effects)
+    best, rows = trace_fit._basin_hops(problem, start, 1, 0, lambda _m: None,
+                                       free_effects=["piezo_hysteresis"])  # fmt: skip
+    assert seen["objective"][0] == effects  # the first cloud: the start's effects held
+    assert all(free == ("piezo_hysteresis",) for _eff, free in seen["local"])
+    assert any(r["accepted"] for r in rows)
+    assert best.effects["piezo_hysteresis"]["h"] == 0.12  # the kept hop's effects
+    # after a kept hop the clouds are evaluated with the effects it reached
+    assert seen["objective"][-1] == best.effects
+
+
+def test_report_shows_the_hops_of_an_effect_round():
+    """report.md: an effect round's hops (the named effect's joint refit, and the current
+    model's refit a further effect must beat) are tabled under their round, one row per
+    hop with its costs and whether it was kept."""
+    from turntable_env.calibration.calibrate import _md_signatures
+
+    hop = {"radius_sigma": 0.5, "cost_before": 21.16, "costs": [21.07, 19.73],
+           "accepted": True, "heldout_rms": 21.38}  # fmt: skip
+    miss = {**hop, "costs": [24.3], "accepted": False}
+    decision = {"named": "piezo_hysteresis", "margin_nats": 9.0, "undecided": []}
+    hops = {"joint_refit": [hop, miss], "current_refit": [miss]}
+    rnd = {"round": 2, "decision": decision, "candidates": [], "hops": hops}
+    text = "\n".join(_md_signatures({"lines": [], "rounds": [rnd]}, "nm"))
+    joint = text.index("Basin hopping from piezo_hysteresis's joint refit")
+    current = text.index("Basin hopping from the current model's refit")
+    assert text.index("Round 2") < joint < current
+    assert "| 0 | 0.5 | 21.16 | 21.07, 19.73 | yes | 21.4 |" in text[joint:current]
+    assert "| 1 | 0.5 | 21.16 | 24.3 | no | 21.4 |" in text[joint:current]
+    assert text[current:].count("| no |") == 1

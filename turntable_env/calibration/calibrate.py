@@ -139,14 +139,7 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
             f"| {k} | {f['cost']:.5g} | {f['heldout_rms']:.3g} | {f['max_distance_sigma']:.2g} |"
             for k, f in enumerate(d["starts"]["fits"])
         ],
-        *(["", "Basin hopping from the best start (cost under the same data weight):", "",
-           f"| hop | radius [σ] | cost before | costs reached | kept | held-out [{u}] |",
-           "|---:|---:|---:|---|---|---:|",
-           *[f"| {k} | {h['radius_sigma']:g} | {h['cost_before']:.5g} | "
-             f"{', '.join(f'{c:.5g}' for c in h['costs'])} | "
-             f"{'yes' if h['accepted'] else 'no'} | {h['heldout_rms']:.3g} |"
-             for k, h in enumerate(d["starts"].get("hops", []))]]
-          if d["starts"].get("hops") else []),
+        *_md_hops(d["starts"].get("hops"), "the best start", u),
         "",
         "## Parameters",
         "",
@@ -161,7 +154,7 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
                 f"{'yes' if v.get('identified', True) else 'no (prior)'} | "
                 f"{'**yes**' if v.get('at_bound') else 'no'} | {v.get('meaning', '')} |"
             )
-    lines += _md_signatures(d.get("signatures"))
+    lines += _md_signatures(d.get("signatures"), u)
     lines += ["", "## Effects the protocol can identify", ""]
     lines += [f"- {k}: {v}" for k, v in d["identifiability"].items()]
     lines += ["", "## Residual", ""]
@@ -171,7 +164,23 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
     return lines
 
 
-def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
+def _md_hops(rows: list[dict[str, Any]] | None, start: str, u: str) -> list[str]:
+    """report.md lines of a basin-hopping table (:func:`~.trace_fit._basin_hops`) from
+    ``start``; none when no hop ran."""
+    if not rows:
+        return []
+    return [
+        "", f"Basin hopping from {start} (cost under the same data weight):", "",
+        f"| hop | radius [σ] | cost before | costs reached | kept | held-out [{u}] |",
+        "|---:|---:|---:|---|---|---:|",
+        *[f"| {k} | {h['radius_sigma']:g} | {h['cost_before']:.5g} | "
+          f"{', '.join(f'{c:.5g}' for c in h['costs'])} | "
+          f"{'yes' if h['accepted'] else 'no'} | {h['heldout_rms']:.3g} |"
+          for k, h in enumerate(rows)],
+    ]  # fmt: skip
+
+
+def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
     """report.md lines of the identification by signature (:mod:`.identify`)."""
     if not sig:
         return []
@@ -212,6 +221,9 @@ def _md_signatures(sig: dict[str, Any] | None) -> list[str]:
                 f"{'yes' if c['at_neutral'] else 'no'} | {vals}"
                 f"{'; ' + c['note'] if c['note'] else ''} |"
             )
+        hops = rnd.get("hops", {})
+        lines += _md_hops(hops.get("joint_refit"), f"{dec['named']}'s joint refit", u)
+        lines += _md_hops(hops.get("current_refit"), "the current model's refit", u)
         if rnd.get("unsupported"):
             lines += ["", "Not to be named by the held-out trace error (the signature does not "
                       "back them): " + "; ".join(f"{k}: {v}" for k, v in
