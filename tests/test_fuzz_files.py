@@ -106,7 +106,8 @@ def _names_file(exc: ValueError, path) -> None:
 
 
 @settings(
-    max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=20, deadline=None, derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(text=measurement_files())
 def test_a_file_loads_and_calibrates_or_is_refused_with_its_name(text, tmp_path):
