@@ -94,7 +94,8 @@ def _calibrate_one(job: dict) -> dict:
     injected = list(job["info"]["effects"])
     expected = [EXPECTED.get(e, "outside") for e in injected] or ["none"]
     t0 = time.perf_counter()
-    res = calibrate([Path(job["file"])], base=job["base"], workers=job["workers"], progress=None)
+    res = calibrate([Path(job["file"])], base=job["base"], workers=job["workers"],
+                    seed=job.get("seed", 0), progress=None)  # fmt: skip
     wall = time.perf_counter() - t0
     write_report(res, Path(job["out"]))
     d = res.diagnosis
@@ -140,6 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base", default="real",
                     help="the prior parameter set, as turntable calibrate --base (default real)")
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--seed", type=int, default=0,
+                    help="the calibration's seed, as turntable calibrate --seed (default 0)")
     ap.add_argument("--out", default=None, help="default experiments/results/<plant>_calibration")
     ap.add_argument(
         "--backend", choices=BACKENDS, default=None,
@@ -160,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     jobs = [
         {"name": name, "file": str(traces / f"{name}.csv"), "info": truth[f"{name}.csv"],
-         "base": args.base, "workers": args.workers, "out": str(out / name)}
+         "base": args.base, "workers": args.workers, "seed": args.seed, "out": str(out / name)}
         for name in names
     ]  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
