@@ -16,7 +16,11 @@ scaling, the detector range and the scan gain of the linear stick plant.
 * **scan** mode (generator idle): the python-control-designed PID of
   :mod:`controllers.scan_pid` drives the scan offset from the detector reading. It hands
   back to step mode when the error leaves the scan range K·u_max (or the reading
-  saturates).
+  saturates). On a target that stays, an error within ``HOLD_SIGMAS`` × the reading's
+  noise goes to the scan's hold integrator instead (:meth:`ScanPID.hold`): the noise σ is
+  estimated online, robustly, from the error's changes between scan intervals (median
+  |Δe| = 0.954 σ for Gaussian noise), so a floor vibration that rocks the reading widens
+  the hold and is averaged, not chased.
 
 The safety monitor: a saturated reading against a belief inside the detector is a lost
 spot, searched with a doubling believed excess beyond the edge; a search step is taken
@@ -33,6 +37,7 @@ from __future__ import annotations
 import abc
 import functools
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -57,6 +62,10 @@ LOST_EXCESS = 0.05  # of θ_lin: first guess of a lost spot's distance beyond th
 # monitor stops stepping (a plant that steps backwards there would otherwise run away)
 BLIND_FACTOR = 3.0  # × the dead-reckoned distance to the detector, with its stated error
 LOST_SEARCH = 8.0  # of θ_lin: search allowed for a spot lost inside the episode
+# the hold: a scan error within HOLD_SIGMAS × the reading's noise, on a target that stays,
+# goes to the scan's slow integrator (ScanPID.hold), not to the PID that would answer it
+HOLD_SIGMAS = 3.0
+NOISE_WINDOW = 12  # scan intervals whose error changes estimate the reading's noise
 MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
 
 
@@ -256,6 +265,10 @@ class StepScanController(Controller):
         if self.gains is not None:
             self.gains.reset()
         self.pid.reset(0.0)
+        self._noise: deque[float] = deque(maxlen=NOISE_WINDOW)  # |Δe| [rad] in the holds
+        self._scan_err: float | None = None  # the last scan interval's error [rad]
+        self._scan_target: float | None = None
+        self._scan_streak = 0  # consecutive scan intervals on one target
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
@@ -362,6 +375,7 @@ class StepScanController(Controller):
             self.pid.reset(self.offset)
             return self._scan(self.target - meas if not sat else 0.0, meas)
         self.last_move = move
+        self._scan_err, self._scan_streak = None, 0  # not a scan interval
         if sat:
             self._blind += abs(move.expected)
         self.estimate -= k_scan * self.offset
@@ -376,6 +390,7 @@ class StepScanController(Controller):
         controller believes (a plant stepping backwards): it stops rather than run away."""
         self.mode = "scan"
         self.last_move = None
+        self._scan_err, self._scan_streak = None, 0  # not a scan interval
         self.last_measured = None
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, self.offset)
 
@@ -385,11 +400,22 @@ class StepScanController(Controller):
         self.estimate -= self.ctx.scan_gain * self.offset
         self.offset = 0.0
         self.last_move = None
+        self._scan_err, self._scan_streak = None, 0  # not a scan interval
         self.last_measured = None
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, 0.0)
 
     def _scan(self, err: float, meas: float) -> np.ndarray:
-        u = self.pid.update(err)
+        # the reading's noise: robust σ of the error's change between scan intervals on a
+        # target that stays, once the PID's first corrections after a step are past
+        steady = self._scan_target == self.target
+        self._scan_streak = self._scan_streak + 1 if steady else 0
+        if self._scan_streak >= 3 and self._scan_err is not None:
+            self._noise.append(abs(err - self._scan_err))
+        self._scan_err, self._scan_target = err, self.target
+        hold = 0.0
+        if steady and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
+            hold = HOLD_SIGMAS * float(np.median(self._noise)) / 0.954
+        u = self.pid.update(err, hold)
         self.last_move = None
         self.offset = u
         self.last_measured = meas
