@@ -38,7 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from controllers.base import SATURATION_FRACTION, ControllerContext
-from turntable_env.envs.config import OBS, check_action
+from turntable_env.envs.config import OBS, OBSERVATION_NAMES, check_action
 
 __all__ = [
     "AGENT_ENV_ID",
@@ -155,7 +155,8 @@ class RawInterface:
         self.observation_space = observation_space(ctx.angle_range)
 
     def features(self, obs: np.ndarray) -> np.ndarray:
-        return np.asarray(obs, dtype=np.float32)
+        # the default env's 8 components (an env with ``detector_y`` appends the y channel)
+        return np.asarray(obs[..., : len(OBSERVATION_NAMES)], dtype=np.float32)
 
     def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
         return check_action(action, (5,)).astype(np.float32)

@@ -45,11 +45,12 @@ from typing import Any
 import numpy as np
 
 from turntable_env.detector import Detector
-from turntable_env.envs.config import OBS, ActionScaling, EnvConfig
+from turntable_env.envs.config import OBS, OBS_Y, ActionScaling, EnvConfig
 from turntable_env.linear import scan_plant, stick_plant
 from turntable_env.params import ParameterSet
 
 from .lab import LabBrief
+from .misalignment import AxisMisalignment
 from .scan_pid import PIDGains, ScanPID, design_scan_pid
 from .step_gain import StepGains
 
@@ -120,12 +121,14 @@ class ControllerContext:
     def lab_observation(self, obs: np.ndarray) -> np.ndarray:
         """``obs`` (…, 8) with ``measured_angle_rad`` converted from the Eq. 4.1 reading to
         the table angle [rad] with the rig's calibration (the same array for the nominal
-        rig, a copy otherwise)."""
+        rig, a copy otherwise); with a y channel (…, 9) that reading too."""
         det = self.detector
         if det.tilt_factor == 1.0 and det.gain == 1.0:
             return obs
         out = np.array(obs, dtype=float, copy=True)
         out[..., OBS.measured_angle_rad] = det.table_angle(out[..., OBS.measured_angle_rad])
+        if out.shape[-1] > OBS_Y:  # the y channel (EnvConfig.detector_y), read alike
+            out[..., OBS_Y] = det.table_angle(out[..., OBS_Y])
         return out
 
     @property
@@ -236,6 +239,7 @@ class StepScanController(Controller):
         self.pid = ScanPID(ctx.pid_gains, ctx.input_limit)
         self.gains: StepGains | None = None  # online step gains (set by map-based subclasses)
         self.min_learn = MIN_LEARN
+        self.misalignment = AxisMisalignment()  # learned from the y channel, where observed
         # a saturated reading sits at the edge plus the detector's noise (1 mV ≈ 0.3 µrad)
         self._sat = ctx.angle_range * SATURATION_FRACTION
 
@@ -244,8 +248,12 @@ class StepScanController(Controller):
         obs = self.ctx.lab_observation(obs)
         self.target = float(obs[OBS.target_angle_rad])
         meas = float(obs[OBS.measured_angle_rad])
+        sat = self.saturated(meas)
+        self.misalignment.reset()
+        if not sat:
+            meas = self._read(obs, meas)
         self.estimate = meas  # rad, believed angle: the reading where it is valid, ...
-        if self.saturated(meas):  # ... beyond the detector the dead-reckoned start, ...
+        if sat:  # ... beyond the detector the dead-reckoned start, ...
             edge = math.copysign(self.ctx.angle_range * 1.05, meas)
             est = brief.start_estimate_rad
             # ... unless it contradicts the reading (it lies on the other side or inside)
@@ -254,12 +262,12 @@ class StepScanController(Controller):
         self.mode = "step"
         self.offset = 0.0  # V, scan offset commanded for the interval now ending
         self.last_move: Move | None = None
-        self.last_measured: float | None = None if self.saturated(meas) else meas
+        self.last_measured: float | None = None if sat else meas
         self._offset_before = 0.0  # V, the scan offset a stepping interval ramped from
         self._excess = LOST_EXCESS  # of θ_lin: the lost spot's believed distance beyond the edge
         self._blind = 0.0  # rad, believed travel of the moves made with the reading saturated
         self._blind_budget = LOST_SEARCH * self.ctx.angle_range  # rad
-        if self.saturated(meas):  # beyond the detector from the start: dead-reckon to it
+        if sat:  # beyond the detector from the start: dead-reckon to it
             dist = max(abs(self.estimate) - self.ctx.angle_range, self.ctx.angle_range)
             self._blind_budget = BLIND_FACTOR * (1.0 + brief.start_error) * dist
         if self.gains is not None:
@@ -272,6 +280,17 @@ class StepScanController(Controller):
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
+
+    def _read(self, obs: np.ndarray, x: float) -> float:
+        """The table angle [rad] behind an unsaturated x reading ``x``: with the y channel
+        in ``obs``, corrected for the axis misalignment learned from both
+        (:class:`~controllers.misalignment.AxisMisalignment`); x itself without it."""
+        if obs.shape[-1] <= OBS_Y:
+            return x
+        y = float(obs[OBS_Y])
+        if not self.saturated(y):
+            self.misalignment.update(x, y)
+        return self.misalignment.table_angle(x)
 
     # --- hooks ------------------------------------------------------------------------
     def observe(self, measured: float, saturated: bool) -> None:
@@ -335,6 +354,8 @@ class StepScanController(Controller):
         meas = float(obs[OBS.measured_angle_rad])
         self.target = float(obs[OBS.target_angle_rad])  # the commanded target now
         sat = self.saturated(meas)
+        if not sat:  # the table angle behind the x reading (a misaligned detector's)
+            meas = self._read(obs, meas)
         if self.went_the_wrong_way(meas, sat):  # the safety monitor: no blind travel at all
             self._blind_budget = 0.0
         self.learn(meas, sat)

@@ -15,7 +15,10 @@ knock, dead-reckoned start), the same plant draw and the same detector noise seq
 every controller (common random numbers), so the differences between controllers are
 paired per seed. A controller receives only the observation and its
 :class:`~controllers.lab.LabBrief`; the true angle, the plant and its draw stay with the
-runner for the metrics (:mod:`controllers.metrics`).
+runner for the metrics (:mod:`controllers.metrics`). Since benchmark 2.3 the observation
+has the quadrant photodiode's y channel too (``EnvConfig(detector_y=True)``, its own noise
+sequence per seed): what a lab's detector gives, and what an axis misalignment shows on
+(the agents, trained on the default 8 components, read those and ignore it).
 
 Output (:class:`BenchmarkResult`): per episode the metrics and the plant draw
 (``episodes.csv``); per controller × plant set × task each metric's mean with a 95 %
@@ -68,7 +71,7 @@ __all__ = [
     "write_outputs",
 ]
 
-BENCHMARK_VERSION = "2.2"  # tasks, plant sets and metrics of this protocol; bump on change
+BENCHMARK_VERSION = "2.3"  # tasks, plant sets and metrics of this protocol; bump on change
 SUITE_SEED = 2026
 DEFAULT_PLANT_SETS = (
     "nominal", "randomized", "held_out", "calibrated", "full_3d", "independent"
@@ -300,7 +303,7 @@ def _run_cell(
     bar: Any,
 ) -> tuple[list[Cell], list[dict[str, Any]]]:
     """Every controller on one plant set × task (module docstring)."""
-    cfg = EnvConfig(plant=pset.base, axis=axis, terminate_on_success=False)
+    cfg = EnvConfig(plant=pset.base, axis=axis, terminate_on_success=False, detector_y=True)
     if not math.isclose(cfg.control_interval, 0.01):
         raise ValueError("the task suite is written for a 0.01 s control interval")
     ctx = ControllerContext.from_config(cfg)
@@ -325,6 +328,7 @@ def _run_cell(
     steps, energy = np.zeros((n, k_total)), np.zeros((n, k_total))
     angle[:, 0], meas[:, 0], ref[:, 0] = sim.angle, obs[:, OBS.measured_angle_rad], sim.target
     noise = np.random.default_rng([suite_seed, 2]).standard_normal((task.horizon, seeds))
+    noise_y = np.random.default_rng([suite_seed, 3]).standard_normal((task.horizon, seeds))
     dummy = np.random.default_rng(0)  # unused: the noise comes from `normals`
     for k in range(task.horizon):
         actions = np.concatenate(
@@ -333,7 +337,8 @@ def _run_cell(
                 for ci in range(n_ctl)
             ]
         )
-        res = sim.step(actions, dummy, normals=np.tile(noise[k], n_ctl))
+        normals = np.stack([np.tile(noise[k], n_ctl), np.tile(noise_y[k], n_ctl)], axis=1)
+        res = sim.step(actions, dummy, normals=normals)  # x and y channels
         obs = res.obs
         angle[:, k + 1] = res.info["angle_rad"]
         ref[:, k + 1] = res.info["target_rad"]

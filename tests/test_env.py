@@ -20,7 +20,7 @@ from turntable_env.envs import (
     PiezoTurntableEnv,
     PiezoTurntableVectorEnv,
 )
-from turntable_env.envs.config import OBS
+from turntable_env.envs.config import OBS, OBS_Y
 from turntable_env.plant import Plant, reduced_model
 
 ENV_ID = "PiezoTurntable-v0"
@@ -642,3 +642,46 @@ def test_the_3d_env_holds_a_table_reset_off_zero(start):
         for _ in range(3):
             *_, info = env.step(np.zeros(5, dtype=np.float32))
         assert info["angle_rad"] == pytest.approx(start, abs=1e-7), fidelity
+
+
+# --- the detector's y channel ------------------------------------------------------------------
+@pytest.mark.parametrize("phi", [0.0, 0.16, -0.1])
+def test_y_channel_reads_the_misaligned_share_of_the_rotation(phi):
+    """detector_y=True appends the y channel's Eq. 4.1 reading: a rotation θ about the
+    watched axis reads θ·cos φ on x and θ·sin φ on y for an axis misalignment φ (the
+    catalogue's output stage); the default observation keeps its 8 components."""
+    plant = Plant("real").replace(effects={"axis_misalignment": {"phi": phi}})
+    env = gym.make(ENV_ID, plant=plant, noise=False, detector_y=True)
+    assert env.observation_space.shape == (9,)
+    assert env.unwrapped.observation_names[-1] == "measured_y_rad"
+    theta = 3e-4
+    obs, _ = env.reset(seed=0, options={"start_angle": theta, "target_angle": 0.0})
+    assert obs.shape == (9,) and env.observation_space.contains(obs)
+    assert obs[OBS.measured_angle_rad] == pytest.approx(theta * np.cos(phi), rel=1e-5)
+    assert obs[OBS_Y] == pytest.approx(theta * np.sin(phi), rel=1e-5, abs=1e-12)
+    assert gym.make(ENV_ID, plant=plant).observation_space.shape == (8,)
+
+
+def test_y_channel_keeps_the_x_noise_and_draws_its_own():
+    """The x channel's noise draws are the same with and without the y channel (x first),
+    and the y channel's noise has the plant's σ, independent of x's."""
+    xs, ys, x_only = [], [], []
+    for s in range(300):
+        opts = {"start_angle": 0.0, "target_angle": 0.0}
+        o, _ = gym.make(ENV_ID, sensor_noise=1e-3, detector_y=True).reset(seed=s, options=opts)
+        xs.append(o[OBS.measured_angle_rad])
+        ys.append(o[OBS_Y])
+        o8, _ = gym.make(ENV_ID, sensor_noise=1e-3).reset(seed=s, options=opts)
+        x_only.append(o8[OBS.measured_angle_rad])
+    np.testing.assert_array_equal(xs, x_only)
+    assert np.std(ys) == pytest.approx(np.std(xs), rel=0.2)
+    assert abs(np.corrcoef(xs, ys)[0, 1]) < 0.15
+
+
+def test_gymnasium_check_env_with_the_y_channel():
+    from gymnasium.utils.env_checker import check_env
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(gym.make(ENV_ID, detector_y=True).unwrapped, skip_render_check=True)
+    assert tuple(str(w.message) for w in caught) == EXPECTED_CHECKER_WARNINGS

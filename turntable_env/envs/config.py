@@ -26,6 +26,8 @@ __all__ = [
     "DEFAULT_RANDOMIZATION",
     "OBS",
     "OBSERVATION_NAMES",
+    "OBSERVATION_NAMES_Y",
+    "OBS_Y",
     "ActionScaling",
     "EnvConfig",
     "ObservationIndex",
@@ -52,6 +54,9 @@ class ObservationIndex(NamedTuple):
 OBS = ObservationIndex(*range(len(ObservationIndex._fields)))
 OBSERVATION_NAMES = ObservationIndex._fields
 assert OBSERVATION_NAMES[3:] == tuple(f"last_{n}" for n in ACTION_NAMES)
+# with EnvConfig(detector_y=True): the quadrant photodiode's y channel as the last component
+OBS_Y = len(OBSERVATION_NAMES)  # index of ``measured_y_rad``
+OBSERVATION_NAMES_Y = (*OBSERVATION_NAMES, "measured_y_rad")
 
 F_MIN, F_MAX = 10.0, 2000.0  # Hz, generator frequency range (log scale)
 A_MIN, A_MAX = 0.5, 0.99  # ramp ratio range
@@ -189,6 +194,11 @@ class EnvConfig:
             :data:`DEFAULT_RANDOMIZATION`; or a mapping of some of its keys to (low, high)
             factor ranges.
         noise: detector noise on (True) or off.
+        detector_y: also observe the quadrant photodiode's y channel, read by Eq. 4.1 like
+            the x channel (``measured_y_rad``, the observation's last component,
+            :data:`OBS_Y`): what a lab's photodiode gives besides x. A rotation about the
+            watched axis reads on it through an axis misalignment φ (θ·sin φ, while x reads
+            θ·cos φ). False (default) keeps the 8 components the agents were trained on.
         sensor_noise: detector voltage noise standard deviation [V] when ``noise``;
             default: the plant's (1 mV).
         tolerance: |target − angle| that ends the episode successfully [rad].
@@ -219,6 +229,7 @@ class EnvConfig:
     control_interval: float = 0.01
     randomize: bool | Mapping[str, tuple[float, float]] = False
     noise: bool = True
+    detector_y: bool = False
     sensor_noise: float | None = None
     tolerance: float = 1e-6
     terminate_on_success: bool = True
@@ -245,6 +256,8 @@ class EnvConfig:
             )
         if not isinstance(self.noise, bool):
             raise ValueError(f"noise={self.noise!r}: must be a bool")
+        if not isinstance(self.detector_y, bool):
+            raise ValueError(f"detector_y={self.detector_y!r}: must be a bool")
         check_positive("tolerance", self.tolerance)
         if not isinstance(self.terminate_on_success, bool):
             raise ValueError(f"terminate_on_success={self.terminate_on_success!r}: must be a bool")
@@ -313,6 +326,12 @@ class EnvConfig:
     def parameter_set(self) -> ParameterSet:
         """The plant's parameter set (nominal: before any randomisation)."""
         return self.plant.params  # type: ignore[union-attr]
+
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        """The observation's components in order (:data:`OBSERVATION_NAMES`, and
+        ``measured_y_rad`` with ``detector_y``)."""
+        return OBSERVATION_NAMES_Y if self.detector_y else OBSERVATION_NAMES
 
     @property
     def scaling(self) -> ActionScaling:

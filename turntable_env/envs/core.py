@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..plant import IntervalResult, Plant, PlantStepper, load_capacitance
-from .config import OBS, OBSERVATION_NAMES, EnvConfig, check_action
+from .config import OBS, OBS_Y, EnvConfig, check_action
 
 __all__ = ["RESET_OPTIONS", "StepResult", "TurntableTask"]
 
@@ -94,6 +94,7 @@ class TurntableTask:
         self.last_action = np.zeros((num, 5))
         self.measured = np.zeros(num)  # rad
         self.detector_v = np.zeros(num)  # V
+        self.measured_y = np.zeros(num)  # rad, the y channel's reading (detector_y)
         self.angle = np.zeros(num)  # rad
         self.reference: list[np.ndarray | None] = [None] * num  # rad per interval, or None
         self.knock: list[tuple[int, float] | None] = [None] * num  # (interval, Δθ [rad])
@@ -165,8 +166,11 @@ class TurntableTask:
         self._observe(np.array([b]), rng)
 
     def observation(self) -> np.ndarray:
-        """(N, 8) float32: the components of :data:`~.config.OBSERVATION_NAMES`."""
-        obs = np.empty((self.num, len(OBSERVATION_NAMES)))
+        """(N, 8) float32: the components of :data:`~.config.OBSERVATION_NAMES` ((N, 9) with
+        ``measured_y_rad`` last when the config's ``detector_y``)."""
+        obs = np.empty((self.num, len(self.config.observation_names)))
+        if self.config.detector_y:
+            obs[:, OBS_Y] = self.measured_y
         obs[:, OBS.measured_angle_rad] = self.measured
         obs[:, OBS.target_angle_rad] = self.target
         obs[:, OBS.generator_phase] = self.phase
@@ -182,7 +186,8 @@ class TurntableTask:
     ) -> StepResult:
         """Advance every turntable one control interval under its action (N, 5); the
         detector noise from ``rng``, or from ``normals`` (N,) standard normal draws when
-        given (common random numbers: the controller benchmark)."""
+        given (common random numbers: the controller benchmark; (N, 2) with the config's
+        ``detector_y``, the x and y channels' draws)."""
         acts = check_action(actions, (self.num, 5))
         interval = self._simulate(acts)
         self._observe(np.arange(self.num), rng, normals)
@@ -210,8 +215,13 @@ class TurntableTask:
     def _observe(
         self, rows: np.ndarray, rng: np.random.Generator, normals: np.ndarray | None = None
     ) -> None:
-        """The detector's reading (Eq. 4.1 with effects, noise, saturation) and its angle."""
-        v = self.stepper.observe(rng, rows, normals)
+        """The detector's reading (Eq. 4.1 with effects, noise, saturation) and its angle;
+        with ``detector_y`` the y channel's too (``normals`` (rows, 2) then)."""
+        if self.config.detector_y:
+            v, vy = self.stepper.observe_xy(rng, rows, normals)
+            self.measured_y[rows] = self.detector.angle(vy)
+        else:
+            v = self.stepper.observe(rng, rows, normals)
         self.detector_v[rows] = v
         self.measured[rows] = self.detector.angle(v)
 

@@ -10,7 +10,7 @@ from gymnasium import spaces
 
 from ..plant import Plant
 from ..validation import check_int
-from .config import ACTION_NAMES, OBSERVATION_NAMES, check_action, make_config
+from .config import ACTION_NAMES, check_action, make_config
 from .core import TurntableTask
 
 __all__ = ["PiezoTurntableEnv", "action_space", "observation_space"]
@@ -22,12 +22,16 @@ def action_space() -> spaces.Box:
 
 
 def observation_space(task: TurntableTask | float) -> spaces.Box:
-    """Box of (measured angle, target, phase, last action) with the detector's bounds (a
-    task's, or the linear range θ_lin [rad] itself)."""
+    """Box of (measured angle, target, phase, last action[, measured y]) with the detector's
+    bounds (a task's, with the y channel when its config has ``detector_y``; or the linear
+    range θ_lin [rad] itself)."""
     lim = float(task) if isinstance(task, int | float) else task.angle_range
-    low = np.array([-lim, -lim, 0.0, -1, -1, -1, -1, -1], dtype=np.float32)
-    high = np.array([lim, lim, 1.0, 1, 1, 1, 1, 1], dtype=np.float32)
-    return spaces.Box(low, high, dtype=np.float32)
+    low = [-lim, -lim, 0.0, -1, -1, -1, -1, -1]
+    high = [lim, lim, 1.0, 1, 1, 1, 1, 1]
+    if not isinstance(task, int | float) and task.config.detector_y:
+        low.append(-lim)
+        high.append(lim)
+    return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
 
 
 class PiezoTurntableEnv(gym.Env):
@@ -88,10 +92,13 @@ class PiezoTurntableEnv(gym.Env):
     | 1     | target_angle_rad   | rad  | ±θ_lin                                         |
     | 2     | generator_phase    | -    | [0, 1]: position in the running period         |
     | 3–7   | last_<action>      | -    | [-1, 1]: the last action, clipped              |
+    | 8     | measured_y_rad     | rad  | ±θ_lin: only with ``detector_y=True`` (9,)     |
 
     The measured angle is Eq. 4.1 applied to the detector voltage with Gaussian noise
     (``sensor_noise``, 1 mV; angle noise ≈ S·σ/(2L)) and saturation at the ±0.2 mm linear range:
-    beyond ±θ_lin the reading sticks at the edge.
+    beyond ±θ_lin the reading sticks at the edge. ``detector_y=True`` adds the quadrant
+    photodiode's y channel, read the same way with its own noise: a rotation about the
+    watched axis shows on it only through an axis misalignment (θ·sin φ).
 
     ## Rewards
 
@@ -187,7 +194,7 @@ class PiezoTurntableEnv(gym.Env):
 
     @property
     def observation_names(self) -> tuple[str, ...]:
-        return OBSERVATION_NAMES
+        return self.config.observation_names
 
     @property
     def plant(self) -> Plant:

@@ -488,23 +488,61 @@ class PlantStepper:
         times the plant's ``sensor_noise``; ``normals`` gives the draws instead of ``rng``,
         for common random numbers across runs) and saturation (Eq. 4.1, §4.1.3)."""
         r = np.arange(len(self)) if rows is None else np.asarray(rows)
+        x, _y = self._channels(r, y=False)
+        return self._noisy(x, r, rng, normals, "normals")
+
+    def observe_xy(
+        self,
+        rng: np.random.Generator | None = None,
+        rows: np.ndarray | None = None,
+        normals: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Detector (x, y) voltages [V] of turntables ``rows`` now, as :meth:`observe` per
+        channel: the x noise drawn first (the same draws as :meth:`observe`'s), then the
+        y noise; ``normals`` (rows, 2) gives both."""
+        r = np.arange(len(self)) if rows is None else np.asarray(rows)
+        x, y = self._channels(r, y=True)
+        z = None if normals is None else np.asarray(normals, dtype=float)
+        if z is not None and z.shape != (r.size, 2):
+            raise ValueError(f"normals: shape {z.shape}, expected ({r.size}, 2), finite")
+        nx = None if z is None else z[:, 0]
+        ny = None if z is None else z[:, 1]
+        return self._noisy(x, r, rng, nx, "normals[:, 0]"), self._noisy(
+            y, r, rng, ny, "normals[:, 1]"
+        )
+
+    def _channels(self, r: np.ndarray, y: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """(x, y) voltages [V] before noise, saturated (y None when not asked for and the
+        output stage is off)."""
         th = np.clip(self.angle[r], -ANGLE_SAFE, ANGLE_SAFE)
         det = self._detector
-        if self._output_on:
-            t = (self._physics.grid_time()[r] - self._n_start[r]) * self.grid
-            x, _y = detector_stage(th, t, self._rows[r], det)
-        else:  # Eq. 4.1, as detector_stage gives it with every output effect neutral
-            x = det.unclipped_voltage(th)
         vs = det.saturation_voltage
-        x = np.clip(x, -vs, vs)  # the photodiode saturates, its electronics add the noise
+        if self._output_on or y:
+            t = (self._physics.grid_time()[r] - self._n_start[r]) * self.grid
+            xv, yv = detector_stage(th, t, self._rows[r], det)
+        else:  # Eq. 4.1, as detector_stage gives it with every output effect neutral
+            xv, yv = det.unclipped_voltage(th), None
+        # the photodiode saturates, its electronics add the noise
+        return np.clip(xv, -vs, vs), (None if yv is None else np.clip(yv, -vs, vs))
+
+    def _noisy(
+        self,
+        v: np.ndarray,
+        r: np.ndarray,
+        rng: np.random.Generator | None,
+        normals: np.ndarray | None,
+        name: str,
+    ) -> np.ndarray:
+        """``v`` [V] with the rows' noise (``normals`` or ``rng``) and saturation."""
+        vs = self._detector.saturation_voltage
         if normals is not None:
             z = np.asarray(normals, dtype=float)
             if z.shape != (r.size,) or not np.isfinite(z).all():
-                raise ValueError(f"normals: shape {z.shape}, expected ({r.size},), finite")
-            x = np.clip(x + z * self._noise_std[r], -vs, vs)
-        elif rng is not None:
-            x = np.clip(x + rng.normal(0.0, 1.0, size=r.size) * self._noise_std[r], -vs, vs)
-        return x
+                raise ValueError(f"{name}: shape {z.shape}, expected ({r.size},), finite")
+            return np.clip(v + z * self._noise_std[r], -vs, vs)
+        if rng is not None:
+            return np.clip(v + rng.normal(0.0, 1.0, size=r.size) * self._noise_std[r], -vs, vs)
+        return v
 
     def observe_trace(
         self, b: int, t: np.ndarray, theta: np.ndarray, rng: np.random.Generator | None = None
