@@ -48,6 +48,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["bench", "--duration", "nan"], "--duration"),
         (["bench", "--batch", "-1"], "--batch"),
         (["benchmark", "--seeds", "1"], "--seeds"),
+        (["benchmark", "--suite-seed", "-1"], "--suite-seed"),
         (["benchmark", "--controllers", "nope", "--quick"], "controllers"),
         (["benchmark", "--plant-sets", "lunar"], "plant_sets"),
         (["benchmark", "--controllers", ""], "--controllers"),  # not "all of them"

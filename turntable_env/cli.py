@@ -256,6 +256,8 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
         kw["plant_sets"] = split("--plant-sets", args.plant_sets)
     if args.tasks is not None:
         kw["tasks"] = split("--tasks", args.tasks)
+    if args.suite_seed is not None:
+        kw["suite_seed"] = args.suite_seed
     names = split("--controllers", args.controllers)
     if args.agent:
         from agents import register_run
@@ -463,6 +465,10 @@ def _add_benchmark(sub: Any) -> None:
         "--seeds", type=_int(2, 1000), default=None, help="episodes per cell (default 20)"
     )
     pk.add_argument("--quick", action="store_true", help="4 seeds, 2 plant sets, 3 tasks")
+    pk.add_argument(
+        "--suite-seed", type=_int(0, 2**32 - 1), default=None,
+        help="seed of every draw (episodes, plants, noise; default: the committed suite's 2026)",
+    )  # fmt: skip
     pk.add_argument("--out", default="benchmark_results", help="output directory")
     pk.add_argument("--json", action="store_true", help="print benchmark.json")
     pk.add_argument(
