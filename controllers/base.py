@@ -22,6 +22,11 @@ scaling, the detector range and the scan gain of the linear stick plant.
   |Δe| = 0.954 σ for Gaussian noise), so a floor vibration that rocks the reading widens
   the hold and is averaged, not chased.
 
+The reading: the x channel converted with the rig's calibration
+(:meth:`ControllerContext.lab_observation`) and, where the observation carries the
+photodiode's y channel (``EnvConfig(detector_y=True)``, the benchmark's since 2.3),
+corrected for the axis misalignment learned from both (:mod:`controllers.misalignment`).
+
 The safety monitor: a saturated reading against a belief inside the detector is a lost
 spot, searched with a doubling believed excess beyond the edge; a search step is taken
 when no planned move fits; and the believed travel with the reading saturated is bounded
@@ -184,8 +189,9 @@ class Controller(abc.ABC):
 
     @classmethod
     def act_many(cls, controllers: Sequence[Controller], obs: np.ndarray) -> np.ndarray:
-        """(N, 5) actions of N controllers of this class for their (N, 8) observations (the
-        benchmark's batched call; subclasses may evaluate them together, as the agents do)."""
+        """(N, 5) actions of N controllers of this class for their (N, 8) observations ((N, 9)
+        with the y channel; the benchmark's batched call; subclasses may evaluate them
+        together, as the agents do)."""
         return np.stack([c.act(o) for c, o in zip(controllers, obs, strict=True)])
 
 
