@@ -23,6 +23,9 @@ SECTIONS = {
     "calibration",
 }
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+# the quick report computes every section (about 50 s of CPU, 22 s of it the calibration):
+# a long check, run by .ci/run's slow tier, which kept the default tier under its 5 minutes
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
