@@ -84,7 +84,7 @@ class PiezoTurntableEnv(gym.Env):
 
     ## Observation Space
 
-    ``Box(low, high, (8,), float32)``:
+    ``Box(low, high, (8,), float32)`` (``(9,)`` with ``detector_y=True``):
 
     | index | name               | unit | bounds                                         |
     |-------|--------------------|------|------------------------------------------------|
