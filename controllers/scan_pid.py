@@ -211,6 +211,10 @@ class ScanPID:
         0.14 of a line at the Nyquist frequency (a floor vibration aliased by the control
         rate), where the PID, designed for crossover, passes about all of it."""
         k = self.gains.plant_gain
+        if not (math.isfinite(k) and k != 0.0):
+            raise ValueError(
+                f"gains.plant_gain={k!r}: the hold needs the plant's DC gain (design_scan_pid)"
+            )
         self.u = float(np.clip(self.u + HOLD_GAIN * error / k, -self.limit, self.limit))
         self._e2 = self._e1 = error  # no derivative kick when the PID takes over again
         return self.u

@@ -430,3 +430,13 @@ def test_misalignment_slope_is_the_least_squares_slope_of_y_on_x(phi):
         est.update(th * math.cos(phi) + nx, th * math.sin(phi) + ny)
     assert est.slope == pytest.approx(math.tan(phi), abs=3e-3)
     assert est.table_angle(4e-4 * math.cos(phi)) == pytest.approx(4e-4, rel=1e-4)
+
+
+def test_scan_hold_refuses_gains_without_the_plant_gain(ctx):
+    """Gains typed in without the plant's DC gain (PIDGains.plant_gain nan): hold() names
+    the field instead of returning NaN, and update() keeps to the PID."""
+    g = ctx.pid_gains
+    typed = type(g)(g.kp, g.ki, g.kd, g.dt)
+    with pytest.raises(ValueError, match="plant_gain"):
+        ScanPID(typed, limit=10.0).hold(1e-7)
+    assert math.isfinite(ScanPID(typed, limit=10.0).update(1e-7, hold_error=1e-6))
