@@ -20,8 +20,9 @@ limit, so saturation never winds it up.
 **The hold** (:meth:`ScanPID.hold`): a PID designed for crossover answers every reading,
 the detector's noise and a floor vibration that rocks the reading but not the table
 included, and moves the table with them (held-out seed 4's 61.6 Hz vibration, 26 nm at
-R, aliased to 38 Hz by the 100 Hz control rate, left the table up to 29 nm off in a 2 µm
-move's hold: ``tests/test_controllers.py -k vibrating``). Within ``hold_error`` of the
+R, aliased to 38 Hz by the 100 Hz control rate, moved it by more than half its amplitude
+in a 2 µm move's hold: ``tests/test_controllers.py -k vibrating`` fails without the
+hold). Within ``hold_error`` of the
 target (:meth:`ScanPID.update`; the controllers pass 3 σ of the reading's noise, estimated
 online) the offset follows the integrator u_k = u_{k−1} + g·e_k/K instead, g =
 ``HOLD_GAIN``: on P(z) = K·z⁻¹ the table obeys x_{k+1} = (1 − g)·x_k + g·(r − n_k), which
