@@ -35,6 +35,10 @@ error, or ``LOST_SEARCH`` θ_lin after a loss): past it the controller holds, si
 steps are not going where it believes (a plant stepping backwards beyond the detector). A
 step move that loses the spot on the side against its own direction spends the budget at
 once: that setting steps backwards on this plant, and every blind step would add to it.
+On the way in from beyond the detector (no valid reading yet in the episode: the longest
+blind travel) a map controller steps only with the settings whose direction a survey of
+plants far from the map's found independent of the plant (:mod:`controllers.blind`); a
+spot lost after it was seen is searched near the edge with the small moves of the whole map.
 """
 
 from __future__ import annotations
@@ -271,6 +275,7 @@ class StepScanController(Controller):
         self.last_measured: float | None = None if sat else meas
         self._offset_before = 0.0  # V, the scan offset a stepping interval ramped from
         self._excess = LOST_EXCESS  # of θ_lin: the lost spot's believed distance beyond the edge
+        self.seen = not sat  # a valid reading has placed the table in this episode
         self._blind = 0.0  # rad, believed travel of the moves made with the reading saturated
         self._blind_budget = LOST_SEARCH * self.ctx.angle_range  # rad
         if sat:  # beyond the detector from the start: dead-reckon to it
@@ -286,6 +291,11 @@ class StepScanController(Controller):
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
+
+    def blind_approach(self, saturated: bool) -> bool:
+        """Whether a move now is part of the way in from beyond the detector: the reading
+        is ``saturated`` and no valid one has placed the table yet in this episode."""
+        return saturated and not self.seen
 
     def _read(self, obs: np.ndarray, x: float) -> float:
         """The table angle [rad] behind an unsaturated x reading ``x``: with the y channel
@@ -324,8 +334,9 @@ class StepScanController(Controller):
         scan = -self.ctx.scan_gain * self._offset_before  # the offset ramped to 0
         if not saturated:
             rho = (measured - self.last_measured - scan) / mv.nominal
-            if rho > 0.0:  # a plant stepping backwards here is no gain to scale the map by
-                self.gains.update(d, mv.amplitude, rho)
+            # a move that went backwards is no gain to scale the map by: the amplitude is
+            # stalled (clipped to the gains' lowest ratio, under STALL), not used again
+            self.gains.update(d, mv.amplitude, max(rho, 0.0))
         elif measured * d > 0.0:
             lower = (d * self.ctx.angle_range - self.last_measured - scan) / mv.nominal
             if lower > float(self.gains.estimate(d, mv.amplitude)[0][0]):
@@ -344,10 +355,10 @@ class StepScanController(Controller):
         moved = math.copysign(self.ctx.angle_range, measured) - self.last_measured - scan
         return measured * d < 0.0 and moved * d < 0.0
 
-    def search_move(self, direction: int) -> Move | None:
+    def search_move(self, direction: int, saturated: bool = False) -> Move | None:
         """The safety monitor's step towards the target (``direction`` ±1) when no planned
-        move fits but the table must move: the reading is saturated (the spot is lost), or
-        the error lies beyond the scan's reach. Default: None (the subclass has no map)."""
+        move fits but the table must move: the reading is ``saturated`` (the spot is lost),
+        or the error lies beyond the scan's reach. Default: None (the subclass has no map)."""
         return None
 
     @abc.abstractmethod
@@ -378,6 +389,7 @@ class StepScanController(Controller):
         else:  # a valid reading: a later loss gets the lost spot's budget
             self._blind, self._blind_budget = 0.0, LOST_SEARCH * lim
             self._excess = LOST_EXCESS
+            self.seen = True
         if self.mode == "scan":
             err = self.target - meas
             # leave the scan when the error leaves its range, or when the offset is saturated
@@ -396,7 +408,7 @@ class StepScanController(Controller):
                 return self._unwind()
             move = self.choose_move(remaining, meas, sat)
             if move is None and (sat or abs(remaining) > self.scan_exit * self.ctx.scan_range):
-                move = self.search_move(1 if remaining > 0 else -1)  # the safety monitor
+                move = self.search_move(1 if remaining > 0 else -1, sat)  # the safety monitor
         if move is None:
             self.mode = "scan"
             self.pid.reset(self.offset)

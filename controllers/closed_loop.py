@@ -69,9 +69,13 @@ class ClosedLoopStepController(StepScanController):
             from_rest=self.last_move is None,
             gains=self.gains,
             amplitude_limit=self.ctx.input_limit - abs(self.offset),
+            blind=self.blind_approach(saturated),
         )
 
-    def search_move(self, direction: int) -> Move | None:
+    def search_move(self, direction: int, saturated: bool = False) -> Move | None:
         return self.planner.smallest(
-            direction, gains=self.gains, amplitude_limit=self.ctx.input_limit - abs(self.offset)
+            direction,
+            gains=self.gains,
+            amplitude_limit=self.ctx.input_limit - abs(self.offset),
+            blind=self.blind_approach(saturated),
         )

@@ -15,7 +15,8 @@ the detector the lab's dead-reckoned start (:class:`~controllers.lab.LabBrief`) 
 the map scaled by the step gains its stepping intervals measured so far
 (:class:`~controllers.step_gain.StepGains`: per direction and amplitude; before any
 measurement its moves are small enough for a plant stepping 4× the map), and ignores
-the detector while stepping (its angle is dead-reckoned); the scan PID then finishes on
+the detector while stepping (its angle is dead-reckoned, unless a valid reading shows the
+table inside the detector while the estimate has it beyond); the scan PID then finishes on
 the detector. Should the residual still exceed the scan range, it re-plans from the
 reading with what it has learned, at most ``max_replans`` times. A saturated reading
 with no planned move left starts the safety monitor's search back
@@ -29,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
+from .blind import BlindSettings
 from .lab import LabBrief
 from .step_gain import StepGains
 from .step_map import StepMap
@@ -48,6 +50,9 @@ class MapPlanner:
             most sensitive to the plant (at 1 V the nominal plant steps under 1 nm per period
             at 500 Hz and 2 kHz: ``experiments/step_gain_survey.py``), and another plant's
             step there has no bounded ratio to the map's, so no plan relies on it.
+        blind_settings: the survey of settings whose direction does not depend on the
+            plant (default: the shipped one, :mod:`controllers.blind`); with none robust in
+            a direction a blind plan there finds no move.
     """
 
     def __init__(
@@ -59,6 +64,7 @@ class MapPlanner:
         k: float = 1.0,
         min_step: float = 1e-6,
         min_amplitude: float = 2.0,
+        blind_settings: BlindSettings | None = None,
     ) -> None:
         if abs(step_map.control_interval - ctx.control_interval) > 1e-12:
             raise ValueError(
@@ -81,6 +87,9 @@ class MapPlanner:
         self.moves = {d: np.array(v) for d, v in moves.items()}
         if any(v.size == 0 for v in self.moves.values()):
             raise ValueError("step_map: no usable step in one of the directions")
+        survey = BlindSettings.load() if blind_settings is None else blind_settings
+        # the moves a blind interval may make (robust direction; controllers.blind)
+        self.robust = {d: survey.robust(v[:, 0], v[:, 1]) for d, v in self.moves.items()}
 
     def plan(
         self,
@@ -90,6 +99,7 @@ class MapPlanner:
         from_rest: bool,
         gains: StepGains | None = None,
         amplitude_limit: float = np.inf,
+        blind: bool = False,
     ) -> Move | None:
         """The largest move towards ``remaining`` [rad] that does not pass the target, or
         None when |remaining| ≤ ``tolerance`` [rad] (the scan finishes) or no move fits.
@@ -97,13 +107,14 @@ class MapPlanner:
         ``gains``, when given, scales each amplitude's map displacement by its own
         estimate, no move may pass the target at its upper bound, and stalled amplitudes
         are not used (:class:`~controllers.step_gain.StepGains`); without it, the map as
-        it is."""
+        it is. ``blind`` (the reading saturated) restricts the moves to the settings whose
+        direction does not depend on the plant (:mod:`controllers.blind`)."""
         if abs(remaining) <= tolerance:
             return None
         d = 1 if remaining > 0 else -1
         mv = self.moves[d]
         nominal = np.abs(mv[:, 3] if from_rest else mv[:, 2])
-        usable = np.abs(mv[:, 0]) <= amplitude_limit
+        usable = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
         if gains is not None:
             g, upper = gains.estimate(d, mv[:, 0])
             usable &= ~gains.stalled(d, mv[:, 0])
@@ -119,13 +130,19 @@ class MapPlanner:
         return self._move(i, d, float(disp[i]), float(nominal[i]))
 
     def smallest(
-        self, direction: int, *, gains: StepGains | None = None, amplitude_limit: float = np.inf
+        self,
+        direction: int,
+        *,
+        gains: StepGains | None = None,
+        amplitude_limit: float = np.inf,
+        blind: bool = False,
     ) -> Move | None:
         """The move of least map displacement from rest in ``direction`` (±1) within the
-        amplitude limit: the safety monitor's search step (None if none fits)."""
+        amplitude limit (``blind``: among the robust settings, as :meth:`plan`): the safety
+        monitor's search step (None if none fits)."""
         d = 1 if direction > 0 else -1
         mv = self.moves[d]
-        ok = np.abs(mv[:, 0]) <= amplitude_limit
+        ok = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
         if gains is not None and (ok & ~gains.stalled(d, mv[:, 0])).any():
             ok &= ~gains.stalled(d, mv[:, 0])  # skip amplitudes that barely step here
         if not ok.any():
@@ -167,6 +184,14 @@ class FeedForwardController(StepScanController):
         super().reset(obs, brief)
         self.plans = 0  # stepping sequences started (the first plan + re-plans)
 
+    def observe(self, measured: float, saturated: bool) -> None:
+        """Dead reckoning while stepping, except that a valid reading contradicting it — the
+        estimate beyond the detector, the reading inside — replaces it (the spot reached
+        early on a plant stepping more than the map)."""
+        super().observe(measured, saturated)
+        if not saturated and abs(self.estimate) > self.ctx.angle_range:
+            self.estimate = measured
+
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
         new_sequence = self.last_move is None
         if new_sequence and self.plans > self.max_replans:
@@ -177,12 +202,16 @@ class FeedForwardController(StepScanController):
             from_rest=new_sequence,
             gains=self.gains,
             amplitude_limit=self.ctx.input_limit - abs(self.offset),
+            blind=self.blind_approach(saturated),
         )
         if move is not None and new_sequence:
             self.plans += 1
         return move
 
-    def search_move(self, direction: int) -> Move | None:
+    def search_move(self, direction: int, saturated: bool = False) -> Move | None:
         return self.planner.smallest(
-            direction, gains=self.gains, amplitude_limit=self.ctx.input_limit - abs(self.offset)
+            direction,
+            gains=self.gains,
+            amplitude_limit=self.ctx.input_limit - abs(self.offset),
+            blind=self.blind_approach(saturated),
         )

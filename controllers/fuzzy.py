@@ -188,7 +188,7 @@ class FuzzyStepController(StepScanController):
         g = float(self.gains.estimate(d, amp)[0][0])
         return Move(d * amp, f, 0.9, 1.0, nominal * g, nominal)
 
-    def search_move(self, direction: int) -> Move | None:
+    def search_move(self, direction: int, saturated: bool = False) -> Move | None:
         return self._move(1 if direction > 0 else -1)
 
     def steps(self, error: float, change: float) -> float:

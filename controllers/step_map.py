@@ -30,7 +30,7 @@ import numpy as np
 from turntable_env.envs.config import EnvConfig
 from turntable_env.envs.core import TurntableTask
 
-__all__ = ["DEFAULT_PATH", "StepMap", "sweep_step_map"]
+__all__ = ["DEFAULT_PATH", "StepMap", "read_table", "sweep_step_map"]
 
 DEFAULT_PATH = Path(__file__).parent / "data" / "step_map.csv"
 COLUMNS = (
@@ -49,6 +49,37 @@ FREQUENCIES = (100.0, 200.0, 500.0, 1000.0, 2000.0)  # Hz (whole periods per 10 
 RAMP_RATIOS = (0.9, 0.95, 0.99)
 SLEW_ADAPTATIONS = (0.0, 1.0)
 
+
+
+def read_table(path: Path, columns: tuple[str, ...]) -> tuple[dict[str, str], list[list[str]]]:
+    """A CSV file with ``# key: value`` metadata lines and the header ``columns``: (the
+    metadata, the rows as their cells followed by their line number as text). A wrong
+    header, a row of another length, or no rows raises ValueError naming file and line."""
+    meta: dict[str, str] = {}
+    rows: list[list[str]] = []
+    header: list[str] | None = None
+    with path.open(encoding="utf-8") as fh:
+        for ln, line in enumerate(fh, start=1):
+            text = line.strip()
+            if not text:
+                continue
+            if text.startswith("#"):
+                key, sep, val = text[1:].partition(":")
+                if sep:
+                    meta[key.strip()] = val.strip()
+                continue
+            cells = next(csv.reader([text]))
+            if header is None:
+                if tuple(cells) != columns:
+                    raise ValueError(f"{path}:{ln}: header {cells} != {list(columns)}")
+                header = cells
+                continue
+            if len(cells) != len(columns):
+                raise ValueError(f"{path}:{ln}: {len(cells)} cells, expected {len(columns)}")
+            rows.append([*cells, str(ln)])
+    if header is None or not rows:
+        raise ValueError(f"{path}: no header or no rows")
+    return meta, rows
 
 @dataclass(frozen=True, eq=False)
 class StepMap:
@@ -139,30 +170,7 @@ class StepMap:
     def load(cls, path: str | Path = DEFAULT_PATH) -> StepMap:
         """Read and validate a map file; any defect raises ValueError naming file and line."""
         p = Path(path)
-        meta: dict[str, str] = {}
-        rows: list[list[str]] = []
-        header: list[str] | None = None
-        with p.open(encoding="utf-8") as fh:
-            for ln, line in enumerate(fh, start=1):
-                text = line.strip()
-                if not text:
-                    continue
-                if text.startswith("#"):
-                    key, sep, val = text[1:].partition(":")
-                    if sep:
-                        meta[key.strip()] = val.strip()
-                    continue
-                cells = next(csv.reader([text]))
-                if header is None:
-                    if tuple(cells) != COLUMNS:
-                        raise ValueError(f"{p}:{ln}: header {cells} != {list(COLUMNS)}")
-                    header = cells
-                    continue
-                if len(cells) != len(COLUMNS):
-                    raise ValueError(f"{p}:{ln}: {len(cells)} cells, expected {len(COLUMNS)}")
-                rows.append([*cells, str(ln)])
-        if header is None or not rows:
-            raise ValueError(f"{p}: no header or no rows")
+        meta, rows = read_table(p, COLUMNS)
         cols: dict[str, list[float]] = {c: [] for c in COLUMNS[1:]}
         axes = []
         for r in rows:

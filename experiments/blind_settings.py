@@ -1,0 +1,153 @@
+"""Which stepping frequencies keep their direction across a plant family (issue 32).
+
+A move made blind (the reading saturated: the table beyond the detector) cannot be
+checked: a setting that steps backwards on the plant at hand runs the table away until the
+blind budget is spent. So a blind move should use only settings whose *direction* does not
+depend on the plant. This survey measures that, per frequency of the map planner's family
+(a = 0.9, k = 1, amplitudes 2–9.5 V, both directions): over a grid of plants whose friction
+and preload span ×0.5–2 and whose amplifier (slew per input volt and current limit) spans
+×0.5–1.5 around Table D.1 — the scatter a lab should expect between units, wider than the
+agents' training ranges and not drawn from any benchmark plant set — the share of
+(plant, amplitude, direction) whose steady step per period goes against the commanded
+direction, and the worst step over the nominal map's.
+
+    python experiments/blind_settings.py [--axis B] [--out controllers/data/blind_settings.csv]
+
+It writes the worst ratio and the backward share per setting to the file the map
+controllers read (:mod:`controllers.blind`): blind, they step only with settings whose
+worst ratio is at least −``BLIND_TOLERANCE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import time
+
+import numpy as np
+
+from controllers.blind import BLIND_PATH, BLIND_TOLERANCE, BlindSettings
+from controllers.step_map import StepMap
+from turntable_env.envs.config import EnvConfig
+from turntable_env.envs.core import TurntableTask
+from turntable_env.plant import Plant
+
+AMPLITUDES = tuple(float(a) for a in np.arange(2.0, 10.01, 0.5))  # V, the planner's (≥ 2 V)
+FRICTION = (0.5, 0.7, 1.0, 1.4, 2.0)  # × μ_s and μ_c
+PRELOAD = (0.5, 0.7, 1.0, 1.4, 2.0)  # × F_N
+AMPLIFIER = (0.5, 0.7, 1.0, 1.5)  # × slew per input volt and current limit
+INTERVALS = 4  # control intervals per case; the first (from rest) is not counted
+RANDOM_PLANTS = 60  # plants drawn log-uniformly inside the grid's box, besides the grid
+MARGIN = 0.1  # a robust setting's worst step is at least this share of the map's
+
+
+def family() -> list[tuple[Plant, dict[str, float]]]:
+    """The survey's plants: every combination of the factor grids, and ``RANDOM_PLANTS``
+    drawn log-uniformly inside their box (the step is not monotone in the factors)."""
+    base = Plant("real")
+    grid = [
+        {"friction": fr, "preload": pl, "amplifier": am}
+        for fr, pl, am in itertools.product(FRICTION, PRELOAD, AMPLIFIER)
+    ]
+    rng = np.random.default_rng(2026)
+    box = {"friction": FRICTION, "preload": PRELOAD, "amplifier": AMPLIFIER}
+    drawn = [
+        {k: float(np.exp(rng.uniform(np.log(v[0]), np.log(v[-1])))) for k, v in box.items()}
+        for _ in range(RANDOM_PLANTS)
+    ]
+    return [(base.replace(factors=f), f) for f in grid + drawn]
+
+
+def steady_steps(frequencies: np.ndarray, axis: str) -> tuple[np.ndarray, list[dict]]:
+    """(plants, frequencies, amplitudes, 2 directions) steady step per period [rad], noise
+    off, from rest at 0; and the plants' factors."""
+    plants = family()
+    cfg = EnvConfig(plant=Plant("real"), axis=axis, noise=False)
+    cases = [(d * a, f) for f in frequencies for a in AMPLITUDES for d in (1.0, -1.0)]
+    out = np.empty((len(plants), len(cases)))
+    rng = np.random.default_rng(0)
+    for i, (plant, _f) in enumerate(plants):
+        task = TurntableTask(cfg, len(cases))
+        for b in range(len(cases)):
+            task.reset_row(b, rng, {"start_angle": 0.0, "target_angle": 0.0}, plant=plant)
+        acts = np.array([cfg.scaling.encode(a, f, 0.9, 1.0) for a, f in cases])
+        angles = [task.angle.copy()]
+        for _ in range(INTERVALS):
+            task.step(acts, rng)
+            angles.append(task.angle.copy())
+        disp = np.diff(np.array(angles), axis=0)[1:].mean(axis=0)  # rad per interval
+        per = np.array([f * cfg.control_interval for _a, f in cases])
+        out[i] = disp / per
+    shape = (len(plants), len(frequencies), len(AMPLITUDES), 2)
+    return out.reshape(shape), [f for _p, f in plants]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--axis", default="B", choices=("A", "B", "C"))
+    ap.add_argument("--out", default=str(BLIND_PATH), help="the table's file")
+    args = ap.parse_args()
+    smap = StepMap.load()
+    freqs = np.unique(smap.frequency)
+    t0 = time.perf_counter()
+    steps, factors = steady_steps(freqs, args.axis)
+    sign = np.array([1.0, -1.0])  # the commanded direction of the last axis
+    nominal = np.array(
+        [[[smap.step_size(args.axis, d * a, f, 0.9, 1.0) for d in sign] for a in AMPLITUDES]
+         for f in freqs]
+    )  # fmt: skip
+    along = steps * sign  # > 0: the commanded direction
+    print(
+        f"{len(factors)} plants (friction ×{FRICTION[0]}–{FRICTION[-1]}, preload "
+        f"×{PRELOAD[0]}–{PRELOAD[-1]}, amplifier ×{AMPLIFIER[0]}–{AMPLIFIER[-1]}), axis "
+        f"{args.axis}, a = 0.9, k = 1, amplitudes {', '.join(f'{a:g}' for a in AMPLITUDES)} V, "
+        f"both directions; {time.perf_counter() - t0:.0f} s"
+    )
+    ratio = along / (nominal * sign)  # the plant's step over the map's, > 0: forwards
+    worst = ratio.min(axis=(0, 3))  # (frequencies, amplitudes)
+    print("worst step over the map's, over plants and both directions (rows: amplitude [V])")
+    print("   V | " + " | ".join(f"{f:6.0f} Hz" for f in freqs))
+    for i, a in enumerate(AMPLITUDES):
+        print(f"{a:4.1f} | " + " | ".join(f"{worst[j, i]:9.2f}" for j in range(freqs.size)))
+    back = along < 0.0
+    print(
+        "share of (plant, amplitude, direction) stepping backwards: "
+        + ", ".join(f"{f:.0f} Hz {back[:, j].mean():.3f}" for j, f in enumerate(freqs))
+    )
+    robust = [(float(freqs[j]), AMPLITUDES[i]) for j in range(freqs.size)
+              for i in range(len(AMPLITUDES)) if worst[j, i] >= MARGIN]  # fmt: skip
+    print(
+        f"robust settings (worst step ≥ {MARGIN:g} of the map's): "
+        + (", ".join(f"{a:g} V at {f:.0f} Hz" for f, a in robust) or "none")
+    )
+    blind = [(float(freqs[j]), AMPLITUDES[i]) for j in range(freqs.size)
+             for i in range(len(AMPLITUDES)) if worst[j, i] >= -BLIND_TOLERANCE]  # fmt: skip
+    print(
+        f"blind settings (worst ≥ −{BLIND_TOLERANCE:g}): "
+        + ", ".join(f"{a:g} V at {f:.0f} Hz" for f, a in blind)
+    )
+    table = {(float(f), a): float(worst[j, i]) for j, f in enumerate(freqs)
+             for i, a in enumerate(AMPLITUDES)}  # fmt: skip
+    shares = {(float(f), a): float(back[:, j, i].mean()) for j, f in enumerate(freqs)
+              for i, a in enumerate(AMPLITUDES)}  # fmt: skip
+    path = BlindSettings(table).save(
+        args.out,
+        shares,
+        (
+            f"worst steady step over the map's, over {len(factors)} plants and both "
+            f"directions (axis {args.axis}, a = 0.9, k = 1)\nfriction and preload "
+            f"x{FRICTION[0]}-{FRICTION[-1]}, amplifier x{AMPLIFIER[0]}-{AMPLIFIER[-1]} "
+            f"(grid and {RANDOM_PLANTS} drawn)\n"
+            "regenerate: python experiments/blind_settings.py"
+        ),
+    )
+    print(f"written to {path}")
+    j, i = np.unravel_index(int(np.argmax(worst)), worst.shape)
+    print(
+        f"most robust: {AMPLITUDES[i]:g} V at {freqs[j]:.0f} Hz, worst {worst[j, i]:.2f} "
+        "of the map's step"
+    )
+
+
+if __name__ == "__main__":
+    main()
