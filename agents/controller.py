@@ -4,7 +4,10 @@
 ``config.yml``); :class:`AgentController` applies the agent's feature map, the saved
 VecNormalize observation statistics, the deterministic policy and the action map to the
 env's raw observation — the same chain as in training, so ``turntable benchmark``
-judges the agent like any other controller.
+judges the agent like any other controller. Its actions pass the lab's blind-travel
+shield (:class:`~controllers.shield.BlindShield`) by default: while the detector cannot see
+the table, stepping only with direction-robust settings and within a travel budget; with a
+valid reading the policy's actions pass unchanged (``shield=False``: the bare policy).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import yaml
 
 from controllers.base import Controller, ControllerContext
 from controllers.lab import LabBrief
+from controllers.shield import BlindShield
 
 from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig, make_interface
 from .train import _algos
@@ -64,15 +68,30 @@ class AgentController(Controller):
         ctx: plant context of the env it will act on.
         run: the agent's run directory.
         name: controller name (default: the algorithm).
+        shield: filter the actions through the blind-travel shield (module docstring).
     """
 
-    def __init__(self, ctx: ControllerContext, run: str | Path, name: str | None = None) -> None:
+    def __init__(
+        self,
+        ctx: ControllerContext,
+        run: str | Path,
+        name: str | None = None,
+        *,
+        shield: bool = True,
+    ) -> None:
         self.model, self.vecnorm, cfg = load_agent(run)
         self.name = name or cfg["run"]["algo"]
         self.interface = make_interface(ctx, interface_of(cfg))
+        self.shield = BlindShield(ctx) if shield else None
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
-        pass  # the policy is memoryless: everything it uses is in the observation
+        # the policy is memoryless (everything it uses is in the observation); the shield
+        # takes the brief's dead-reckoned start for its blind budget
+        if self.shield is not None:
+            self.shield.reset(obs, brief)
+
+    def _shielded(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
+        return action if self.shield is None else self.shield.filter(obs, action)
 
     def policy_action(self, obs: np.ndarray) -> np.ndarray:
         """The agent's own action (3,) for an env observation."""
@@ -81,7 +100,7 @@ class AgentController(Controller):
         return np.asarray(action[0])
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.interface.env_action(self.policy_action(obs), obs)
+        return self._shielded(obs, self.interface.env_action(self.policy_action(obs), obs))
 
     @classmethod
     def act_many(cls, controllers: Sequence[Controller], obs: np.ndarray) -> np.ndarray:
@@ -93,7 +112,7 @@ class AgentController(Controller):
         actions, _ = first.model.predict(first.vecnorm.normalize_obs(feats), deterministic=True)
         return np.stack(
             [
-                c.interface.env_action(a, o)
+                c._shielded(o, c.interface.env_action(a, o))
                 for c, a, o in zip(controllers, actions, obs, strict=True)
             ]
         )
