@@ -18,6 +18,7 @@ the plant sets of :mod:`.plant_sets` with the metrics of :mod:`.metrics`.
 """
 
 from .base import Controller, ControllerContext, Move, StepScanController
+from .blind import BlindSettings
 from .closed_loop import ClosedLoopStepController
 from .episode import EpisodeResult, run_episode
 from .feedforward import FeedForwardController, MapPlanner
@@ -25,9 +26,12 @@ from .fuzzy import FuzzyStepController
 from .lab import LabBrief
 from .registry import available, make, register
 from .scan_only import ScanOnlyController
+from .shield import BlindShield
 from .step_map import StepMap
 
 __all__ = [
+    "BlindSettings",
+    "BlindShield",
     "ClosedLoopStepController",
     "Controller",
     "ControllerContext",
