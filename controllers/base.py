@@ -63,7 +63,7 @@ from .misalignment import AxisMisalignment
 from .scan_pid import PIDGains, ScanPID, design_scan_pid
 from .step_gain import StepGains
 
-__all__ = ["Controller", "ControllerContext", "Move", "StepScanController"]
+__all__ = ["Controller", "ControllerContext", "Move", "StepScanController", "blind_budget"]
 
 SATURATION_FRACTION = 0.995  # of θ_lin: readings beyond it count as saturated
 UNWIND_FRACTION = 0.5  # of u_max: a larger scan offset is ramped to 0 before stepping
@@ -78,6 +78,14 @@ HOLD_SIGMAS = 3.0
 NOISE_WINDOW = 12  # scan intervals whose error changes estimate the reading's noise
 MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
 
+
+
+def blind_budget(estimate: float, error: float, angle_range: float) -> float:
+    """The believed travel [rad] allowed with the reading saturated from a dead-reckoned
+    start ``estimate`` [rad] with relative ``error``: ``BLIND_FACTOR`` × (1 + error) × its
+    distance to the detector's edge ``angle_range`` [rad] (at least one detector range)."""
+    dist = max(abs(estimate) - angle_range, angle_range)
+    return BLIND_FACTOR * (1.0 + error) * dist
 
 @dataclass(frozen=True)
 class ControllerContext:
@@ -279,8 +287,8 @@ class StepScanController(Controller):
         self._blind = 0.0  # rad, believed travel of the moves made with the reading saturated
         self._blind_budget = LOST_SEARCH * self.ctx.angle_range  # rad
         if sat:  # beyond the detector from the start: dead-reckon to it
-            dist = max(abs(self.estimate) - self.ctx.angle_range, self.ctx.angle_range)
-            self._blind_budget = BLIND_FACTOR * (1.0 + brief.start_error) * dist
+            lim = self.ctx.angle_range
+            self._blind_budget = blind_budget(self.estimate, brief.start_error, lim)
         if self.gains is not None:
             self.gains.reset()
         self.pid.reset(0.0)

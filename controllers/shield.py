@@ -36,7 +36,7 @@ import numpy as np
 
 from turntable_env.envs.config import OBS
 
-from .base import BLIND_FACTOR, LOST_SEARCH, SATURATION_FRACTION, ControllerContext
+from .base import LOST_SEARCH, SATURATION_FRACTION, ControllerContext, blind_budget
 from .blind import BlindSettings
 from .lab import LabBrief
 from .step_map import StepMap
@@ -93,15 +93,11 @@ class BlindShield:
         self.budget = LOST_SEARCH * lim
         est = None if brief is None else brief.start_estimate_rad
         if saturated and est is not None:
-            dist = max(abs(est) - lim, lim)
-            self.budget = BLIND_FACTOR * (1.0 + brief.start_error) * dist
+            self.budget = blind_budget(est, brief.start_error, lim)
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
-        self.reset_state(saturated=self._saturated(obs), brief=brief)
-
-    def _saturated(self, obs: np.ndarray) -> bool:
         meas = float(self.ctx.lab_observation(obs)[OBS.measured_angle_rad])
-        return abs(meas) >= self._sat
+        self.reset_state(saturated=abs(meas) >= self._sat, brief=brief)
 
     def _asked(self, d: int, amplitude: float, frequency: float) -> float:
         """Map travel per interval [rad] of |amplitude| [V] at ``frequency`` [Hz]: the
@@ -112,7 +108,9 @@ class BlindShield:
 
     def filter(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
         """The env action to apply for the controller's ``action`` answering ``obs``."""
-        if not self._saturated(obs):
+        lab = self.ctx.lab_observation(obs)
+        meas = float(lab[OBS.measured_angle_rad])
+        if abs(meas) < self._sat:
             self.seen, self.travel = True, 0.0
             self.budget = LOST_SEARCH * self.ctx.angle_range
             return action
@@ -123,8 +121,7 @@ class BlindShield:
         if self.travel >= self.budget:  # the budget is spent: idle, keep the offset
             return sc.encode(0.0, 100.0, 0.9, 0.0, offset)
         d = 1 if amp > 0 else -1
-        lab = self.ctx.lab_observation(obs)
-        side = 1 if float(lab[OBS.measured_angle_rad]) > 0 else -1  # the table's side
+        side = 1 if meas > 0 else -1  # the table's side of the detector
         target = float(lab[OBS.target_angle_rad])
         if d == side and abs(target) < self.ctx.angle_range:  # away from a target inside
             return sc.encode(0.0, 100.0, 0.9, 0.0, offset)
