@@ -38,6 +38,7 @@ from turntable_env.envs.config import OBS
 
 from .base import LOST_SEARCH, SATURATION_FRACTION, ControllerContext, blind_budget
 from .blind import BlindSettings
+from .feedforward import MapPlanner
 from .lab import LabBrief
 from .step_map import StepMap
 
@@ -60,27 +61,19 @@ class BlindShield:
         blind_settings: BlindSettings | None = None,
     ) -> None:
         self.ctx = ctx
-        smap = step_map if step_map is not None else StepMap.load()
-        survey = blind_settings if blind_settings is not None else BlindSettings.load()
-        self.freqs = np.unique(smap.frequency)  # Hz, the map's
-        # per direction: (amplitude [V], frequency [Hz], map travel per interval [rad])
-        # of the blind set, and the map's step per period on an (amplitude, frequency) grid
+        self.map = step_map if step_map is not None else StepMap.load()
+        self.freqs = np.unique(self.map.frequency)  # Hz, the map's
+        amps = np.abs(self.map.amplitude)
+        self.amp_range = (float(amps.min()), float(amps.max()))  # V, the map's
+        # the blind set as the map planner has it: per direction, (amplitude [V], frequency
+        # [Hz], map travel per interval [rad]) of its direction-robust moves
+        planner = MapPlanner(self.map, ctx, blind_settings=blind_settings)
         self.blind: dict[int, np.ndarray] = {}
-        self.per_period: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        for d in (1, -1):
-            rows, grid = [], []
-            for f in self.freqs:
-                idx = smap.family(ctx.axis, float(f), 0.9, 1.0, d)
-                amps = np.abs(smap.amplitude[idx])
-                steps = np.abs(smap.step[idx])
-                grid.append((amps, steps))
-                m = round(f * ctx.control_interval)
-                ok = survey.robust(amps, np.full(amps.shape, f)) & (amps >= 2.0 - 1e-9)
-                rows += [(a, float(f), m * s) for a, s in zip(amps[ok], steps[ok], strict=True)]
-            if not rows:
+        for d, mv in planner.moves.items():
+            rows = mv[planner.robust[d]]
+            if not len(rows):
                 raise ValueError(f"blind_settings: no robust setting in direction {d:+d}")
-            self.blind[d] = np.array(rows)
-            self.per_period[d] = grid  # type: ignore[assignment]
+            self.blind[d] = np.column_stack([np.abs(rows[:, 0]), rows[:, 1], np.abs(rows[:, 2])])
         self._sat = SATURATION_FRACTION * ctx.angle_range
         self.reset_state(saturated=False, brief=None)
 
@@ -102,9 +95,10 @@ class BlindShield:
     def _asked(self, d: int, amplitude: float, frequency: float) -> float:
         """Map travel per interval [rad] of |amplitude| [V] at ``frequency`` [Hz]: the
         step per period at the nearest map frequency, × the periods of one interval."""
-        j = int(np.argmin(np.abs(np.log(self.freqs / frequency))))
-        amps, steps = self.per_period[d][j]
-        return float(np.interp(abs(amplitude), amps, steps)) * frequency * self.ctx.control_interval
+        f_map = float(self.freqs[np.argmin(np.abs(np.log(self.freqs / frequency)))])
+        amp = float(np.clip(abs(amplitude), *self.amp_range))
+        step = self.map.step_size(self.ctx.axis, d * amp, f_map, 0.9, 1.0)  # rad per period
+        return abs(step) * frequency * self.ctx.control_interval
 
     def filter(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
         """The env action to apply for the controller's ``action`` answering ``obs``."""

@@ -41,6 +41,20 @@ RANDOM_PLANTS = 60  # plants drawn log-uniformly inside the grid's box, besides 
 MARGIN = 0.1  # a robust setting's worst step is at least this share of the map's
 
 
+def corners(fidelity: str) -> list[tuple[Plant, dict[str, float]]]:
+    """The factor box's eight corners on a plant of ``fidelity`` (``--check``)."""
+    base = Plant("real", fidelity=fidelity)
+    return [
+        (base.replace(factors=f), f)
+        for f in (
+            {"friction": fr, "preload": pl, "amplifier": am}
+            for fr, pl, am in itertools.product(
+                (FRICTION[0], FRICTION[-1]), (PRELOAD[0], PRELOAD[-1]),
+                (AMPLIFIER[0], AMPLIFIER[-1]))
+        )
+    ]  # fmt: skip
+
+
 def family() -> list[tuple[Plant, dict[str, float]]]:
     """The survey's plants: every combination of the factor grids, and ``RANDOM_PLANTS``
     drawn log-uniformly inside their box (the step is not monotone in the factors)."""
@@ -58,11 +72,12 @@ def family() -> list[tuple[Plant, dict[str, float]]]:
     return [(base.replace(factors=f), f) for f in grid + drawn]
 
 
-def steady_steps(frequencies: np.ndarray, axis: str) -> tuple[np.ndarray, list[dict]]:
+def steady_steps(
+    plants: list[tuple[Plant, dict[str, float]]], frequencies: np.ndarray, axis: str
+) -> tuple[np.ndarray, list[dict]]:
     """(plants, frequencies, amplitudes, 2 directions) steady step per period [rad], noise
-    off, from rest at 0; and the plants' factors."""
-    plants = family()
-    cfg = EnvConfig(plant=Plant("real"), axis=axis, noise=False)
+    off, from rest at 0, of ``plants`` (one fidelity); and the plants' factors."""
+    cfg = EnvConfig(plant=Plant("real", fidelity=plants[0][0].fidelity), axis=axis, noise=False)
     cases = [(d * a, f) for f in frequencies for a in AMPLITUDES for d in (1.0, -1.0)]
     out = np.empty((len(plants), len(cases)))
     rng = np.random.default_rng(0)
@@ -86,11 +101,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--axis", default="B", choices=("A", "B", "C"))
     ap.add_argument("--out", default=str(BLIND_PATH), help="the table's file")
+    ap.add_argument("--check", choices=("reduced", "full", "independent"), default=None,
+                    help="only step the box's eight corners on a plant of this fidelity and "
+                         "compare the shipped blind set with the other settings (no file "
+                         "written)")  # fmt: skip
     args = ap.parse_args()
     smap = StepMap.load()
     freqs = np.unique(smap.frequency)
     t0 = time.perf_counter()
-    steps, factors = steady_steps(freqs, args.axis)
+    plants = corners(args.check) if args.check else family()
+    steps, factors = steady_steps(plants, freqs, args.axis)
     sign = np.array([1.0, -1.0])  # the commanded direction of the last axis
     nominal = np.array(
         [[[smap.step_size(args.axis, d * a, f, 0.9, 1.0) for d in sign] for a in AMPLITUDES]
@@ -105,6 +125,9 @@ def main() -> None:
     )
     ratio = along / (nominal * sign)  # the plant's step over the map's, > 0: forwards
     worst = ratio.min(axis=(0, 3))  # (frequencies, amplitudes)
+    if args.check:
+        _check(worst, freqs, args.check)
+        return
     print("worst step over the map's, over plants and both directions (rows: amplitude [V])")
     print("   V | " + " | ".join(f"{f:6.0f} Hz" for f in freqs))
     for i, a in enumerate(AMPLITUDES):
@@ -147,6 +170,25 @@ def main() -> None:
         f"most robust: {AMPLITUDES[i]:g} V at {freqs[j]:.0f} Hz, worst {worst[j, i]:.2f} "
         "of the map's step"
     )
+
+
+def _check(worst: np.ndarray, freqs: np.ndarray, fidelity: str) -> None:
+    """Print the shipped blind set's worst step on the corners against the others'."""
+    survey = BlindSettings.load()
+    grid = [(j, i) for j in range(freqs.size) for i in range(len(AMPLITUDES))]
+    inside = [survey.robust(np.array([AMPLITUDES[i]]), np.array([freqs[j]]))[0] for j, i in grid]
+    for label, keep in (("blind set", True), ("other settings", False)):
+        pairs = zip(grid, inside, strict=True)
+        cells = [(worst[j, i], AMPLITUDES[i], freqs[j]) for (j, i), k in pairs if k == keep]
+        back = sum(w < 0.0 for w, _a, _f in cells)
+        w, a, f = min(cells)
+        print(
+            f"{label} on the {fidelity} corners: {len(cells)} settings, {back} step backwards "
+            f"on a corner; worst {w:.2f} of the map's step ({a:g} V at {f:.0f} Hz)"
+        )
+    for a in (6.0, 6.5):
+        j = int(np.flatnonzero(np.isclose(freqs, 1000.0))[0])
+        print(f"  {a:g} V at 1 kHz: worst {worst[j, AMPLITUDES.index(a)]:.2f}")
 
 
 if __name__ == "__main__":
