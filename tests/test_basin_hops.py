@@ -89,6 +89,20 @@ def test_two_failed_hops_end_the_search(landscape):
     assert runs["local"] == 2 * trace_fit.HOP_STARTS
 
 
+@pytest.mark.parametrize("min_hops", [3, 5, HOPS + 2])
+def test_a_refit_given_a_budget_hops_that_often_before_two_failures_end_it(landscape, min_hops):
+    """The current model's refit a further effect must beat hops at least as often as the
+    effect's joint refit did (the same budget): two failures end it only after
+    ``min_hops``, and never past ``hops``."""
+    problem, runs = landscape
+    start = _fit(CENTRE)
+    best, rows = trace_fit._basin_hops(problem, start, 1, 0, lambda _m: None,
+                                       min_hops=min_hops)  # fmt: skip
+    assert best.cost == start.cost
+    assert len(rows) == min(min_hops, HOPS) and not any(r["accepted"] for r in rows)
+    assert runs["local"] == len(rows) * trace_fit.HOP_STARTS
+
+
 def test_hops_with_effects_hold_them_in_the_cloud_and_fit_the_free_ones(monkeypatch):
     """With named effects (the joint refit of an effect round), the cloud moves the nominal
     factors only and is evaluated with the fit's effects at their values; the least squares
