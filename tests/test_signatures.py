@@ -355,3 +355,27 @@ def test_an_effect_the_trace_contradicts_is_not_named_by_its_signature(
         assert any("contradicts its signature" in m for m in said)
     else:
         assert fit.heldout_rms == heldout_with and "rejected" not in rnd["decision"]
+
+
+@pytest.mark.parametrize(
+    ("alpha", "std", "significant", "text"),
+    [
+        (-0.028, 0.054, False, "alpha 0.5 σ from neutral"),
+        (-0.155, 0.041, True, "alpha 3.8 σ from neutral"),
+        (0.03, math.inf, False, "alpha 0.0 σ from neutral"),  # no error estimate
+        (0.03, 0.0, True, "alpha inf σ from neutral"),  # moved, with a zero error
+        (0.0, 0.0, False, "alpha 0.0 σ from neutral"),  # at neutral
+        (0.03, math.nan, False, "alpha nan σ from neutral"),
+    ],
+)
+def test_significance_on_the_trace_counts_standard_errors_from_neutral(
+    alpha, std, significant, text
+):
+    """An effect is significant on the trace when a parameter lies more than 3 standard
+    errors from its neutral value; the report's text gives that distance."""
+    from turntable_env.calibration.trace_fit import LocalFit, _from_neutral, is_significant
+
+    fit = LocalFit(np.zeros(1), {"friction_asymmetry": {"alpha": alpha}}, np.ones(1),
+                   {"friction_asymmetry": {"alpha": std}}, 1.0, 1.0, 1.0, 1)  # fmt: skip
+    assert is_significant(fit, "friction_asymmetry") is significant
+    assert _from_neutral(fit, "friction_asymmetry") == text

@@ -720,25 +720,29 @@ def screen_effect(problem: TraceProblem, base: LocalFit, name: str) -> LocalFit:
     )  # fmt: skip
 
 
-def is_significant(fit: LocalFit, name: str, n_sigma: float = 3.0) -> bool:
-    """At least one of the effect's parameters lies n_sigma standard errors from neutral."""
+def _sigmas_from_neutral(fit: LocalFit, name: str) -> dict[str, float]:
+    """Each of the effect's parameters' distance from its neutral value in its standard
+    errors: 0 without an error estimate (inf), inf for a moved parameter with a zero
+    error, nan (never significant) for an undefined one."""
     neutral = CATALOGUE[name].neutral()
     std = fit.std_effects.get(name, {})
-    return any(
-        abs(fit.effects[name][k] - neutral[k]) > n_sigma * std.get(k, math.inf)
-        for k in fit.effects[name]
-    )
+    out = {}
+    for k, v in fit.effects[name].items():
+        d, s = abs(v - neutral[k]), std.get(k, math.inf)
+        out[k] = (math.inf if d > 0 else 0.0) if s == 0 else d / s  # nan stays nan
+    return out
+
+
+def is_significant(fit: LocalFit, name: str, n_sigma: float = 3.0) -> bool:
+    """At least one of the effect's parameters lies n_sigma standard errors from neutral."""
+    return any(d > n_sigma for d in _sigmas_from_neutral(fit, name).values())
 
 
 def _from_neutral(fit: LocalFit, name: str) -> str:
-    """The effect's parameters' distances from neutral in their standard errors, as text
-    ("alpha 0.5 σ from neutral")."""
-    neutral = CATALOGUE[name].neutral()
-    std = fit.std_effects.get(name, {})
-    return ", ".join(
-        f"{k} {abs(v - neutral[k]) / std.get(k, math.inf):.1f} σ from neutral"
-        for k, v in fit.effects[name].items()
-    )
+    """The effect's parameters' distances from neutral, as text ("alpha 0.5 σ from
+    neutral")."""
+    return ", ".join(f"{k} {d:.1f} σ from neutral"
+                     for k, d in _sigmas_from_neutral(fit, name).items())  # fmt: skip
 
 
 def consistent(problem: TraceProblem, fit: LocalFit, name: str) -> tuple[bool, str]:
