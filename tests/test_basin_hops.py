@@ -153,3 +153,24 @@ def test_report_shows_the_hops_of_an_effect_round():
     assert "| 0 | 0.5 | 21.16 | 21.07, 19.73 | yes | 21.4 |" in text[joint:current]
     assert "| 1 | 0.5 | 21.16 | 24.3 | no | 21.4 |" in text[joint:current]
     assert text[current:].count("| no |") == 1
+
+
+@pytest.mark.parametrize("rejected", [None, "held-out 3.22 against 3.19 nm without it"])
+def test_report_gives_the_named_effects_distance_from_neutral_on_the_trace(rejected):
+    """report.md's round line carries the decision's margin on the trace (each parameter's
+    distance from neutral in its standard errors), once: a rejection's text has it."""
+    from turntable_env.calibration.calibrate import _md_signatures
+
+    decision = {"named": "friction_asymmetry", "margin_nats": 234.9, "undecided": [],
+                **({"rejected": rejected} if rejected else {})}  # fmt: skip
+    rnd = {"round": 1, "decision": decision, "candidates": [], "hops": {},
+           "on_trace": "alpha 0.9 σ from neutral"}  # fmt: skip
+    line = next(t for t in _md_signatures({"lines": [], "rounds": [rnd]}, "nm")
+                if t.startswith("Round 1"))  # fmt: skip
+    if rejected:
+        assert line.startswith("Round 1: led by friction_asymmetry") and rejected in line
+        assert "on the trace alpha" not in line
+    else:
+        assert line == ("Round 1: named friction_asymmetry (lead 234.9 nats); on the trace "
+                        "alpha 0.9 σ from neutral.")  # fmt: skip
+

@@ -201,6 +201,8 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
         )
         margin = dec["margin_nats"]
         lead = f" (lead {margin:.1f} nats)" if dec["named"] and margin != float("inf") else ""
+        if dec["named"] and rnd.get("on_trace") and not dec.get("rejected"):
+            lead += f"; on the trace {rnd['on_trace']}"
         if dec.get("rejected"):
             lead += f", then not named: {dec['rejected']}"
         lines += [
