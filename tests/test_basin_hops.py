@@ -173,4 +173,3 @@ def test_report_gives_the_named_effects_distance_from_neutral_on_the_trace(rejec
     else:
         assert line == ("Round 1: named friction_asymmetry (lead 234.9 nats); on the trace "
                         "alpha 0.9 σ from neutral.")  # fmt: skip
-

@@ -1071,9 +1071,9 @@ def _by_signature(
     is named; for an effect within 3 σ of neutral "the model without it" is the current
     model refitted with the same budget, hopped at least as often as the joint refit, in
     the first round as in later ones (the better of it and the current model). A further
-    effect (after the first round) must also beat the current model refitted
-    with the same budget by ``min_improvement`` on held-out data: once the
-    dominant effect is in, what its imperfect form leaves can show in another effect's
+    effect (after the first round) must also beat the current model refitted with the
+    same budget by ``min_improvement`` on held-out data: once the dominant effect is in,
+    what its imperfect form leaves can show in another effect's
     features without that effect predicting the trace any better (the independent plants'
     creep, a spectrum of time constants, left a scan loop that hysteresis took at 22–57
     nats with the held-out error unchanged). With ``plan.hops`` > 0 the joint refit is moved
