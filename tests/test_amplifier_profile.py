@@ -1,0 +1,58 @@
+"""``experiments/amplifier_profile.py`` (issue 31): the base it calibrates on is the
+``real`` base with only its amplifier changed — the measured 1 V slew (§4.1.2) × s, so the
+first-order settling time τ ÷ s, and the current limit × c, so the rate limit on a
+quadrant's capacitance (Eq. 2.2) × c where the current bounds it — and its command line
+refuses bad scales and files with exit 2 before any fit."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+from conftest import experiment
+
+from turntable_env.plant import Plant
+from turntable_env.plant.models import output_capacitance
+
+
+@pytest.fixture(scope="module")
+def script():
+    return experiment("amplifier_profile")
+
+
+@pytest.mark.parametrize(("slew", "current"), [(0.2, 1.0), (0.3, 0.1), (1.5, 2.0)])
+def test_only_the_amplifier_is_scaled(script, slew, current):
+    ref = Plant("real", fidelity="reduced").params
+    ps = script.base_with_amplifier(slew, current).params
+    amp, ref_amp = ps.amplifier, ref.amplifier
+    assert amp.slew_per_input_volt == pytest.approx(slew * ref_amp.slew_per_input_volt)
+    assert ps.amplifier.current_limit == pytest.approx(current * ref.amplifier.current_limit)
+    c = output_capacitance(ref, "B")
+    want = min(ref.amplifier.slew_rate_max, current * ref.amplifier.current_limit / c)
+    assert ps.amplifier.rate_limit(c) == pytest.approx(want)
+    if ps.amplifier.fast_fraction == 0.0:  # first order: τ ∝ 1/slew below the rate limit
+        assert ps.amplifier.tau == pytest.approx(ref.amplifier.tau / slew, rel=0.02)
+    assert replace(ps, amplifier=ref.amplifier) == ref
+
+
+@pytest.mark.parametrize(
+    ("argv", "names"),
+    [
+        (["missing.csv"], "missing.csv"),
+        (["{csv}"], "bad.csv:1"),  # the file's line
+        (["{csv}", "--slew", "1,x"], "--slew"),
+        (["{csv}", "--slew", "0"], "--slew"),
+        (["{csv}", "--current", "0.5,0.2"], "--current"),
+        (["{csv}", "--workers", "0"], "--workers"),
+    ],
+)
+def test_bad_input_exits_2_before_any_fit(script, tmp_path, capsys, argv, names):
+    csv = tmp_path / "bad.csv"
+    csv.write_text("a,b\n1,2\n")
+    try:
+        code = script.main([a.replace("{csv}", str(csv)) for a in argv])
+    except SystemExit as exc:  # argparse's own refusal
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert names in err[-1]
