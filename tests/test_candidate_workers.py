@@ -51,9 +51,14 @@ def test_candidate_searches_do_not_depend_on_the_workers(trace):
     sig1, scr1, sims1 = _rounds(trace, 1)
     sig2, scr2, sims2 = _rounds(trace, 2)
     assert [f.to_json() for f in sig1] == [f.to_json() for f in sig2]
+    # the screens' least squares agree up to the last bits of a sum: a worker's BLAS runs
+    # on one thread, the main process's on several (2.9379957813696906 against
+    # 2.9379957813693327 nm once, beside a calibration on the other core)
     for a, b in zip(scr1, scr2, strict=True):
-        assert a.heldout_rms == b.heldout_rms
-        assert a.effects == b.effects
+        assert a.heldout_rms == pytest.approx(b.heldout_rms, rel=1e-9)
+        assert a.effects.keys() == b.effects.keys()
+        for name, values in a.effects.items():
+            assert values == pytest.approx(b.effects[name], rel=1e-9)
     # creep is found on its own signature, not at its neutral value
     creep = next(f for f in sig1 if f.name == "piezo_creep")
     assert not creep.at_neutral and creep.values["gamma"] > 0.0
