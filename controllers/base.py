@@ -18,9 +18,10 @@ scaling, the detector range and the scan gain of the linear stick plant.
   back to step mode when the error leaves the scan range K·u_max (or the reading
   saturates). On a target that stays, an error within ``HOLD_SIGMAS`` × the reading's
   noise goes to the scan's hold integrator instead (:meth:`ScanPID.hold`): the noise σ is
-  estimated online, robustly, from the error's changes between scan intervals (median
-  |Δe| = 0.954 σ for Gaussian noise), so a floor vibration that rocks the reading widens
-  the hold and is averaged, not chased.
+  estimated online, robustly, from the error's changes between scan intervals less the
+  change the scan's own offset step made (K·Δu; median |Δe| = 0.954 σ for Gaussian
+  noise), so a floor vibration that rocks the reading widens the hold and is averaged,
+  not chased, while a PID still converging does not.
 
 The reading: the x channel converted with the rig's calibration
 (:meth:`ControllerContext.lab_observation`) and, where the observation carries the
@@ -296,6 +297,7 @@ class StepScanController(Controller):
         self._scan_err: float | None = None  # the last scan interval's error [rad]
         self._scan_target: float | None = None
         self._scan_streak = 0  # consecutive scan intervals on one target
+        self._scan_offset = 0.0  # V, the offset before the last scan interval's update
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
@@ -457,8 +459,11 @@ class StepScanController(Controller):
         steady = self._scan_target == self.target
         self._scan_streak = self._scan_streak + 1 if steady else 0
         if self._scan_streak >= 3 and self._scan_err is not None:
-            self._noise.append(abs(err - self._scan_err))
-        self._scan_err, self._scan_target = err, self.target
+            # the error's change less the change the last offset step made, K·Δu (the scan
+            # plant P(z) = K·z⁻¹): a PID still converging is not counted as noise
+            moved = self.ctx.scan_gain * (self.offset - self._scan_offset)
+            self._noise.append(abs(err - self._scan_err + moved))
+        self._scan_err, self._scan_target, self._scan_offset = err, self.target, self.offset
         hold = 0.0
         if steady and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
             hold = HOLD_SIGMAS * float(np.median(self._noise)) / 0.954
