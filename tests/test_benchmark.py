@@ -76,7 +76,10 @@ def test_cell_results_do_not_depend_on_the_other_controllers():
         np.testing.assert_array_equal(v, beside.metrics[m], err_msg=m)
 
 
-@pytest.mark.parametrize("backend", ["processes", pytest.param("ray", marks=pytest.mark.slow)])
+@pytest.mark.parametrize(  # one local Ray instance at a time (xdist: one worker for "ray")
+    "backend",
+    ["processes", pytest.param("ray", marks=[pytest.mark.slow, pytest.mark.xdist_group("ray")])],
+)
 def test_cells_as_tasks_equal_the_serial_run(backend):
     """The sweep over cells as processes (or Ray tasks) gives the serial run's episodes,
     run-time registrations included: a cell depends only on the suite seed and the cell."""

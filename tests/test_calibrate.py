@@ -7,6 +7,7 @@ not told which effect is on. It must name it and cut the held-out error at least
 import json
 
 import pytest
+from conftest import virtual_lab_calibration
 
 from turntable_env.calibration.calibrate import calibrate, write_report
 from turntable_env.calibration.virtual_lab import run_virtual_lab
@@ -28,11 +29,13 @@ CASES = {
 
 
 def _run(effects):
-    m = run_virtual_lab("standard", effects, noise_std=1e-3, seed=1)
-    return calibrate([m], progress=None)
+    return virtual_lab_calibration(effects)
 
 
-@pytest.mark.parametrize("name", list(CASES))
+@pytest.mark.parametrize(
+    "name",  # tests/test_chain.py judges the same runs of creep and hysteresis
+    [pytest.param(n, marks=pytest.mark.xdist_group(f"virtual-lab-{n}")) for n in CASES],
+)
 def test_undeclared_effect_is_named_and_the_error_drops(name):
     res = _run({name: CASES[name]})
     assert name in res.selected_effects
@@ -58,6 +61,7 @@ def test_clean_data_selects_nothing_and_is_white():
     assert res.error_after == pytest.approx(1e-3 * 9.9e-5 / (2 * 0.175) * 0.01 * 1e9, rel=0.05)
 
 
+@pytest.mark.slow(seconds=320)  # CI, stop 47
 def test_two_effects_at_once_are_both_found(tmp_path):
     res = _run({"piezo_creep": {"gamma": 0.02}, "sensor_drift": {"offset": 0.0, "rate": 0.1}})
     assert {"piezo_creep", "sensor_drift"} <= set(res.selected_effects)

@@ -26,7 +26,7 @@ def test_controller_example_reaches_the_target():
     assert m.group(1) == "True" and float(m.group(2)) <= 10.0  # the env's 10 nm tolerance
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=280)  # CI, stop 47
 def test_virtual_lab_example_finds_the_undeclared_creep():
     out = _run("virtual_lab_calibration.py", "--global-points", "4",
                "--candidates", "piezo_creep,sensor_drift")  # fmt: skip

@@ -117,7 +117,9 @@ def _tiny(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("backend", ["ray", "processes"])
+@pytest.mark.parametrize(  # one local Ray instance at a time (xdist: one worker for "ray")
+    "backend", [pytest.param("ray", marks=pytest.mark.xdist_group("ray")), "processes"]
+)
 def test_two_seeds_train_in_parallel_and_differ(backend, tmp_path):
     """2 seeds × 300 steps as Ray tasks on a local Ray instance (or local processes): one
     run directory per seed, each seeded (their evaluations differ), and a curve across them."""
@@ -218,6 +220,7 @@ def test_search_refuses_bad_arguments_before_any_work(kw, match, tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("ray")  # one local Ray instance at a time
 def test_hyperparameter_search_runs_trials_as_ray_tasks_and_resumes(tmp_path):
     """2 trials × 300 steps as Ray tasks on a local instance, then one more on the same
     journal: the study holds all three, the best is the highest return, and best.yml is

@@ -47,7 +47,7 @@ def test_the_shipped_calibrated_set_is_the_committed_reports_plant():
     assert plant.rig is not None and plant.rig.drive_mode == mode["kept_value"]
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=700)  # CI, stop 47
 def test_a_fresh_run_from_other_starts_and_a_cold_cache_reproduces_the_report(tmp_path):
     """`turntable calibrate --thesis --seed 1` (every start perturbed differently) in a
     new process with an empty numba cache: the same amplifier and rig decisions as the
