@@ -47,6 +47,7 @@ def _rounds(trace, workers: int) -> tuple[list, list, int]:
     return sig, scr, problem.n_sims - n0
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): process pools, 15 and 12 s
 def test_candidate_searches_do_not_depend_on_the_workers(trace):
     sig1, scr1, sims1 = _rounds(trace, 1)
     sig2, scr2, sims2 = _rounds(trace, 2)
@@ -66,6 +67,7 @@ def test_candidate_searches_do_not_depend_on_the_workers(trace):
     assert sims1 > 0 and sims2 > 0
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): process pools, 15 and 12 s
 def test_nominal_starts_do_not_depend_on_the_workers(trace):
     """The nominal fit's starts over worker processes: the same optima, in order, as one
     after another, and the workers' simulations counted."""

@@ -514,6 +514,7 @@ def test_randomisation_within_documented_ranges():
         )
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): the 3-D model, 17 s
 def test_full_fidelity_scan_agrees_with_reduced():
     """The 3-D model under the same scan action: same angle within 5 %."""
     angles = {}

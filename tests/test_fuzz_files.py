@@ -105,6 +105,7 @@ def _names_file(exc: ValueError, path) -> None:
     assert "\n" not in msg and "Traceback" not in msg
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): 20 calibrations, 37 s
 @settings(
     max_examples=20, deadline=None, derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture],

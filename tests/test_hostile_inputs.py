@@ -295,6 +295,7 @@ def _as_a_shell_would() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): the 3-D model, 11 s
 def test_ctrl_c_stops_a_long_3d_run(tmp_path):
     """A 3-D run of 5000 periods (about two and a half minutes) interrupted after it
     started: it exits 130 and says so, long before the run would have ended. A one-period

@@ -111,6 +111,7 @@ def standard_second(real_model):
     return _run(real_model, periods=100, output_dt=1e-4)
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): one second of the 3-D model, 19 s
 def test_energy_balance_closes_over_one_second(standard_second):
     r = standard_second
     assert r.time[-1] == pytest.approx(1.0)
@@ -124,6 +125,7 @@ def test_energy_balance_closes_over_one_second(standard_second):
     assert r.energy["electrical_in"][-1] > 0.0
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): one second of the 3-D model, 19 s
 def test_standard_scenario_steps_and_detector_saturates(standard_second):
     r = standard_second
     assert len(r.steps) == 100

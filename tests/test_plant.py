@@ -281,6 +281,7 @@ def test_friction_asymmetry_makes_the_steps_depend_on_direction():
     assert abs(f1 + b1) > 0.1 * f1
 
 
+@pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): 17 s
 def test_every_effect_runs_in_the_vector_env_under_random_actions():
     """10⁴ random env steps with every catalogue effect on: no exception, nothing
     non-finite, observations inside the space."""
