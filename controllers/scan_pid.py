@@ -129,10 +129,7 @@ def _minimal(plant: ct.LTI) -> ct.LTI:
     """``plant`` as its minimal transfer function where that keeps its frequency response
     (to 1e-6 relative from 10⁻⁴ of Nyquist up to it), else ``plant`` itself: the same loop,
     cheaper margins."""
-    try:
-        small = ct.minreal(ct.tf(plant), 1e-6, verbose=False)
-    except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - a degenerate plant
-        return plant
+    small = ct.minreal(ct.tf(plant), 1e-6, verbose=False)
     w = np.logspace(-4.0, 0.0, 200) * math.pi / float(plant.dt)
     full = np.asarray(ct.frequency_response(plant, w).complex).ravel()
     red = np.asarray(ct.frequency_response(small, w).complex).ravel()
@@ -171,6 +168,12 @@ def design_scan_pid(
         raise ValueError(f"plant.dt={dt!r}: need a discrete plant with a sample time")
     check_positive("phase_margin", phase_margin)
     check_positive("stability_margin", stability_margin)
+    grid = _GRID if starts is None else tuple(starts)
+    if not grid:
+        raise ValueError("starts: must not be empty")
+    for i, x in enumerate(grid):
+        if np.shape(x) != (3,) or not all(math.isfinite(v) and v >= 0.0 for v in x):
+            raise ValueError(f"starts[{i}]={x!r}: must be three finite gains >= 0")
     k = float(np.real(ct.dcgain(plant)))
     if k == 0.0 or not math.isfinite(k):
         raise ValueError(f"plant: DC gain {k!r} must be finite and non-zero")
@@ -192,9 +195,6 @@ def design_scan_pid(
         pen = max(phase_margin - pm, 0.0) / 10.0 + max(stability_margin - sm, 0.0) * 10.0
         return -wgc * dt + 100.0 * pen
 
-    grid = _GRID if starts is None else tuple(starts)
-    if not grid:
-        raise ValueError("starts: must not be empty")
     x0 = min(grid, key=lambda x: cost(np.array(x, dtype=float)))
     res = scipy.optimize.minimize(
         cost, np.array(x0), method="Nelder-Mead", options={"xatol": 1e-5}

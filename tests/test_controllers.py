@@ -199,8 +199,9 @@ def test_scan_pid_design_does_not_depend_on_its_start():
     for start in [(0.05, 0.3, 0.01), (0.0, 0.5, 0.0)]:
         one = design_scan_pid(pd, starts=[start])
         assert best.crossover >= 0.99 * one.crossover, (start, best.crossover, one.crossover)
-    with pytest.raises(ValueError, match="starts"):
-        design_scan_pid(pd, starts=[])
+    for bad in ([], [(0.0, 0.5)], [(0.0, float("nan"), 0.0)], [(-0.1, 0.5, 0.0)]):
+        with pytest.raises(ValueError, match="starts"):
+            design_scan_pid(pd, starts=bad)
 
 
 def test_scan_pid_design_rejects_continuous_plants():
