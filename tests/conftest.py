@@ -1,8 +1,13 @@
 """Shared fixtures, the virtual-lab calibrations two test files share, and the slow tier's
 schedule under pytest-xdist (.ci/run: ``-n 2 --dist loadgroup``)."""
 
+import fcntl
 import functools
+import hashlib
 import json
+import os
+import pickle
+from pathlib import Path
 
 import pytest
 
@@ -36,22 +41,49 @@ def scan_angles(env, offsets):
 
 
 
+_SHARED: dict[str, Path | None] = {"dir": None}  # the run's directory all workers share
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _shared_run_directory(tmp_path_factory):
+    """Under pytest-xdist, the run's temporary directory every worker sees (the parent of
+    the workers' own ``popen-gwN``); without xdist, none (one process: memory serves)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        _SHARED["dir"] = tmp_path_factory.getbasetemp().parent / "virtual-lab"
+        _SHARED["dir"].mkdir(exist_ok=True)
+
+
 @functools.cache
-def _virtual_lab_calibration(effects: str, candidates: tuple[str, ...] | None):
+def _virtual_lab_calibration(effects: str):
     from turntable_env.calibration.calibrate import calibrate
     from turntable_env.calibration.virtual_lab import run_virtual_lab
 
-    m = run_virtual_lab("standard", json.loads(effects), noise_std=1e-3, seed=1)
-    return calibrate([m], candidates=None if candidates is None else list(candidates),
-                     progress=None)  # fmt: skip
+    def run():
+        m = run_virtual_lab("standard", json.loads(effects), noise_std=1e-3, seed=1)
+        return calibrate([m], progress=None)
+
+    shared = _SHARED["dir"]
+    if shared is None:
+        return run()
+    path = shared / (hashlib.sha256(effects.encode()).hexdigest()[:16] + ".pickle")
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # a second worker waits for the first one's run
+        if path.exists():
+            return pickle.loads(path.read_bytes())
+        res = run()
+        tmp = path.with_suffix(".part")
+        tmp.write_bytes(pickle.dumps(res))
+        tmp.replace(path)
+        return res
 
 
-def virtual_lab_calibration(effects: dict, candidates: list[str] | None = None):
+def virtual_lab_calibration(effects: dict):
     """The calibration of the ``standard`` virtual-lab protocol (1 mV noise, seed 1) with
-    ``effects`` on, computed once per test process: tests/test_calibrate.py and
-    tests/test_chain.py judge the same run (the same xdist_group puts them on one worker)."""
-    key = json.dumps(effects, sort_keys=True)
-    return _virtual_lab_calibration(key, None if candidates is None else tuple(candidates))
+    ``effects`` on, computed once per test run: tests/test_calibrate.py and
+    tests/test_chain.py judge the same run. Under pytest-xdist the workers share it
+    through the run's temporary directory (whichever worker asks first runs it, under a
+    file lock); without, through memory."""
+    return _virtual_lab_calibration(json.dumps(effects, sort_keys=True))
 
 
 def pytest_collection_modifyitems(config, items):

@@ -23,7 +23,8 @@ CASES = {
     "friction_wear": {"beta": 0.3},
     "axis_misalignment": CATALOGUE["axis_misalignment"].defaults(),
     "sensor_drift": CATALOGUE["sensor_drift"].defaults(),
-    "vibration": CATALOGUE["vibration"].defaults(),
+    # 13 Hz, off the 100 Hz control interval's Nyquist line: tests/test_chain.py reads it in the env
+    "vibration": {"amplitude": 5e-6, "frequency": 13.0, "phase": 0.3},
     "detector_nonlinearity": {"kappa": 0.25},
 }
 
