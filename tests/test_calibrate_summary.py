@@ -83,6 +83,7 @@ def amplifier_stage():
 
 
 @pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): two amplifier stages, 27 s
+@pytest.mark.xdist_group("amplifier-stage")  # one worker computes the module fixture
 def test_amplifier_stage_selects_the_fast_path(amplifier_stage, tmp_path):
     """§4.1.2 on the ideal-source nominal: the first-order stage fits the 1 V and 3 V figures
     at scale 1 but asks for another speed for the adapted one (the residual that points to
@@ -109,6 +110,7 @@ def test_amplifier_stage_selects_the_fast_path(amplifier_stage, tmp_path):
 
 
 @pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): two amplifier stages, 27 s
+@pytest.mark.xdist_group("amplifier-stage")  # one worker computes the module fixture
 def test_amplifier_decision_does_not_depend_on_the_starts(amplifier_stage):
     """Other perturbed starts (seed 5): the same selection, every start agreeing on the
     fit, the fast path's parameters within their posterior standard errors of seed 0's and

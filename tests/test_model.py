@@ -112,6 +112,7 @@ def standard_second(real_model):
 
 
 @pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): one second of the 3-D model, 19 s
+@pytest.mark.xdist_group("standard-second")  # one worker computes the module fixture
 def test_energy_balance_closes_over_one_second(standard_second):
     r = standard_second
     assert r.time[-1] == pytest.approx(1.0)
@@ -126,6 +127,7 @@ def test_energy_balance_closes_over_one_second(standard_second):
 
 
 @pytest.mark.slow  # the default tier's 5 CPU minutes (stop 48): one second of the 3-D model, 19 s
+@pytest.mark.xdist_group("standard-second")  # one worker computes the module fixture
 def test_standard_scenario_steps_and_detector_saturates(standard_second):
     r = standard_second
     assert len(r.steps) == 100

@@ -25,7 +25,7 @@ SECTIONS = {
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 # the quick report computes every section (about 50 s of CPU, 22 s of it the calibration):
 # a long check, run by .ci/run's slow tier, which kept the default tier under its 5 minutes
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("report")]  # one report per run
 
 
 @pytest.fixture(scope="module")
