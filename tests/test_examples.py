@@ -28,11 +28,19 @@ def test_controller_example_reaches_the_target():
 
 @pytest.mark.slow(seconds=280)  # CI, stop 47
 def test_virtual_lab_example_finds_the_undeclared_creep():
-    out = _run("virtual_lab_calibration.py", "--global-points", "4",
+    out = _run("virtual_lab_calibration.py", "--global-points", "4", "--hops", "0",
                "--candidates", "piezo_creep,sensor_drift")  # fmt: skip
     m = re.search(r"selected (.+); held-out error ([\d.]+) → ([\d.]+)", out)
     assert m is not None, out
     assert "piezo_creep" in m.group(1) and float(m.group(3)) < float(m.group(2))
+
+
+def test_virtual_lab_example_refuses_a_negative_budget_before_any_work():
+    r = subprocess.run([sys.executable, str(ROOT / "examples" / "virtual_lab_calibration.py"),
+                        "--hops", "-1"], capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert r.returncode == 2
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.endswith("argument --hops: '-1': must be an integer ≥ 0")
 
 
 @pytest.mark.slow
