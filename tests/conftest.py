@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from turntable_env.effects import CATALOGUE
 from turntable_env.params import real_parameters, thesis_parameters
 
 
@@ -40,6 +41,21 @@ def scan_angles(env, offsets):
     return np.array(out)
 
 
+
+# the effects of the virtual-lab calibrations tests/test_calibrate.py judges, each at one
+# setting; tests/test_chain.py runs the same ones in the env (one run serves both: equal keys)
+VIRTUAL_LAB_CASES = {
+    "amplifier_dynamics": CATALOGUE["amplifier_dynamics"].defaults(),
+    "piezo_hysteresis": CATALOGUE["piezo_hysteresis"].defaults(),
+    "piezo_creep": {"gamma": 0.04},
+    "friction_asymmetry": CATALOGUE["friction_asymmetry"].defaults(),
+    "friction_wear": {"beta": 0.3},
+    "axis_misalignment": CATALOGUE["axis_misalignment"].defaults(),
+    "sensor_drift": CATALOGUE["sensor_drift"].defaults(),
+    # 13 Hz, off the 100 Hz control interval's Nyquist line, so the env can read it
+    "vibration": {"amplitude": 5e-6, "frequency": 13.0, "phase": 0.3},
+    "detector_nonlinearity": {"kappa": 0.25},
+}
 
 _SHARED: dict[str, Path | None] = {"dir": None}  # the run's directory all workers share
 

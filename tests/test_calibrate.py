@@ -7,26 +7,14 @@ not told which effect is on. It must name it and cut the held-out error at least
 import json
 
 import pytest
-from conftest import virtual_lab_calibration
+from conftest import VIRTUAL_LAB_CASES, virtual_lab_calibration
 
 from turntable_env.calibration.calibrate import calibrate, write_report
 from turntable_env.calibration.virtual_lab import run_virtual_lab
-from turntable_env.effects import CATALOGUE
 
 pytestmark = pytest.mark.slow  # each case is a full calibration (20-70 s)
 
-CASES = {
-    "amplifier_dynamics": CATALOGUE["amplifier_dynamics"].defaults(),
-    "piezo_hysteresis": CATALOGUE["piezo_hysteresis"].defaults(),
-    "piezo_creep": {"gamma": 0.04},
-    "friction_asymmetry": CATALOGUE["friction_asymmetry"].defaults(),
-    "friction_wear": {"beta": 0.3},
-    "axis_misalignment": CATALOGUE["axis_misalignment"].defaults(),
-    "sensor_drift": CATALOGUE["sensor_drift"].defaults(),
-    # 13 Hz, off the 100 Hz control interval's Nyquist line: tests/test_chain.py reads it in the env
-    "vibration": {"amplitude": 5e-6, "frequency": 13.0, "phase": 0.3},
-    "detector_nonlinearity": {"kappa": 0.25},
-}
+CASES = VIRTUAL_LAB_CASES
 
 
 def _run(effects):

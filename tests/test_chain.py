@@ -13,8 +13,8 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import VIRTUAL_LAB_CASES, virtual_lab_calibration
 from conftest import scan_angles as _scan
-from conftest import virtual_lab_calibration
 
 import turntable_env  # noqa: F401  (registers the envs)
 from turntable_env.calibration.calibrate import write_report
@@ -68,26 +68,23 @@ def _vibration_amplitude(env, frequency: float) -> float:
 def test_effect_found_by_the_full_calibration_runs_in_the_env(tmp_path, name):
     """The whole catalogue competes; the env from the report shows the effect's signature
     and the nominal env does not."""
-    truth = {
-        "piezo_creep": {"gamma": 0.04},
-        "piezo_hysteresis": {"h": 0.12, "width": 2.0},
-        "vibration": {"amplitude": 5e-6, "frequency": 13.0, "phase": 0.3},
-    }[name]
+    truth = VIRTUAL_LAB_CASES[name]
     env = _calibrated_env(tmp_path, {name: truth})
     assert name in env.plant.effects
     nominal = _nominal_env()
     if name == "piezo_creep":
-        assert env.plant.effects["piezo_creep"]["gamma"] == pytest.approx(0.04, rel=0.3)
+        assert env.plant.effects["piezo_creep"]["gamma"] == pytest.approx(truth["gamma"], rel=0.3)
         assert abs(_creep_signature(nominal)) < 1e-11
         assert _creep_signature(env) > 0.05e-6
     elif name == "piezo_hysteresis":
         k_scan = _scan(nominal, [5.0] * 3)[-1, 0] / 5.0  # rad per input volt
         assert abs(_loop_height(nominal)) < 1e-3 * 5.0 * k_scan
-        expect = 2 * 0.12 * 2.0 * 9 / 16 * k_scan  # every play saturated: 2·h·mean(r_i)·K
+        # every play saturated: 2·h·mean(r_i)·K
+        expect = 2 * truth["h"] * truth["width"] * 9 / 16 * k_scan
         assert _loop_height(env) == pytest.approx(expect, rel=0.3)
     else:
         f = env.plant.effects["vibration"]["frequency"]
-        assert f == pytest.approx(13.0, rel=0.02)
+        assert f == pytest.approx(truth["frequency"], rel=0.02)
         assert _vibration_amplitude(nominal, f) < 1e-9
-        assert _vibration_amplitude(env, f) == pytest.approx(5e-6, rel=0.2)
+        assert _vibration_amplitude(env, f) == pytest.approx(truth["amplitude"], rel=0.2)
     assert set(env.plant.effects) <= set(CATALOGUE)
