@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from turntable_env.baseline import simulate_scipy
 from turntable_env.bench import converge
@@ -191,3 +193,47 @@ def test_parallel_batch_is_bit_identical_to_serial_runs() -> None:
         alone = simulate_batch([m], [d], 0.02, output_dt=1e-4)[0]
         np.testing.assert_array_equal(alone.angle_rad, r.angle_rad)
         np.testing.assert_array_equal(alone.friction, r.friction)
+
+
+_ULP = 2.0**-52
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    q=st.floats(1e-12, 1e-3),
+    angle=st.floats(0.0, 2.0 * math.pi),
+    ulps=st.integers(-6, 6),
+    far=st.sampled_from([1.0, 1e-6, 0.5, 2.0, 1e6]),
+)
+def test_the_ringing_test_on_the_square_answers_as_abs(q, angle, ulps, far) -> None:
+    """The ladder's ringing cap decides |c·z| > q on |c·z|² where that is clear by far more
+    than rounding (reduced_kernel._exceeds, issue 31's speed): the same answer as abs(z) > q
+    a few ulps either side of q, far from it, and for non-finite parts."""
+    from turntable_env.reduced_kernel import _exceeds
+
+    lo, hi = q * q * (1.0 - 1e-12), q * q * (1.0 + 1e-12)
+    r = q * far * (1.0 + ulps * _ULP)
+    z = complex(r * math.cos(angle), r * math.sin(angle))
+    assert _exceeds(z, q, lo, hi) == (abs(z) > q)
+    for bad in (complex(math.inf, 0.0), complex(math.nan, q), complex(0.0, -math.inf)):
+        assert _exceeds(bad, q, lo, hi) == (abs(bad) > q)
+
+
+def test_the_bodies_condense_as_the_sized_model_and_refuse_3d_dynamics() -> None:
+    """A 3-D model built without sizing its preload spring (the reduced model's bodies,
+    plant.models._bodies: a calibration builds one per evaluation) condenses onto every
+    axis exactly as the sized model does — the sizing moves the spring, not the bodies —
+    and refuses the 3-D dynamics it cannot serve (ValueError naming size_preload)."""
+    from turntable_env.model import TurntableModel
+    from turntable_env.reduced import AxisParameters
+
+    ps = real_parameters()
+    sized, bodies = TurntableModel(ps), TurntableModel(ps, size_preload=False)
+    for axis in ("A", "B", "C"):
+        assert AxisParameters.from_model(bodies, axis) == AxisParameters.from_model(sized, axis)
+        assert bodies.output_capacitance(axis) == sized.output_capacitance(axis)
+    for call in (lambda: bodies.kernel_arrays, bodies.static_equilibrium,
+                 lambda: bodies.preload_force):  # fmt: skip
+        with pytest.raises(ValueError, match="size_preload=False"):
+            call()
+    assert sized.preload_force > 0.0

@@ -60,6 +60,7 @@ __all__ = [
     "AmplifierResponse",
     "adapted_hold_core",
     "amplifier_step",
+    "amplifier_step_decayed",
     "measure_slew_rate",
     "ramp_step",
 ]
@@ -89,11 +90,17 @@ def ramp_step(v0, u0, u1, h, gain, tau, rate):
     Exact first-order response to the ramp when the stage is linear over the step
     (error and ramp both inside the slew limit); otherwise the slew-limited step with
     the mid-step input held (:func:`slew_step`)."""
+    return _ramp_step(v0, u0, u1, h, gain, tau, rate, math.exp(-h / tau))
+
+
+@njit(cache=CACHE)
+def _ramp_step(v0, u0, u1, h, gain, tau, rate, e_tau):
+    """:func:`ramp_step` with its decay e_tau = exp(−h/τ) given."""
     slope = gain * (u1 - u0) / h  # V/s of the target
     lag = slope * tau
     e0 = gain * u0 - lag - v0  # distance from the ramp's steady response
     if abs(gain * u0 - v0) <= rate * tau and abs(slope) < rate:
-        return gain * u1 - lag - e0 * math.exp(-h / tau)
+        return gain * u1 - lag - e0 * e_tau
     return slew_step(v0, gain * 0.5 * (u0 + u1), h, tau, rate)
 
 
@@ -104,13 +111,21 @@ def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
     (a = 0) the slow path is the output: :func:`ramp_step`. With one, the fast path is
     exact for the ramp, the slow path as :func:`ramp_step` with gain (1 − a)G, and the output
     moves towards their sum by at most R·h."""
+    e_tf = math.exp(-h / row[6]) if row[5] != 0.0 else 0.0
+    return amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, row, math.exp(-h / row[1]), e_tf)
+
+
+@njit(cache=CACHE)
+def amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, row, e_tau, e_tf):
+    """:func:`amplifier_step` with the step's decays given: e_tau = exp(−h/τ) of the slow
+    path and e_tf = exp(−h/τ_f) of the fast one (a ladder of steps tabulates them once)."""
     gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
     if a == 0.0:
-        v1 = ramp_step(v0, u0, u1, h, gain, tau, rate)
+        v1 = _ramp_step(v0, u0, u1, h, gain, tau, rate, e_tau)
         return v1, v1, 0.0
-    vs1 = ramp_step(vs0, u0, u1, h, (1.0 - a) * gain, tau, rate)
+    vs1 = _ramp_step(vs0, u0, u1, h, (1.0 - a) * gain, tau, rate, e_tau)
     slope = a * gain * (u1 - u0) / h
-    vf1 = a * gain * u1 - slope * tf + (vf0 - a * gain * u0 + slope * tf) * math.exp(-h / tf)
+    vf1 = a * gain * u1 - slope * tf + (vf0 - a * gain * u0 + slope * tf) * e_tf
     lim = rate * h
     return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
 

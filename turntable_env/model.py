@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 
 import numpy as np
 import scipy.optimize
@@ -215,6 +215,11 @@ class TurntableModel:
     Args:
         params: a complete :class:`~turntable_env.params.ParameterSet` (friction and contact set).
         gravity: g [m/s²].
+        size_preload: size the preload spring on the settled geometry (default). False
+            builds the bodies only — masses, stiffnesses, wiring and layout, what the
+            reduced model's condensation and the channel loads read — without the static
+            solves; its 3-D dynamics (:attr:`kernel_arrays`, :meth:`static_equilibrium`,
+            :attr:`preload_force`) then refuse with a ValueError.
 
     Attributes (derived in ``__post_init__``): ``layout``, packed arrays, ``omega_max``
     (highest natural frequency of the linearised model [rad/s]).
@@ -222,9 +227,10 @@ class TurntableModel:
 
     params: ParameterSet
     gravity: float = GRAVITY
+    size_preload: InitVar[bool] = True
     packed: dict = field(init=False, repr=False)
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, size_preload: bool) -> None:
         ps = self.params
         if ps.friction is None or ps.contact is None:
             raise ValueError(
@@ -232,7 +238,18 @@ class TurntableModel:
             )
         check_positive("gravity", self.gravity)
         object.__setattr__(self, "packed", self._pack())
-        self._size_preload()
+        self.packed["preload_sized"] = bool(size_preload)
+        if size_preload:
+            self._size_preload()
+
+    def _sized(self) -> dict:
+        """The packed arrays of a model whose preload spring is sized (else ValueError)."""
+        if not self.packed["preload_sized"]:
+            raise ValueError(
+                f"model of {self.params.name!r}: built with size_preload=False (the bodies "
+                "only); the 3-D dynamics need TurntableModel(params)"
+            )
+        return self.packed
 
     def _size_preload(self) -> None:
         """Size the preload spring on the settled geometry so each contact carries F_N.
@@ -281,7 +298,7 @@ class TurntableModel:
     @property
     def preload_force(self) -> float:
         """Force of the preload spring on the table's centre [N] (from F_N per contact)."""
-        return self.packed["preload"]
+        return self._sized()["preload"]
 
     @property
     def quadrant_capacitance(self) -> float:
@@ -436,7 +453,7 @@ class TurntableModel:
         Returns x = (table-centre displacement (3), tube-top twists (3×6)) as a flat array of
         21 numbers [m, rad]; the table orientation is the identity, the GMS elements unloaded.
         """
-        ar = self.packed
+        ar = self._sized()
         vch = np.zeros(4) if channel_voltages is None else np.asarray(channel_voltages, float)
         vq = np.zeros((3, 4))
         quadrant_voltages(vch, ar["qchan"], ar["qsign"], vq)
@@ -540,7 +557,7 @@ class TurntableModel:
     @property
     def kernel_arrays(self) -> FullArrays:
         """The packed model as :func:`~turntable_env.integrator.run_full_model` reads it."""
-        ar = self.packed
+        ar = self._sized()
         return FullArrays(**{name: ar[name] for name in FullArrays._fields})
 
     def run(

@@ -51,7 +51,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .amplifier import amplifier_step
+from .amplifier import amplifier_step, amplifier_step_decayed
 from .friction.kernels import gms_element_step, stribeck_magnitude
 from .integrator import advance_index as _advance
 from .integrator import pwl_value as _input_at
@@ -124,6 +124,19 @@ def _amp_linear(v0, vs0, vf0, u0, slope, row, ideal):
     if abs(a * gain * (u0 - slope * tf) - vf0) > FAST_QUIET:
         return False
     return abs(vs0 + vf0 - v0) <= FAST_QUIET
+
+
+@njit(cache=CACHE)
+def _exceeds(z, q, q2_lo, q2_hi):
+    """abs(z) > q for a complex z: decided on |z|² where it is clear by more than rounding
+    (q2_lo, q2_hi = q²(1 ∓ 1e-12)), by abs(z) (a hypot) only near the edge or for non-finite
+    parts — the same answer as abs(z) > q, without its cost on almost every call."""
+    s = z.real * z.real + z.imag * z.imag
+    if s > q2_hi:
+        return True
+    if s < q2_lo:
+        return False
+    return abs(z) > q
 
 
 @njit(cache=CACHE)
@@ -374,6 +387,7 @@ def _run_one(b, state, model, drive, h_min, recording):
     xs = np.empty(2)
     vs = np.empty(2)
     fnk = np.empty(2)  # normal forces [N]
+    slip_k = np.zeros(2, dtype=np.bool_)  # some element of contact k slips at the step start
     n_eval = 0
     n = n_now[b]
     idx = _advance(wg[b], wn[b], 0, n)
@@ -391,7 +405,21 @@ def _run_one(b, state, model, drive, h_min, recording):
     while (1 << (r_tau + 1)) * h_min <= tau / 8.0:
         r_tau += 1
     quiet_len = ctl[b, 0]
+    ql2 = quiet_len * quiet_len  # its square's decision band (see _exceeds; none if tiny)
+    q2_lo, q2_hi = (ql2 * (1.0 - 1e-12), ql2 * (1.0 + 1e-12)) if ql2 > 1e-280 else (-1.0, math.inf)
     r_slip = int(ctl[b, 1])
+    # the amplifier's decays over each rung's step h = h_min·2^r: exp(−h/τ), exp(−h/τ_f)
+    e_tau = np.zeros(r_big)
+    e_tf = np.zeros(r_big)
+    if not ideal:
+        for r in range(r_big):
+            h_r = (1 << r) * h_min
+            e_tau[r] = math.exp(-h_r / tau)
+            if a_fast != 0.0:
+                e_tf[r] = math.exp(-h_r / amp[b, 6])
+    order = np.argsort(-modal_om[b])  # modes from the fastest down (the ringing cap)
+    s_ok = False  # s_next holds the Stribeck levels |s(ẋ)| [N] of the present state
+    s_next = np.empty(2)
     n_acc = 0
     n_rej = 0
     status = 0
@@ -423,15 +451,17 @@ def _run_one(b, state, model, drive, h_min, recording):
         if nxt_out < target:
             target = nxt_out
         if idx + 1 < wn[b] and wg[b, idx + 1] < target:
-            target = wg[b, idx + 1]
+            target = int(wg[b, idx + 1])  # breakpoints lie on the grid (integral floats)
         span = target - n
         r_land = 0
         while r_land + 1 < r_big and (1 << (r_land + 1)) <= span:
             r_land += 1
         any_slip = False
         for k in range(2):
+            slip_k[k] = False
             for i in range(ne):
                 if st[b, k, i] == 0:
+                    slip_k[k] = True
                     any_slip = True
         # constant force inputs over the step (both contacts): the stuck elements'
         # offsets F_i − k_i x and the slipping elements' forces [N]
@@ -444,7 +474,7 @@ def _run_one(b, state, model, drive, h_min, recording):
         if not any_slip and use_modal:
             seg = n_end[b]
             if idx + 1 < wn[b] and wg[b, idx + 1] < seg:
-                seg = wg[b, idx + 1]
+                seg = int(wg[b, idx + 1])
             m_seg = seg - n
             u0r = _input_at(wg[b], wv[b], wn[b], idx, n)
             u1r = _input_at(wg[b], wv[b], wn[b], idx, seg)
@@ -539,6 +569,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                             fi = capf if fi > 0.0 else -capf
                         f[b, k, i] = fi
                 n += m_step
+                s_ok = False
                 idx = _advance(wg[b], wn[b], idx, n)
                 n_acc += 1
                 if m_hit > 0:
@@ -559,13 +590,17 @@ def _run_one(b, state, model, drive, h_min, recording):
                     qs[b, j, 0] * volt[b] + qs[b, j, 1] * fin[0] + qs[b, j, 2] * fin[1]
                 )
             om_fast = 0.0
-            for j in range(6):
+            for jj in range(6):  # from the fastest mode down: the first that rings decides
+                j = order[jj]
+                if not modal_om[b, j] > om_fast:
+                    break  # no slower mode can raise om_fast
                 zj = 0.0j
                 for c in range(6):
                     zj += modal_w[b, j, c] * dev[c]
                 for k in range(2):
-                    if abs(modal_c[b, k, j] * zj) > quiet_len and modal_om[b, j] > om_fast:
+                    if _exceeds(modal_c[b, k, j] * zj, quiet_len, q2_lo, q2_hi):
                         om_fast = modal_om[b, j]
+                        break
             if not ideal:
                 u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
                 if abs(gain * u_now - volt[b]) > rate * tau:
@@ -614,7 +649,7 @@ def _run_one(b, state, model, drive, h_min, recording):
         vf1 = vf0
         u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
         for k in range(2):  # Stribeck level at the step start [N] (event interpolation)
-            s_start[k] = _level(xd0[k], mech[b, 12 + k], gms[b])
+            s_start[k] = s_next[k] if s_ok else _level(xd0[k], mech[b, 12 + k], gms[b])
         while True:
             dn = 1 << rung
             h = dn * h_min
@@ -626,7 +661,8 @@ def _run_one(b, state, model, drive, h_min, recording):
                 v1 = gain * u1
                 v0e = gain * u0
             else:
-                v1, vs1, vf1 = amplifier_step(v0, vs0, vf0, u0, u1, h, amp[b])
+                v1, vs1, vf1 = amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, amp[b],
+                                                      e_tau[rung], e_tf[rung])  # fmt: skip
                 v0e = v0
             vslope = (v1 - v0e) / h
             if all_stick:  # every rung of the all-stick configuration
@@ -646,13 +682,17 @@ def _run_one(b, state, model, drive, h_min, recording):
             for k in range(2):
                 x1, xd1 = _rel(y[b], mech[b], k)
                 dx = x1 - x0[k]
-                vbar = 0.5 * (xd0[k] + xd1)
                 fn_k = mech[b, 12 + k]
-                sbar = _level(vbar, fn_k, gms[b])
                 s1 = _level(xd1, fn_k, gms[b])
                 s_end[k] = s1
-                decay = math.exp(-gms[b, 0] * h / sbar)  # slipping elements' relaxation
-                sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
+                sbar = 0.0  # slipping elements' level, relaxation and direction (only theirs)
+                decay = 0.0
+                sg = 0.0
+                if slip_k[k]:
+                    vbar = 0.5 * (xd0[k] + xd1)
+                    sbar = _level(vbar, fn_k, gms[b])
+                    decay = math.exp(-gms[b, 0] * h / sbar)
+                    sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
                 for i in range(ne):  # the GMS law (Eq. 2.24–2.25), one compiled place
                     fi = gms_element_step(f0[k, i], st[b, k, i], kk[b, i], dx,
                                           nu[b, i] * sbar * sg, decay)  # fmt: skip
@@ -699,6 +739,8 @@ def _run_one(b, state, model, drive, h_min, recording):
                         if abs(f[b, k, i]) > capf:
                             f[b, k, i] = capf if f[b, k, i] > 0.0 else -capf
                     st[b, k, i] = st_new[k, i]
+                s_next[k] = s_end[k]  # the next step starts from this state
+            s_ok = True
             n = n1
             idx = _advance(wg[b], wn[b], idx, n)
             n_acc += 1

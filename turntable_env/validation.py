@@ -43,6 +43,8 @@ def check_finite(name: str, value: float) -> float:
     """Return ``value`` as float; raise ValueError if it is NaN, infinite or not a real
     number (a bool, a string, a complex number, a container or an integer beyond float
     are refused, not converted)."""
+    if type(value) is float and math.isfinite(value):  # the common case, without ABC checks
+        return value
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
     real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))

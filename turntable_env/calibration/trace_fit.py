@@ -257,13 +257,26 @@ class TraceProblem:
         self.model = model
         self.cache_size = cache_size
         self._cache: OrderedDict[tuple, list[np.ndarray]] = OrderedDict()
+        self._plants: OrderedDict[bytes, Plant] = OrderedDict()  # x → its nominal plant
         self.n_sims = 0
         self.weight = 1.0  # 1 / (σ_r·√L): data rows' scale [1/nm]
 
     def __getstate__(self) -> dict[str, Any]:
         d = dict(self.__dict__)
         d["_cache"] = OrderedDict()
+        d["_plants"] = OrderedDict()
         return d
+
+    def _nominal_plant(self, x: np.ndarray) -> Plant:
+        """The nominal model's plant of x (the last few kept: the simulation and the
+        detector of one evaluation share it, and its parameter set is built once)."""
+        key = np.asarray(x, float).tobytes()
+        hit = self._plants.get(key)
+        if hit is None:
+            hit = self._plants[key] = self.model.plant(x)
+            if len(self._plants) > 8:
+                self._plants.popitem(last=False)
+        return hit
 
     def _theta(self, x: np.ndarray, phys: Mapping[str, Mapping[str, float]]) -> list[np.ndarray]:
         key = (
@@ -274,7 +287,7 @@ class TraceProblem:
         if hit is not None:
             self._cache.move_to_end(key)
             return hit
-        plant = self.model.plant(x, phys)
+        plant = self.model.plant(x, phys) if phys else self._nominal_plant(x)
         out = []
         for td in self.traces:
             r = td.reading
@@ -290,7 +303,7 @@ class TraceProblem:
 
     def detector(self, x: np.ndarray, td: TraceData) -> Any:
         """The file's detector geometry with the plant's mirror tilt and photodiode gain."""
-        d = self.model.plant(x).params.detector
+        d = self._nominal_plant(x).params.detector
         m = td.m.detector
         return replace(
             d, sensitivity=m.sensitivity, distance=m.distance, table_radius=m.table_radius

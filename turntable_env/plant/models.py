@@ -24,12 +24,14 @@ _BODIES: dict[tuple[Any, Any, str], TurntableModel] = {}
 
 def _bodies(ps: ParameterSet) -> TurntableModel:
     """A 3-D model with the table, tubes and wiring of ``ps`` (the first built for them):
-    what the reduced model's condensation and the channel's load capacitance need."""
+    what the reduced model's condensation and the channel's load capacitance need — the
+    bodies only (``size_preload=False``: the static solves sizing the preload spring are
+    skipped, a calibration builds one per evaluation)."""
     key = (ps.table, ps.tube, ps.rig.drive_mode)
     if key not in _BODIES:
         if len(_BODIES) >= 16:
             _BODIES.pop(next(iter(_BODIES)))
-        _BODIES[key] = turntable_model(ps)
+        _BODIES[key] = TurntableModel(ps, size_preload=False)
     return _BODIES[key]
 
 
