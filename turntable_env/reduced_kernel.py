@@ -140,6 +140,12 @@ def _exceeds(z, q, q2_lo, q2_hi):
 
 
 @njit(cache=CACHE)
+def _om_key(om):
+    """A mode's angular frequency [rad/s] as the ringing cap orders it (NaN below all)."""
+    return om if om == om else -1.0
+
+
+@njit(cache=CACHE)
 def _modal_at(t, z0, lam, ez):
     """Modal amplitudes z_j e^{λ_j t} at t [s] from the segment start into ez."""
     for j in range(z0.shape[0]):
@@ -417,7 +423,12 @@ def _run_one(b, state, model, drive, h_min, recording):
             e_tau[r] = math.exp(-h_r / tau)
             if a_fast != 0.0:
                 e_tf[r] = math.exp(-h_r / amp[b, 6])
-    order = np.argsort(-modal_om[b])  # modes from the fastest down (the ringing cap)
+    order = np.arange(6)  # modes from the fastest down (the ringing cap; NaN last)
+    for i in range(1, 6):
+        j = i
+        while j > 0 and _om_key(modal_om[b, order[j - 1]]) < _om_key(modal_om[b, order[j]]):
+            order[j - 1], order[j] = order[j], order[j - 1]
+            j -= 1
     s_ok = False  # s_next holds the Stribeck levels |s(ẋ)| [N] of the present state
     s_next = np.empty(2)
     n_acc = 0
