@@ -429,8 +429,7 @@ def _run_one(b, state, model, drive, h_min, recording):
         while j > 0 and _om_key(modal_om[b, order[j - 1]]) < _om_key(modal_om[b, order[j]]):
             order[j - 1], order[j] = order[j], order[j - 1]
             j -= 1
-    s_ok = False  # s_next holds the Stribeck levels |s(ẋ)| [N] of the present state
-    s_next = np.empty(2)
+    s_ok = False  # s_end holds the Stribeck levels |s(ẋ)| [N] of the present state
     n_acc = 0
     n_rej = 0
     status = 0
@@ -589,6 +588,11 @@ def _run_one(b, state, model, drive, h_min, recording):
                     status = 1
                     break
                 continue
+        # the amplifier input now [V] and its present segment's slope [V/s]: the path lags it
+        u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
+        u_slope = 0.0
+        if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
+            u_slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
         cap = r_land
         if any_slip:
             cap = min(cap, r_slip)
@@ -613,7 +617,6 @@ def _run_one(b, state, model, drive, h_min, recording):
                         om_fast = modal_om[b, j]
                         break
             if not ideal:
-                u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
                 if abs(gain * u_now - volt[b]) > rate * tau:
                     om_fast = max(om_fast, modal_om_max[b])
             if om_fast > 0.0:
@@ -623,19 +626,11 @@ def _run_one(b, state, model, drive, h_min, recording):
                     r_dyn += 1
                 cap = min(cap, r_dyn)
         if a_fast > 0.0 and not ideal:  # the fast path settling: short steps
-            u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
-            slope = 0.0  # input slope of the present segment [V/s]: the path lags it
-            if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
-                slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
-            steady = a_fast * gain * (u_now - slope * amp[b, 6])
+            steady = a_fast * gain * (u_now - u_slope * amp[b, 6])
             if abs(vfast[b] - steady) > FAST_QUIET:
                 cap = min(cap, r_fast)
         if not ideal:  # the first-order lag settling: short steps (V is held linear)
-            u_now = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
-            slope = 0.0
-            if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
-                slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
-            if not _amp_linear(volt[b], vslow[b], vfast[b], u_now, slope, amp[b], ideal):
+            if not _amp_linear(volt[b], vslow[b], vfast[b], u_now, u_slope, amp[b], ideal):
                 cap = min(cap, r_tau)
         if rung > cap:
             rung = cap
@@ -658,9 +653,10 @@ def _run_one(b, state, model, drive, h_min, recording):
         vf0 = vfast[b]
         vs1 = vs0
         vf1 = vf0
-        u0 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n)))
-        for k in range(2):  # Stribeck level at the step start [N] (event interpolation)
-            s_start[k] = s_next[k] if s_ok else _level(xd0[k], mech[b, 12 + k], gms[b])
+        u0 = u_now
+        for k in range(2):  # Stribeck level at the step start [N] (event interpolation):
+            # the last accepted step's end level where it ended at this state
+            s_start[k] = s_end[k] if s_ok else _level(xd0[k], mech[b, 12 + k], gms[b])
         while True:
             dn = 1 << rung
             h = dn * h_min
@@ -750,8 +746,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                         if abs(f[b, k, i]) > capf:
                             f[b, k, i] = capf if f[b, k, i] > 0.0 else -capf
                     st[b, k, i] = st_new[k, i]
-                s_next[k] = s_end[k]  # the next step starts from this state
-            s_ok = True
+            s_ok = True  # the next step starts from this state
             n = n1
             idx = _advance(wg[b], wn[b], idx, n)
             n_acc += 1
