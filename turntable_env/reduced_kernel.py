@@ -344,7 +344,9 @@ def run_reduced_batch(state, model, drive, h_min, recording):
             of the analytic solution). Status 0 ok, 1 non-finite state.
     """
     for b in prange(state.y.shape[0]):
-        _run_one(b, state, model, drive, h_min, recording)
+        # prange's index is unsigned: cast, so the kernel's int64 compilation serves both
+        # entry points (an unsigned b compiled the whole integrator a second time)
+        _run_one(np.int64(b), state, model, drive, h_min, recording)
 
 
 @njit(cache=CACHE)
