@@ -85,3 +85,30 @@ def test_nominal_starts_do_not_depend_on_the_workers(trace):
     assert problem2.n_sims > 0
     # the starts moved: each fit is its own start's, not the first one's copied
     assert len({round(f.cost, 9) for f in two}) == len(starts)
+
+
+@pytest.mark.slow  # the default tier's 5 CPU minutes: a process pool
+def test_a_fits_finite_differences_over_workers_give_the_same_fit(trace):
+    """local_fit(pool=...) evaluates the Jacobian's perturbed points in the workers (the
+    polish, the effect rounds' refits): the same fit number for number as in one process
+    — every evaluation is the one this process would make — with the workers'
+    simulations counted."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from turntable_env.calibration.trace_fit import _init_worker
+
+    model = NominalModel(Plant("real", fidelity="reduced"), TRACE_NOMINAL)
+    x0 = np.full(len(model), 0.1)
+    eff = {"piezo_creep": {"gamma": 0.01}}
+    serial_pb = TraceProblem([trace], model)
+    one = local_fit(serial_pb, x0, eff, free_effects=("piezo_creep",), max_nfev=2)
+    pooled_pb = TraceProblem([trace], model)
+    with ProcessPoolExecutor(2, initializer=_init_worker, initargs=(pooled_pb,)) as ex:
+        two = local_fit(pooled_pb, x0, eff, free_effects=("piezo_creep",), max_nfev=2, pool=ex)
+    np.testing.assert_array_equal(one.x, two.x)
+    assert one.effects == two.effects and one.cost == two.cost and one.nfev == two.nfev
+    np.testing.assert_array_equal(one.std_x, two.std_x)
+    assert one.std_effects == two.std_effects
+    # the fit moved (its Jacobian was used), and every simulation is counted where it ran
+    assert not np.array_equal(one.x, x0)
+    assert pooled_pb.n_sims == serial_pb.n_sims

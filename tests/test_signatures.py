@@ -339,7 +339,7 @@ def test_an_effect_the_trace_contradicts_is_not_named_by_its_signature(
     cand.values = {"alpha": -0.028}
     pool = SimpleNamespace(search=SimpleNamespace(features=lambda *_a: None),
                            run=lambda _jobs: [cand, _cand("piezo_creep", 0.0, sig=False)],
-                           workers=1)  # fmt: skip
+                           workers=1, executor=lambda: None)  # fmt: skip
     said: list[str] = []
     n, fit, rnd, _fits, cur = trace_fit._by_signature(
         SimpleNamespace(), pool, current, ["friction_asymmetry", "piezo_creep"], [],
@@ -407,7 +407,7 @@ def test_the_first_round_compares_with_the_model_hopped_as_often(
     cand.values = {"alpha": -0.063}
     pool = SimpleNamespace(search=SimpleNamespace(features=lambda *_a: None),
                            run=lambda _jobs: [cand, _cand("piezo_creep", 0.0, sig=False)],
-                           workers=1)  # fmt: skip
+                           workers=1, executor=lambda: None)  # fmt: skip
     n, fit, rnd, _fits, cur = trace_fit._by_signature(
         SimpleNamespace(), pool, current, ["friction_asymmetry", "piezo_creep"], [],
         lambda _m: None, plan=HopPlan(6, 0),

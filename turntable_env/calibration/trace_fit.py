@@ -413,6 +413,63 @@ def _effect_rows(effects: Mapping[str, Mapping[str, float]], free: Sequence[str]
     return rows
 
 
+class FitSpace(NamedTuple):
+    """One least-squares fit's free parameters and residual, picklable, so that a worker
+    holding a copy of the problem evaluates the same residual (:class:`_Differences`).
+
+    Attributes:
+        x0: the nominal ln-factors (held where ``free_nominal`` is False); effects: the
+        effects' values (the free ones overwritten by v); rows: (effect, parameter) of the
+        free effect parameters, in v's order; free_nominal: the ln-factors lead v;
+        portion: "fit" or "heldout"; weight: the data rows' weight [1/nm];
+        unit: v = z · unit (least squares works in z).
+    """
+
+    x0: np.ndarray
+    effects: dict[str, dict[str, float]]
+    rows: tuple[tuple[str, str], ...]
+    free_nominal: bool
+    portion: str
+    weight: float
+    unit: np.ndarray
+
+    def unpack(self, v: np.ndarray) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
+        """(ln-factors, effects) of a parameter vector v."""
+        nx = len(v) - len(self.rows)
+        x = np.array(v[:nx]) if self.free_nominal else np.asarray(self.x0, float)
+        e = {k: dict(d) for k, d in self.effects.items()}
+        for (name, key), val in zip(self.rows, v[nx:], strict=True):
+            e[name][key] = float(val)
+        return x, e
+
+    def residual(self, problem: TraceProblem, z: np.ndarray) -> np.ndarray:
+        """The weighted residual rows at z (and the priors' rows x/σ when the nominal
+        model is free)."""
+        x, e = self.unpack(z * self.unit)
+        r = problem.residual(x, e, self.portion) * self.weight
+        return np.concatenate([r, x / problem.model.sigma]) if self.free_nominal else r
+
+
+class _Differences:
+    """scipy's map for the finite-difference Jacobian (``least_squares(workers=...)``):
+    the perturbed points' residuals over a pool whose workers hold a copy of the problem
+    (each evaluation is the one the calling process would make, so the fit is the same
+    number for number), their simulations counted into the problem's."""
+
+    def __init__(self, pool: ProcessPoolExecutor, space: FitSpace, problem: TraceProblem):
+        self.pool, self.space, self.problem = pool, space, problem
+
+    def __call__(self, _fun: Callable, points: Any) -> list[np.ndarray]:
+        done = list(self.pool.map(_worker_residual, [(self.space, z) for z in points]))
+        self.problem.n_sims += sum(n for _r, n in done)
+        return [r for r, _n in done]
+
+
+def _worker_residual(job: tuple[FitSpace, np.ndarray]) -> tuple[np.ndarray, int]:
+    space, z = job
+    return _counted(lambda pb: space.residual(pb, z))
+
+
 def local_fit(
     problem: TraceProblem,
     x0: np.ndarray,
@@ -422,9 +479,12 @@ def local_fit(
     free_effects: Sequence[str] = (),
     max_nfev: int = 15,
     portion: str = "fit",
+    pool: ProcessPoolExecutor | None = None,
 ) -> LocalFit:
     """Bounded least squares of the free parameters on ``portion`` (priors as extra rows
-    on the nominal ln-factors; effect parameters bounded by the catalogue)."""
+    on the nominal ln-factors; effect parameters bounded by the catalogue); the Jacobian's
+    finite differences over ``pool``'s workers when given (initialised with
+    :func:`_init_worker`: the same fit, sooner)."""
     mdl = problem.model
     nx = len(mdl) if free_nominal else 0
     eff = {k: dict(v) for k, v in effects.items()}
@@ -434,33 +494,23 @@ def local_fit(
     scale = np.concatenate([mdl.sigma[:nx], [(p.high - p.low) / 4.0 for _n, p in rows]])
     v0 = np.concatenate([np.asarray(x0, float)[:nx], [eff[n][p.name] for n, p in rows]])
     v0 = np.clip(v0, lo, hi)
-
-    def unpack(v: np.ndarray) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
-        x = np.array(v[:nx]) if free_nominal else np.asarray(x0, float)
-        e = {k: dict(d) for k, d in eff.items()}
-        for (name, p), val in zip(rows, v[nx:], strict=True):
-            e[name][p.name] = float(val)
-        return x, e
-
-    def fun(v: np.ndarray) -> np.ndarray:
-        x, e = unpack(v)
-        r = problem.residual(x, e, portion) * problem.weight
-        return np.concatenate([r, x / mdl.sigma]) if free_nominal else r
-
-    if v0.size == 0:
-        x, e = unpack(v0)
-        r = fun(v0)
-        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, nx, rows)
     # effect parameters in units of a quarter of their range: the finite-difference step
     # (DIFF_STEP of the unit) then moves a 5e-5 rad amplitude or a 1 µs time constant as
     # much as a ln-factor, instead of stepping past its bounds
     unit = np.concatenate([np.ones(nx), scale[nx:]])
+    space = FitSpace(np.asarray(x0, float), eff, tuple((n, p.name) for n, p in rows),
+                     free_nominal, portion, problem.weight, unit)  # fmt: skip
+    if v0.size == 0:
+        x, e = space.unpack(v0)
+        r = space.residual(problem, v0)
+        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, nx, rows)
     res = scipy.optimize.least_squares(
-        lambda z: fun(z * unit), v0 / unit, bounds=(lo / unit, hi / unit),
+        lambda z: space.residual(problem, z), v0 / unit, bounds=(lo / unit, hi / unit),
         x_scale=scale / unit, diff_step=DIFF_STEP, max_nfev=max_nfev, method="trf",
+        workers=None if pool is None else _Differences(pool, space, problem),
     )  # fmt: skip
     v = res.x * unit
-    x, e = unpack(v)
+    x, e = space.unpack(v)
     jac = res.jac / unit  # d r / d v
     try:
         cov = np.linalg.pinv(jac.T @ jac)
@@ -563,15 +613,24 @@ class _Candidates:
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
 
-    def run(self, jobs: list[tuple]) -> list[Any]:
-        """Each job's result, in the jobs' order."""
-        if self.workers <= 1 or len(jobs) <= 1:
-            return [_run_candidate(self.problem, self.search, j) for j in jobs]
+    def executor(self) -> ProcessPoolExecutor | None:
+        """The pool (made at the first call), None with one worker: the candidates' jobs,
+        and the finite differences of the fits this process runs (:func:`local_fit`)."""
+        if self.workers <= 1:
+            return None
         if self._pool is None:
             self._pool = ProcessPoolExecutor(
                 self.workers, initializer=_init_selection, initargs=(self.problem, self.search)
             )
+        return self._pool
+
+    def run(self, jobs: list[tuple]) -> list[Any]:
+        """Each job's result, in the jobs' order."""
+        if self.workers <= 1 or len(jobs) <= 1:
+            return [_run_candidate(self.problem, self.search, j) for j in jobs]
+        self.executor()
         order = sorted(range(len(jobs)), key=lambda k: CATALOGUE[jobs[k][1]].stage == "output")
+        assert self._pool is not None
         futures = {k: self._pool.submit(_worker_candidate, jobs[k]) for k in order}
         out = []
         for k in range(len(jobs)):
@@ -758,12 +817,14 @@ def _from_neutral(fit: LocalFit, name: str) -> str:
                      for k, d in _sigmas_from_neutral(fit, name).items())  # fmt: skip
 
 
-def consistent(problem: TraceProblem, fit: LocalFit, name: str) -> tuple[bool, str]:
+def consistent(
+    problem: TraceProblem, fit: LocalFit, name: str, pool: ProcessPoolExecutor | None = None
+) -> tuple[bool, str]:
     """The effect refitted on the held-out portion alone (everything else fixed) agrees
     with the fit portion's estimate: within 3 combined σ and of the same sign."""
     held = local_fit(
         problem, fit.x, fit.effects, free_nominal=False, free_effects=(name,), max_nfev=10,
-        portion="heldout",
+        portion="heldout", pool=pool,
     )  # fmt: skip
     neutral = CATALOGUE[name].neutral()
     p0 = CATALOGUE[name].parameters[0].name
@@ -941,7 +1002,11 @@ def _fit_nominal(
     best, hop_rows = _basin_hops(problem, min(fits, key=lambda f: f.cost), n_workers, seed,
                                  say, hops)  # fmt: skip
     _reweight(problem, best, floor)
-    nominal = local_fit(problem, best.x, {}, max_nfev=10)
+    if n_workers > 1:  # the polish's finite differences over the workers
+        with ProcessPoolExecutor(n_workers, initializer=_init_worker, initargs=(problem,)) as ex:
+            nominal = local_fit(problem, best.x, {}, max_nfev=10, pool=ex)
+    else:
+        nominal = local_fit(problem, best.x, {}, max_nfev=10)
     if nominal.heldout_rms > best.heldout_rms:
         nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
     spread = {**_start_spread(fits, nominal), "hops": hop_rows}
@@ -1025,23 +1090,25 @@ def _screen(
 def _accept_one(
     problem: TraceProblem, current: LocalFit, top: Sequence[tuple[str, LocalFit]],
     selected: list[str], min_improvement: float, warnings: list[str],
-    say: Callable[[str], None],
+    say: Callable[[str], None], pool: ProcessPoolExecutor | None = None,
 ) -> tuple[str, LocalFit] | None:  # fmt: skip
     """The first of the best screened candidates, refitted jointly with the nominal model,
     that beats the nominal model refitted with the same budget by ``min_improvement`` on
     held-out data, lies 3 σ from neutral, agrees between portions and has its main
-    parameter inside its range (:func:`~.identify.main_at_bound`); None if none does."""
+    parameter inside its range (:func:`~.identify.main_at_bound`); None if none does. The
+    fits' finite differences run over ``pool`` when given."""
     refit_nom = local_fit(problem, current.x, current.effects,
-                          free_effects=selected, max_nfev=6)  # fmt: skip
+                          free_effects=selected, max_nfev=6, pool=pool)  # fmt: skip
     baseline = min(current.heldout_rms, refit_nom.heldout_rms)
     for n, c in top:
-        joint = local_fit(problem, c.x, c.effects, free_effects=[*selected, n], max_nfev=6)
+        joint = local_fit(problem, c.x, c.effects, free_effects=[*selected, n], max_nfev=6,
+                          pool=pool)  # fmt: skip
         cand = joint if joint.heldout_rms < c.heldout_rms else c
         if cand is c:  # standard errors with the nominal free too
             cand = replace(c, std_effects={**c.std_effects, **joint.std_effects})
         gain = 1.0 - cand.heldout_rms / baseline
         sig = is_significant(cand, n)
-        ok, note = consistent(problem, cand, n) if sig else (False, "")
+        ok, note = consistent(problem, cand, n, pool) if sig else (False, "")
         at_bound = _at_bounds_effect(cand, n)
         say(
             f"  {n}: held-out {cand.heldout_rms:.3g} vs nominal refit {baseline:.3g} "
@@ -1123,7 +1190,8 @@ def _by_signature(
     # without the effect may have absorbed part of it (a stroke or gain factor bent to a
     # detector's curvature), and a few iterations from there do not undo that
     joint = min(
-        (local_fit(problem, x0, eff, free_effects=[*selected, n], max_nfev=6)
+        (local_fit(problem, x0, eff, free_effects=[*selected, n], max_nfev=6,
+                   pool=pool.executor())
          for x0 in (current.x, np.zeros_like(current.x))),
         key=lambda f: f.cost,
     )  # fmt: skip
@@ -1161,7 +1229,8 @@ def _by_signature(
         # 10.6 nm; the second plant's axis C, seed 1: asymmetry's hopped refit 3.22 nm
         # against the nominal fit's 3.54 nm, α at 0.9 σ). In the first round only for an
         # effect within 3 σ of neutral, the one case where the comparison can decide.
-        refit = local_fit(problem, current.x, current.effects, free_effects=selected, max_nfev=6)
+        refit = local_fit(problem, current.x, current.effects, free_effects=selected, max_nfev=6,
+                          pool=pool.executor())  # fmt: skip
         if plan.hops > 0:
             say(f"  by signature: the current model's refit ({', '.join(selected) or 'nominal'}"
                 "), basin hopping")  # fmt: skip
@@ -1268,7 +1337,8 @@ def _round(
     if not screened:
         return current, None, ""
     top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
-    accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say)
+    accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say,
+                           pool.executor())  # fmt: skip
     if accepted is None:
         say("  no effect beats the nominal model on held-out data")
         return current, None, ""
