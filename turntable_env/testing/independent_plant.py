@@ -784,8 +784,10 @@ def _amp_array(params: PlantParams, effects: Effects) -> np.ndarray:
 
 
 def _check_series(time: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    t = np.asarray(time, dtype=float)
-    u = np.asarray(drive, dtype=float)
+    # contiguous: a strided slice would compile the integrator a second time (numba types
+    # array layouts apart)
+    t = np.ascontiguousarray(time, dtype=float)
+    u = np.ascontiguousarray(drive, dtype=float)
     if t.ndim != 1 or t.size < 2:
         raise ValueError(f"time: shape {t.shape}, must be 1-D with >= 2 samples")
     if u.shape != t.shape:
