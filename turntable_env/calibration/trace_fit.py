@@ -628,10 +628,10 @@ class _Candidates:
         """Each job's result, in the jobs' order."""
         if self.workers <= 1 or len(jobs) <= 1:
             return [_run_candidate(self.problem, self.search, j) for j in jobs]
-        self.executor()
+        pool = self.executor()
+        assert pool is not None
         order = sorted(range(len(jobs)), key=lambda k: CATALOGUE[jobs[k][1]].stage == "output")
-        assert self._pool is not None
-        futures = {k: self._pool.submit(_worker_candidate, jobs[k]) for k in order}
+        futures = {k: pool.submit(_worker_candidate, jobs[k]) for k in order}
         out = []
         for k in range(len(jobs)):
             res, n = futures[k].result()
