@@ -25,7 +25,7 @@ from controllers.lab import LabBrief
 from controllers.shield import BlindShield
 
 from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig, make_interface
-from .train import _algos
+from .train import _algos, frame_stack
 
 __all__ = ["AgentController", "interface_of", "load_agent"]
 
@@ -83,12 +83,27 @@ class AgentController(Controller):
         self.name = name or cfg["run"]["algo"]
         self.interface = make_interface(ctx, interface_of(cfg))
         self.shield = BlindShield(ctx) if shield else None
+        entry = cfg.get(cfg["run"].get("env_id") or RAW_ENV_ID, {})
+        width = self.interface.observation_space.shape[0]
+        # the last k normalised features, oldest first, zeros before the episode's first
+        # (SB3's VecFrameStack, as in training: rl-zoo3's frame_stack)
+        self._stack = np.zeros((frame_stack(entry), width), dtype=np.float32)
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
-        # the policy is memoryless (everything it uses is in the observation); the shield
-        # takes the brief's dead-reckoned start for its blind budget
+        # the policy sees the observation (and, with frame_stack, the episode's last ones);
+        # the shield takes the brief's dead-reckoned start for its blind budget
+        self._stack[:] = 0.0
         if self.shield is not None:
             self.shield.reset(obs, brief)
+
+    def _seen(self, normalized: np.ndarray) -> np.ndarray:
+        """What the policy sees of this interval's normalised features (8,): the features
+        themselves, or with frame_stack the last k, flattened oldest first."""
+        if self._stack.shape[0] == 1:
+            return normalized
+        self._stack[:-1] = self._stack[1:]
+        self._stack[-1] = normalized
+        return self._stack.reshape(-1).copy()
 
     def _shielded(self, obs: np.ndarray, action: np.ndarray) -> np.ndarray:
         return action if self.shield is None else self.shield.filter(obs, action)
@@ -96,7 +111,7 @@ class AgentController(Controller):
     def policy_action(self, obs: np.ndarray) -> np.ndarray:
         """The agent's own action (3,) for an env observation."""
         feats = self.vecnorm.normalize_obs(self.interface.features(obs)[None, :])
-        action, _ = self.model.predict(feats, deterministic=True)
+        action, _ = self.model.predict(self._seen(feats[0])[None, :], deterministic=True)
         return np.asarray(action[0])
 
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -109,7 +124,9 @@ class AgentController(Controller):
         if not all(isinstance(c, AgentController) and c.model is first.model for c in controllers):
             return super().act_many(controllers, obs)
         feats = np.stack([c.interface.features(o) for c, o in zip(controllers, obs, strict=True)])
-        actions, _ = first.model.predict(first.vecnorm.normalize_obs(feats), deterministic=True)
+        normalized = first.vecnorm.normalize_obs(feats)
+        seen = np.stack([c._seen(f) for c, f in zip(controllers, normalized, strict=True)])
+        actions, _ = first.model.predict(seen, deterministic=True)
         return np.stack(
             [
                 c._shielded(o, c.interface.env_action(a, o))

@@ -37,6 +37,7 @@ __all__ = [
     "HYPERPARAMS_DIR",
     "TrainedAgent",
     "apply_overrides",
+    "frame_stack",
     "load_hyperparams",
     "load_training",
     "make_vec_env",
@@ -49,10 +50,14 @@ HYPERPARAMS_DIR = Path(__file__).parent / "hyperparams"
 TRAINING_FILE = HYPERPARAMS_DIR / "training.yml"
 ENV_ID = AGENT_ENV_ID  # the default: the shipped agents' structured interface
 ENV_IDS = (AGENT_ENV_ID, RAW_ENV_ID)
-ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")  # not SB3 args
+# rl-zoo3's keys, not SB3 arguments;
+ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "frame_stack")
+# frame_stack (rl-zoo3's key): the policy sees the last k normalised observations
+# (VecFrameStack over VecNormalize, zoo's order; AgentController stacks the same way)
 DEFAULT_TRAINING: dict[str, Any] = {
     "eval": {"freq": 10_000, "n_envs": 4, "episodes": 16},
     "checkpoint_freq": 100_000,
+    "domains": None,  # one domain: the entry's env_kwargs (NativeVecEnv's ``domains``)
 }
 
 
@@ -182,7 +187,8 @@ def apply_overrides(cfg: dict[str, Any], overrides: dict[str, Any] | None) -> di
 
 
 def load_training(algo: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The project's settings for ``algo`` (evaluation, checkpoints) from training.yml."""
+    """The project's settings for ``algo`` (evaluation, checkpoints, training domains)
+    from training.yml."""
     p = Path(path) if path is not None else TRAINING_FILE
     if not p.is_file():
         raise ValueError(f"training settings: {p} does not exist")
@@ -196,9 +202,21 @@ def load_training(algo: str, path: str | Path | None = None) -> dict[str, Any]:
     return out
 
 
-def make_vec_env(cfg: dict[str, Any], n_envs: int, seed: int, env_id: str = ENV_ID) -> Any:
+def frame_stack(cfg: dict[str, Any]) -> int:
+    """The entry's ``frame_stack`` (rl-zoo3's key; 1: none); ValueError for a bad value."""
+    k = cfg.get("frame_stack", 1)
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ValueError(f"frame_stack={k!r}: must be an integer >= 1")
+    return k
+
+
+def make_vec_env(
+    cfg: dict[str, Any], n_envs: int, seed: int, env_id: str = ENV_ID,
+    domains: list[dict[str, Any]] | None = None,
+) -> Any:  # fmt: skip
     """The monitored native vector env of a hyperparameter entry, seeded: the structured
-    interface for ``PiezoTurntableAgent-v0``, the env's own spaces for ``PiezoTurntable-v0``."""
+    interface for ``PiezoTurntableAgent-v0``, the env's own spaces for ``PiezoTurntable-v0``;
+    ``domains`` (training.yml): the rows' plant distributions (:class:`NativeVecEnv`)."""
     from stable_baselines3.common.vec_env import VecMonitor
 
     from .vec_env import NativeVecEnv
@@ -207,7 +225,7 @@ def make_vec_env(cfg: dict[str, Any], n_envs: int, seed: int, env_id: str = ENV_
     steps = int(kwargs.pop("max_episode_steps", 100))
     iface = kwargs.pop("interface", None)
     interface = RAW if env_id == RAW_ENV_ID else InterfaceConfig(**(iface or {}))
-    env = NativeVecEnv(n_envs, steps, interface, **kwargs)
+    env = NativeVecEnv(n_envs, steps, interface, domains, **kwargs)
     env.seed(seed)
     return VecMonitor(env)
 
@@ -233,7 +251,7 @@ def train(
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.utils import set_random_seed
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 
     cfg = apply_overrides(load_hyperparams(algo, hyperparams, env_id), overrides)
     proj = load_training(algo, training)
@@ -247,23 +265,28 @@ def train(
     n_envs = int(cfg["n_envs"])
     norm = dict(cfg.get("normalize", {"norm_obs": True, "norm_reward": False}))
     gamma = float(cfg.get("gamma", 0.99))
-    venv = VecNormalize(make_vec_env(cfg, n_envs, seed, env_id), gamma=gamma, **norm)
+    domains = proj["domains"]
+    venv = VecNormalize(make_vec_env(cfg, n_envs, seed, env_id, domains), gamma=gamma, **norm)
     ev = dict(proj["eval"])
     eval_env = VecNormalize(
-        make_vec_env(cfg, int(ev.get("n_envs", 4)), seed + 10_000, env_id),
+        make_vec_env(cfg, int(ev.get("n_envs", 4)), seed + 10_000, env_id, domains),
         training=False,
         norm_obs=norm.get("norm_obs", True),
         norm_reward=False,
     )
+    stack = frame_stack(cfg)
+    learn_env, eval_seen = venv, eval_env
+    if stack > 1:
+        learn_env, eval_seen = VecFrameStack(venv, stack), VecFrameStack(eval_env, stack)
     hyper = {k: v for k, v in cfg.items() if k not in ZOO_KEYS}
     if "policy_kwargs" in hyper:
         hyper["policy_kwargs"] = parse_policy_kwargs(hyper["policy_kwargs"])
-    model = _algos()[algo](cfg["policy"], venv, seed=seed, verbose=0, **copy.deepcopy(hyper))
+    model = _algos()[algo](cfg["policy"], learn_env, seed=seed, verbose=0, **copy.deepcopy(hyper))
     formats = ["csv"] + (["tensorboard"] if tensorboard else [])
     model.set_logger(configure(str(out / "logs"), formats))
     callbacks = [
         EvalCallback(
-            eval_env,
+            eval_seen,
             n_eval_episodes=int(ev.get("episodes", 16)),
             eval_freq=max(int(ev.get("freq", 10_000)) // n_envs, 1),
             log_path=str(out / "eval"),

@@ -34,7 +34,14 @@ import yaml
 from turntable_env.scale import map_tasks, resolve_backend, session
 
 from .interface import RAW_ENV_ID
-from .train import ENV_ID, ENV_IDS, apply_overrides, load_hyperparams, zoo_policy_kwargs
+from .train import (
+    ENV_ID,
+    ENV_IDS,
+    apply_overrides,
+    load_hyperparams,
+    load_training,
+    zoo_policy_kwargs,
+)
 
 __all__ = ["TUNABLE", "TuneResult", "sample_overrides", "search"]
 
@@ -152,7 +159,10 @@ def search(
     root.mkdir(parents=True, exist_ok=True)
     training = root / "training.yml"  # evaluate twice per trial, the last one is the objective
     every = {"freq": max(timesteps // 2, 1), "n_envs": 8, "episodes": eval_episodes}
-    training.write_text(yaml.safe_dump({algo: {"eval": every, "checkpoint_freq": 10**12}}))
+    domains = load_training(algo)["domains"]  # the trials train on the algo's domains
+    training.write_text(yaml.safe_dump(
+        {algo: {"eval": every, "checkpoint_freq": 10**12, "domains": domains}}
+    ))  # fmt: skip
     name = study_name or f"{algo}_{env_id}"
     journal = root / "study.log"
     optuna.logging.set_verbosity(optuna.logging.WARNING)

@@ -12,11 +12,12 @@ draws the curve across seeds (mean and 95 % interval) to --out/learning_curves_<
 
 Hyperparameters: the --env-id entry (default PiezoTurntableAgent-v0, the structured
 interface) of agents/hyperparams/<algo>.yml (rl-zoo3 layout) and the algorithm's entry of
-training.yml; --timesteps overrides n_timesteps. Writes model.zip, vecnormalize.pkl,
-config.yml, logs/progress.csv (and TensorBoard with --tensorboard), eval/evaluations.npz,
-checkpoints/ and learning_curve.png to --out, and prints the wall time and the last evaluation.
---ship then copies the agent (without checkpoints) to agents/pretrained/<algo>/ (the raw
-env: <algo>_raw/), where
+training.yml (or --training FILE: training_domains.yml trains half the rows on the
+calibrated plant's posterior); --timesteps overrides n_timesteps. Writes model.zip,
+vecnormalize.pkl, config.yml, logs/progress.csv (and TensorBoard with --tensorboard),
+eval/evaluations.npz, checkpoints/ and learning_curve.png to --out, and prints the wall
+time and the last evaluation. --ship then copies the agent (without checkpoints) to
+agents/pretrained/<algo>/ (the raw env: <algo>_raw/), where
 ``import agents`` registers it as a controller for ``turntable benchmark``.
 """
 
@@ -40,7 +41,8 @@ def _multi(args: argparse.Namespace, name: str) -> None:
     root = args.out or "runs"
     runs = train_seeds(
         args.algo, seeds, env_id=args.env_id, timesteps=args.timesteps, out=root,
-        hyperparams=args.hyperparams, backend=args.backend, address=args.address,
+        hyperparams=args.hyperparams, training=args.training, backend=args.backend,
+        address=args.address,
         workers=args.workers,
     )  # fmt: skip
     c = seed_curves(runs)
@@ -62,6 +64,11 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="run directory (default runs/<algo>_seed<S>)")
     ap.add_argument("--hyperparams", default=None, help="YAML file (default: the algo's)")
+    ap.add_argument(
+        "--training", default=None,
+        help="training settings YAML (default agents/hyperparams/training.yml; "
+        "training_domains.yml: the nominal and the calibrated plant's posterior)",
+    )  # fmt: skip
     ap.add_argument("--tensorboard", action="store_true", help="also log for TensorBoard")
     ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--ship", action="store_true", help="copy to agents/pretrained/<algo>/")
@@ -87,6 +94,7 @@ def main() -> None:
         seed=args.seed,
         out=out,
         hyperparams=args.hyperparams,
+        training=args.training,
         tensorboard=args.tensorboard,
         progress=not args.no_progress,
     ).run

@@ -8,12 +8,13 @@ import pytest
 import yaml
 
 import turntable_env  # noqa: F401
-from agents import AgentWrapper, InterfaceConfig, load_agent, pretrained
+from agents import AgentController, AgentWrapper, InterfaceConfig, load_agent, pretrained
 from agents.controller import interface_of
 from agents.interface import AGENT_ENV_ID, RAW, RAW_ENV_ID
-from agents.train import load_hyperparams, train
-from agents.vec_env import NativeVecEnv
+from agents.train import HYPERPARAMS_DIR, load_hyperparams, load_training, train
+from agents.vec_env import NativeVecEnv, domain_kwargs, domain_sizes
 from controllers import make
+from controllers.base import ControllerContext
 from controllers.lab import LabBrief
 
 FIXED_OBS = np.random.default_rng(7).uniform(-2.0, 2.0, size=(16, 8)).astype(np.float32)
@@ -65,6 +66,36 @@ def test_train_save_reload_gives_identical_actions(algo, env_id, tmp_path):
     assert all(space.contains(a.astype(np.float32)) for a in act_b)
 
 
+def test_frame_stacked_agent_sees_what_sb3_stacked_in_training(tmp_path):
+    """An agent trained with rl-zoo3's frame_stack acts in the benchmark on the last k
+    normalised features as SB3's VecFrameStack stacked them in training (zeros before the
+    episode's first), and its actions depend on the history, not only the last features."""
+    from stable_baselines3.common.vec_env.stacked_observations import StackedObservations
+
+    hp, tr = _smoke_hyperparams("ppo", tmp_path)
+    cfg = yaml.safe_load(hp.read_text())
+    cfg[AGENT_ENV_ID]["frame_stack"] = 3
+    hp.write_text(yaml.safe_dump(cfg))
+    res = train("ppo", timesteps=128, seed=2, out=tmp_path / "run", hyperparams=hp,
+                training=tr, progress=False)  # fmt: skip
+    assert res.model.observation_space.shape == (24,)
+    env = gym.make("PiezoTurntable-v0", noise=True, move_range=(1e-6, 1e-3))
+    ctl = AgentController(ControllerContext.from_env(env), res.run, shield=False)
+    ref = StackedObservations(1, 3, ctl.interface.observation_space)
+    obs, info = env.reset(seed=4)
+    ctl.reset(obs, LabBrief(float(info["target_rad"])))
+    for t in range(6):
+        f = res.vecnormalize.normalize_obs(ctl.interface.features(obs)[None, :])
+        seen = ref.reset(f) if t == 0 else ref.update(f, np.array([False]), [{}])[0]
+        want, _ = res.model.predict(seen, deterministic=True)
+        got = ctl.policy_action(obs)
+        np.testing.assert_array_equal(got, want[0])
+        obs = env.step(ctl.interface.env_action(got, obs))[0]
+    fresh = AgentController(ControllerContext.from_env(env), res.run, shield=False)
+    fresh.reset(obs, LabBrief(float(info["target_rad"])))
+    assert not np.array_equal(fresh.policy_action(obs), ctl.policy_action(obs))
+
+
 def test_shipped_agents_load_and_act():
     shipped = pretrained()
     assert {"ppo", "sac"} <= set(shipped)
@@ -104,6 +135,79 @@ def test_native_vec_env_equals_the_wrapped_single_env():
             np.testing.assert_array_equal(f_vec[0], f_one)
         assert r_vec[0] == pytest.approx(r_one, rel=1e-6)
     assert done[0]  # the time limit of 5 steps ended the episode
+
+
+CALIBRATED_DOMAIN = {"plant": "calibrated", "fidelity": "reduced", "randomize": True}
+
+
+def test_training_domains_run_each_plant_as_its_own_env():
+    """Two domains in one NativeVecEnv: each group's rows are the env of its own kwargs,
+    seeded s + row (the same features, rewards and plant draws as that env alone), and the
+    calibrated group's features use the calibrated plant's detector range and scan gain."""
+    base = {"noise": True, "randomize": {"friction": (0.7, 1.3)}, "move_range": (1e-6, 1e-3)}
+    domains = [{"share": 1}, {"share": 1, "env_kwargs": CALIBRATED_DOMAIN}]
+    mixed = NativeVecEnv(4, 5, None, domains, **base)
+    alone = [NativeVecEnv(2, 5, None, **base),
+             NativeVecEnv(2, 5, None, **{**base, **CALIBRATED_DOMAIN})]  # fmt: skip
+    mixed.seed(11)
+    alone[0].seed(11)
+    alone[1].seed(13)  # the second group's rows are 2 and 3
+    f = mixed.reset()
+    np.testing.assert_array_equal(f, np.concatenate([a.reset() for a in alone]))
+    ctx = [i.ctx for i in mixed.interfaces]
+    assert ctx[1].scan_gain > 1.5 * ctx[0].scan_gain  # the calibrated rig's symmetric drive
+    assert ctx[1].angle_range != ctx[0].angle_range
+    draws = mixed.venvs[1].task.draws
+    assert set(draws[0]) == {"friction", "preload"}  # the posterior: the calibration's σ
+    rng = np.random.default_rng(0)
+    for k in range(6):
+        a = rng.uniform(-1, 1, size=(4, 3)).astype(np.float32)
+        f, r, done, _ = mixed.step(a)
+        parts = [alone[0].step(a[:2]), alone[1].step(a[2:])]
+        np.testing.assert_array_equal(f, np.concatenate([p[0] for p in parts]))
+        np.testing.assert_array_equal(r, np.concatenate([p[1] for p in parts]))
+        np.testing.assert_array_equal(done, np.concatenate([p[2] for p in parts]))
+        assert done.all() == (k == 4)  # the 5-step limit ends every row, which is reset
+    assert mixed.get_attr("num_envs") == [2, 2, 2, 2]
+
+
+@pytest.mark.parametrize(
+    ("n", "shares", "sizes"),
+    [(16, [1, 1], [8, 8]), (8, [0.5, 0.25, 0.25], [4, 2, 2]), (3, [0.9, 0.05, 0.05], [1, 1, 1]),
+     (5, [1, 1], [3, 2]), (7, [3, 1], [5, 2])],
+)  # fmt: skip
+def test_domain_sizes_split_the_rows_by_share(n, shares, sizes):
+    assert domain_sizes(n, shares) == sizes
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: domain_sizes(1, [1, 1]), "fewer rows"),
+        (lambda: domain_kwargs({}, []), "at least one"),
+        (lambda: domain_kwargs({}, "calibrated"), "list"),
+        (lambda: domain_kwargs({}, [{"share": 0}]), r"domains\[0\].share=0"),
+        (lambda: domain_kwargs({}, [{"share": 1}, {"weight": 1}]), r"domains\[1\]"),
+        (lambda: domain_kwargs({}, [{"env_kwargs": "x"}]), "env_kwargs='x'"),
+        (lambda: NativeVecEnv(2, 5, None, [{"env_kwargs": {"plant": "nope"}}]), "nope"),
+    ],
+)
+def test_training_domain_errors(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_training_domains_file_adds_the_calibrated_posterior(algo):
+    """training_domains.yml: half the rows on the calibrated plant's posterior; training.yml
+    (the shipped agents' settings) keeps one domain, so it reproduces them."""
+    assert load_training(algo)["domains"] is None
+    domains = load_training(algo, HYPERPARAMS_DIR / "training_domains.yml")["domains"]
+    groups = domain_kwargs(load_hyperparams(algo)["env_kwargs"], domains)
+    assert [share for share, _ in groups] == [0.5, 0.5]
+    assert groups[0][1]["params"] == "real" and "plant" not in groups[0][1]
+    assert {k: groups[1][1][k] for k in CALIBRATED_DOMAIN} == CALIBRATED_DOMAIN
+    assert "params" not in groups[1][1]
 
 
 @pytest.mark.parametrize(("a1", "steps"), [(-1.0, 1), (1.0, 20), (0.0, 11)])

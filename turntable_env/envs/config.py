@@ -18,7 +18,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from ..params import ParameterSet
-from ..plant import DEFAULT_RANDOMIZATION, FIDELITIES, PARAMETER_SETS, Plant
+from ..plant import DEFAULT_RANDOMIZATION, FIDELITIES, NAMED_PLANTS, PARAMETER_SETS, Plant
 from ..validation import check_nonnegative, check_positive
 
 __all__ = [
@@ -176,8 +176,10 @@ class EnvConfig:
     """Every constructor argument of the PiezoTurntable environments (SI units).
 
     Args:
-        plant: the :class:`~turntable_env.plant.Plant` to run, or the path of a calibration
-            ``report.json`` (or its directory) whose plant to run
+        plant: the :class:`~turntable_env.plant.Plant` to run, the name of a stored plant
+            (``"calibrated"``: the thesis calibration's plant whole, with its
+            uncertainties, :meth:`~turntable_env.plant.Plant.named`), or the path of a
+            calibration ``report.json`` (or its directory) whose plant to run
             (:meth:`~turntable_env.plant.Plant.from_report`): its parameter set, effects,
             fidelity and detector noise. Default: the plant of ``params``.
         params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2),
@@ -190,7 +192,8 @@ class EnvConfig:
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.
         control_interval: time per env step [s] (0.01: one period of the 100 Hz nominal drive).
         randomize: domain randomisation per episode (:meth:`Plant.sample`): False; True —
-            from the plant's calibration uncertainties when it came from a report, otherwise
+            from the plant's calibration uncertainties when it has them (a report's plant,
+            or the stored ``"calibrated"`` one: its posterior), otherwise
             :data:`DEFAULT_RANDOMIZATION`; or a mapping of some of its keys to (low, high)
             factor ranges.
         noise: detector noise on (True) or off.
@@ -306,6 +309,8 @@ class EnvConfig:
             if not isinstance(params, str | ParameterSet):
                 raise ValueError(f"params={params!r}: must be a set's name or a ParameterSet")
             plant = Plant(params)
+        elif isinstance(plant, str) and plant in NAMED_PLANTS:
+            plant = Plant.named(plant)
         elif isinstance(plant, str | os.PathLike):
             plant = Plant.from_report(plant)
         elif not isinstance(plant, Plant):
