@@ -50,10 +50,9 @@ HYPERPARAMS_DIR = Path(__file__).parent / "hyperparams"
 TRAINING_FILE = HYPERPARAMS_DIR / "training.yml"
 ENV_ID = AGENT_ENV_ID  # the default: the shipped agents' structured interface
 ENV_IDS = (AGENT_ENV_ID, RAW_ENV_ID)
-# rl-zoo3's keys, not SB3 arguments;
+# rl-zoo3's keys, not SB3 arguments. frame_stack: the policy sees the last k normalised
+# observations (VecFrameStack over VecNormalize, zoo's order; AgentController stacks alike)
 ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs", "frame_stack")
-# frame_stack (rl-zoo3's key): the policy sees the last k normalised observations
-# (VecFrameStack over VecNormalize, zoo's order; AgentController stacks the same way)
 DEFAULT_TRAINING: dict[str, Any] = {
     "eval": {"freq": 10_000, "n_envs": 4, "episodes": 16},
     "checkpoint_freq": 100_000,
@@ -199,6 +198,13 @@ def load_training(algo: str, path: str | Path | None = None) -> dict[str, Any]:
     if unknown:
         raise ValueError(f"{p}: '{algo}' has unknown keys {sorted(unknown)}")
     out.update(entry)
+    if out["domains"] is not None:
+        from .vec_env import domain_kwargs
+
+        try:  # a bad entry: ValueError naming the file, before any work
+            domain_kwargs({}, out["domains"])
+        except ValueError as e:
+            raise ValueError(f"{p}: '{algo}': {e}") from None
     return out
 
 
@@ -255,6 +261,7 @@ def train(
 
     cfg = apply_overrides(load_hyperparams(algo, hyperparams, env_id), overrides)
     proj = load_training(algo, training)
+    stack = frame_stack(cfg)
     n_steps = int(timesteps if timesteps is not None else cfg["n_timesteps"])
     if n_steps < 1:
         raise ValueError(f"timesteps={timesteps!r}: must be >= 1")
@@ -274,7 +281,6 @@ def train(
         norm_obs=norm.get("norm_obs", True),
         norm_reward=False,
     )
-    stack = frame_stack(cfg)
     learn_env, eval_seen = venv, eval_env
     if stack > 1:
         learn_env, eval_seen = VecFrameStack(venv, stack), VecFrameStack(eval_env, stack)

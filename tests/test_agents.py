@@ -197,6 +197,22 @@ def test_training_domain_errors(call, match):
         call()
 
 
+def test_a_bad_training_domain_is_refused_naming_the_file(tmp_path):
+    t = tmp_path / "bad_training.yml"
+    t.write_text(yaml.safe_dump({"ppo": {"domains": [{"share": -1}]}}))
+    with pytest.raises(ValueError, match=r"bad_training.yml: 'ppo': domains\[0\].share=-1"):
+        load_training("ppo", t)
+    hp, tr = _smoke_hyperparams("ppo", tmp_path)
+    cfg = yaml.safe_load(hp.read_text())
+    cfg[AGENT_ENV_ID]["frame_stack"] = 0
+    hp.write_text(yaml.safe_dump(cfg))
+    for hyper, training in ((hp, tr), (None, t)):
+        with pytest.raises(ValueError, match=r"frame_stack=0|share=-1"):
+            train("ppo", timesteps=10, out=tmp_path / "run", hyperparams=hyper,
+                  training=training, progress=False)  # fmt: skip
+    assert not (tmp_path / "run").exists()  # refused before the run directory is made
+
+
 @pytest.mark.parametrize("algo", ["ppo", "sac"])
 def test_training_domains_file_adds_the_calibrated_posterior(algo):
     """training_domains.yml: half the rows on the calibrated plant's posterior; training.yml

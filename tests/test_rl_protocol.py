@@ -17,11 +17,11 @@ from agents.scale import seed_curves, train_seeds
 from agents.train import HYPERPARAMS_DIR, ZOO_KEYS, _algos, load_training
 
 
-@pytest.mark.parametrize("algo", ["ppo", "sac"])
-def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo):
+@pytest.mark.parametrize(("algo", "name"), [("ppo", "ppo"), ("sac", "sac"), ("ppo", "ppo_history")])
+def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
     """rl-zoo3 passes every key it does not know to the algorithm: so every key must be a
     zoo key or an argument of the SB3 class (the project's own settings live elsewhere)."""
-    data = yaml.safe_load((HYPERPARAMS_DIR / f"{algo}.yml").read_text(encoding="utf-8"))
+    data = yaml.safe_load((HYPERPARAMS_DIR / f"{name}.yml").read_text(encoding="utf-8"))
     params = set(inspect.signature(_algos()[algo].__init__).parameters)
     for env_id, entry in data.items():
         assert env_id in (AGENT_ENV_ID, RAW_ENV_ID)
