@@ -59,16 +59,15 @@ class NativeVecEnv(VecEnv):
             PiezoTurntableVectorEnv(n, max_episode_steps, **kw)
             for n, (_, kw) in zip(sizes, groups, strict=True)
         ]
-        self.venv = self.venvs[0]
         self.interfaces = [
             make_interface(ControllerContext.from_config(v.config), interface) for v in self.venvs
         ]
-        self.interface = self.interfaces[0]
         self.rows = np.cumsum([0, *sizes])  # group g holds rows rows[g]:rows[g + 1]
-        super().__init__(num_envs, self.interface.observation_space, self.interface.action_space)
+        spaces = self.interfaces[0]  # every group's interface has the same spaces
+        super().__init__(num_envs, spaces.observation_space, spaces.action_space)
         self._seed: int | None = None
         self._raw = np.zeros((num_envs, 8), dtype=np.float32)
-        self._actions = np.zeros((num_envs, self.interface.action_space.shape[0]))
+        self._actions = np.zeros((num_envs, spaces.action_space.shape[0]))
 
     def _slices(self) -> list[slice]:
         return [slice(int(a), int(b)) for a, b in zip(self.rows[:-1], self.rows[1:], strict=True)]
