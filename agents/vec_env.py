@@ -130,14 +130,15 @@ class NativeVecEnv(VecEnv):
             v.close()
 
     def _group(self, i: int) -> PiezoTurntableVectorEnv:
+        """The batched env that holds row i."""
         return self.venvs[int(np.searchsorted(self.rows, i, side="right")) - 1]
 
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
         return [getattr(self._group(i), attr_name) for i in self._indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
-        for v in {id(self._group(i)): self._group(i) for i in self._indices(indices)}.values():
-            setattr(v, attr_name, value)
+        for i in self._indices(indices):  # on the row's group (a group's rows share it)
+            setattr(self._group(i), attr_name, value)
 
     def env_method(self, method_name: str, *args: Any, indices: Any = None, **kwargs: Any) -> list:
         return [
