@@ -63,7 +63,9 @@ class NativeVecEnv(VecEnv):
             make_interface(ControllerContext.from_config(v.config), interface) for v in self.venvs
         ]
         self.rows = np.cumsum([0, *sizes])  # group g holds rows rows[g]:rows[g + 1]
-        spaces = self.interfaces[0]  # every group's interface has the same spaces
+        # the agent interface's spaces are the same on every plant (the raw interface's
+        # observation bounds are the first group's detector range: SB3 reads only the shape)
+        spaces = self.interfaces[0]
         super().__init__(num_envs, spaces.observation_space, spaces.action_space)
         self._seed: int | None = None
         self._raw = np.zeros((num_envs, 8), dtype=np.float32)
