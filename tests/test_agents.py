@@ -171,6 +171,23 @@ def test_training_domains_run_each_plant_as_its_own_env():
     assert mixed.get_attr("num_envs") == [2, 2, 2, 2]
 
 
+def test_env_plant_by_name_is_the_stored_plant_and_refuses_an_ambiguous_path(tmp_path,
+                                                                           monkeypatch):
+    """EnvConfig(plant="calibrated") is Plant.named("calibrated") whole (its posterior is
+    what randomize=True draws from); a report directory of that name in the working
+    directory makes the name ambiguous: a ValueError, not a silent choice."""
+    from turntable_env.envs.config import EnvConfig
+    from turntable_env.plant import Plant
+
+    cfg = EnvConfig(plant="calibrated", fidelity="reduced", randomize=True)
+    assert cfg.plant == Plant.named("calibrated").replace(fidelity="reduced")
+    assert set(cfg.plant.uncertainty) == {"friction", "preload"}
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "calibrated").mkdir()
+    with pytest.raises(ValueError, match=r"plant='calibrated': both a stored plant and a path"):
+        EnvConfig(plant="calibrated")
+
+
 @pytest.mark.parametrize(
     ("n", "shares", "sizes"),
     [(16, [1, 1], [8, 8]), (8, [0.5, 0.25, 0.25], [4, 2, 2]), (3, [0.9, 0.05, 0.05], [1, 1, 1]),

@@ -178,7 +178,8 @@ class EnvConfig:
     Args:
         plant: the :class:`~turntable_env.plant.Plant` to run, the name of a stored plant
             (``"calibrated"``: the thesis calibration's plant whole, with its
-            uncertainties, :meth:`~turntable_env.plant.Plant.named`), or the path of a
+            uncertainties, :meth:`~turntable_env.plant.Plant.named`; ValueError when a
+            path of that name exists too), or the path of a
             calibration ``report.json`` (or its directory) whose plant to run
             (:meth:`~turntable_env.plant.Plant.from_report`): its parameter set, effects,
             fidelity and detector noise. Default: the plant of ``params``.
@@ -310,6 +311,11 @@ class EnvConfig:
                 raise ValueError(f"params={params!r}: must be a set's name or a ParameterSet")
             plant = Plant(params)
         elif isinstance(plant, str) and plant in NAMED_PLANTS:
+            if os.path.exists(plant):  # a report directory of that name: say which is meant
+                raise ValueError(
+                    f"plant={plant!r}: both a stored plant and a path here; give "
+                    f"Plant.named({plant!r}) or the path as './{plant}'"
+                )
             plant = Plant.named(plant)
         elif isinstance(plant, str | os.PathLike):
             plant = Plant.from_report(plant)
