@@ -88,13 +88,26 @@ class AgentController(Controller):
         # the last k normalised features, oldest first, zeros before the episode's first
         # (SB3's VecFrameStack, as in training: rl-zoo3's frame_stack)
         self._stack = np.zeros((frame_stack(entry), width), dtype=np.float32)
+        self._ident = self.interface.identifier()  # the plant's step gains (``identify``)
+        self._fresh = True  # the next observation is the episode's first (already known)
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         # the policy sees the observation (and, with frame_stack, the episode's last ones);
         # the shield takes the brief's dead-reckoned start for its blind budget
         self._stack[:] = 0.0
+        if self._ident is not None:
+            self._ident.reset(obs)
+        self._fresh = True
         if self.shield is not None:
             self.shield.reset(obs, brief)
+
+    def _features(self, obs: np.ndarray) -> np.ndarray:
+        """This interval's features; the step identifier first learns from the interval
+        ``obs`` closes (as in training: :class:`~agents.vec_env.NativeVecEnv`)."""
+        if self._ident is not None and not self._fresh:
+            self._ident.update(obs)
+        self._fresh = False
+        return self.interface.features(obs, self._ident)
 
     def _seen(self, normalized: np.ndarray) -> np.ndarray:
         """What the policy sees of this interval's normalised features (8,): the features
@@ -110,7 +123,7 @@ class AgentController(Controller):
 
     def policy_action(self, obs: np.ndarray) -> np.ndarray:
         """The agent's own action (3,) for an env observation."""
-        feats = self.vecnorm.normalize_obs(self.interface.features(obs)[None, :])
+        feats = self.vecnorm.normalize_obs(self._features(obs)[None, :])
         action, _ = self.model.predict(self._seen(feats[0])[None, :], deterministic=True)
         return np.asarray(action[0])
 
@@ -123,7 +136,7 @@ class AgentController(Controller):
         first = controllers[0]
         if not all(isinstance(c, AgentController) and c.model is first.model for c in controllers):
             return super().act_many(controllers, obs)
-        feats = np.stack([c.interface.features(o) for c, o in zip(controllers, obs, strict=True)])
+        feats = np.stack([c._features(o) for c, o in zip(controllers, obs, strict=True)])
         normalized = first.vecnorm.normalize_obs(feats)
         seen = np.stack([c._seen(f) for c, f in zip(controllers, normalized, strict=True)])
         actions, _ = first.model.predict(seen, deterministic=True)

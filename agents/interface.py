@@ -15,6 +15,12 @@ Observation (8 features, from the env's observation o and the plant context):
 5     last amplitude — 6  last frequency — 7  generator phase (``generator_phase``)
 ====  ==============================================================================
 
+With ``identify`` (:class:`InterfaceConfig`), 6 more: the online step gains of the plant
+the agent is on, log₁₀ γ[d, A] for d = +1, −1 at 2, 6 and 10 V
+(:class:`~agents.identification.StepIdentifier`, one per turntable, updated from every
+observation): what the closed-loop baseline learns, so that one policy can tell plants
+that step differently for the same action apart.
+
 Action (3 values in [-1, 1]):
 
 ====  ==============================================================================
@@ -39,6 +45,8 @@ import numpy as np
 
 from controllers.base import SATURATION_FRACTION, ControllerContext
 from turntable_env.envs.config import OBS, OBSERVATION_NAMES, check_action
+
+from .identification import StepIdentifier
 
 __all__ = [
     "AGENT_ENV_ID",
@@ -68,6 +76,7 @@ class InterfaceConfig:
     offset_step: float = 2.0  # V per interval
     ramp_ratio: float = 0.9
     slew_adaptation: float = 1.0
+    identify: bool = False  # append the online step gains (StepIdentifier) to the features
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.deadzone < 1.0:
@@ -81,25 +90,42 @@ class InterfaceConfig:
             raise ValueError(f"max_steps={self.max_steps!r}: must be a positive integer")
         if self.offset_step <= 0.0:
             raise ValueError(f"offset_step={self.offset_step!r}: must be > 0")
+        if not isinstance(self.identify, bool):
+            raise ValueError(f"identify={self.identify!r}: must be true or false")
 
 
 class AgentInterface:
     """Feature and action maps for one plant context (module docstring)."""
 
-    observation_space = gym.spaces.Box(-3.0, 3.0, (8,), np.float32)
     action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
 
     def __init__(self, ctx: ControllerContext, config: InterfaceConfig | None = None) -> None:
         self.ctx = ctx
         self.config = config or InterfaceConfig()
+        width = 8 + (StepIdentifier.n_features if self.config.identify else 0)
+        self.observation_space = gym.spaces.Box(-3.0, 3.0, (width,), np.float32)
         if self.config.max_steps / ctx.control_interval > 2000.0 + 1e-9:
             raise ValueError(
                 f"max_steps={self.config.max_steps!r}: above 2 kHz at Δt = {ctx.control_interval}"
             )
         self._log_norm = math.log1p(ctx.angle_range / ctx.tolerance)
 
-    def features(self, obs: np.ndarray) -> np.ndarray:
-        """(8,) float32 features of one env observation."""
+    def identifier(self) -> StepIdentifier | None:
+        """A new per-turntable state for :meth:`features` (None without ``identify``)."""
+        if not self.config.identify:
+            return None
+        return StepIdentifier(self.ctx, self.config.ramp_ratio, self.config.slew_adaptation)
+
+    def features(self, obs: np.ndarray, ident: StepIdentifier | None = None) -> np.ndarray:
+        """(8,) float32 features of one env observation; with ``identify``, (14,): ``ident``
+        (this turntable's :meth:`identifier`, already updated with ``obs``) appended."""
+        if self.config.identify:
+            if ident is None:
+                raise ValueError("identify=True: features need the turntable's StepIdentifier")
+            return np.concatenate([self._features(obs), ident.features()])
+        return self._features(obs)
+
+    def _features(self, obs: np.ndarray) -> np.ndarray:
         c = self.ctx
         obs = c.lab_observation(obs)  # the reading as the table angle, by the rig's calibration
         meas, target = float(obs[OBS.measured_angle_rad]), float(obs[OBS.target_angle_rad])
@@ -154,7 +180,10 @@ class RawInterface:
         self.ctx = ctx
         self.observation_space = observation_space(ctx.angle_range)
 
-    def features(self, obs: np.ndarray) -> np.ndarray:
+    def identifier(self) -> None:
+        return None
+
+    def features(self, obs: np.ndarray, ident: None = None) -> np.ndarray:
         # the default env's 8 components (an env with ``detector_y`` appends the y channel)
         return np.asarray(obs[..., : len(OBSERVATION_NAMES)], dtype=np.float32)
 
@@ -192,15 +221,20 @@ class AgentWrapper(gym.Wrapper):
         self.observation_space = self.interface.observation_space
         self.action_space = self.interface.action_space
         self._raw: np.ndarray | None = None
+        self._ident = self.interface.identifier()
 
     def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
         self._raw = obs
-        return self.interface.features(obs), info
+        if self._ident is not None:
+            self._ident.reset(obs)
+        return self.interface.features(obs, self._ident), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._raw is None:
             raise gym.error.ResetNeeded("PiezoTurntableAgent-v0: call reset() before step()")
         obs, r, term, trunc, info = self.env.step(self.interface.env_action(action, self._raw))
         self._raw = obs
-        return self.interface.features(obs), r, term, trunc, info
+        if self._ident is not None:
+            self._ident.update(obs)
+        return self.interface.features(obs, self._ident), r, term, trunc, info

@@ -67,6 +67,12 @@ class NativeVecEnv(VecEnv):
         # observation bounds are the first group's detector range: SB3 reads only the shape)
         spaces = self.interfaces[0]
         super().__init__(num_envs, spaces.observation_space, spaces.action_space)
+        # per row: the turntable's online step gains, where the interface identifies
+        self._idents = [
+            self.interfaces[g].identifier()
+            for g, n in enumerate(sizes)
+            for _ in range(n)
+        ]
         self._seed: int | None = None
         self._raw = np.zeros((num_envs, 8), dtype=np.float32)
         self._actions = np.zeros((num_envs, spaces.action_space.shape[0]))
@@ -74,8 +80,20 @@ class NativeVecEnv(VecEnv):
     def _slices(self) -> list[slice]:
         return [slice(int(a), int(b)) for a, b in zip(self.rows[:-1], self.rows[1:], strict=True)]
 
-    def _features(self, raw: np.ndarray, g: int) -> np.ndarray:
-        return np.stack([self.interfaces[g].features(o) for o in raw])
+    def _features(
+        self, raw: np.ndarray, g: int, rows: Sequence[int], new: bool = False
+    ) -> np.ndarray:
+        """Group g's features of rows ``rows`` (their raw observations ``raw``), each
+        row's step identifier first updated with its observation (``new``: reset by it)."""
+        out = []
+        for o, i in zip(raw, rows, strict=True):
+            ident = self._idents[i]
+            if ident is not None and new:
+                ident.reset(o)
+            elif ident is not None:
+                ident.update(o)
+            out.append(self.interfaces[g].features(o, ident))
+        return np.stack(out)
 
     def reset(self) -> np.ndarray:
         feats, raws = [], []
@@ -84,7 +102,7 @@ class NativeVecEnv(VecEnv):
             seeds = None if self._seed is None else [self._seed + i for i in rows]
             obs, _ = v.reset(seed=seeds)
             raws.append(obs)
-            feats.append(self._features(obs, g))
+            feats.append(self._features(obs, g, rows, new=True))
         self._seed = None
         self._raw = np.concatenate(raws)
         return np.concatenate(feats)
@@ -109,7 +127,8 @@ class NativeVecEnv(VecEnv):
         )
         obs, reward, term, trunc, info = venv.step(env_act)
         dones = term | trunc
-        feats = self._features(obs, g)
+        rows = np.arange(sl.start, sl.stop)
+        feats = self._features(obs, g, rows)
         infos: list[dict[str, Any]] = [
             {k: v[i].item() for k, v in info.items()} for i in range(venv.num_envs)
         ]
@@ -120,7 +139,7 @@ class NativeVecEnv(VecEnv):
             new_obs, _ = venv.reset(options={"reset_mask": dones})
             obs = obs.copy()
             obs[dones] = new_obs[dones]
-            feats[dones] = self._features(new_obs[dones], g)
+            feats[dones] = self._features(new_obs[dones], g, rows[dones], new=True)
         return obs, feats, reward.astype(np.float32), dones, infos
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:

@@ -16,6 +16,7 @@ from agents.vec_env import NativeVecEnv, domain_kwargs, domain_sizes
 from controllers import make
 from controllers.base import ControllerContext
 from controllers.lab import LabBrief
+from turntable_env.envs.config import OBS
 
 FIXED_OBS = np.random.default_rng(7).uniform(-2.0, 2.0, size=(16, 8)).astype(np.float32)
 
@@ -69,28 +70,39 @@ def test_train_save_reload_gives_identical_actions(algo, env_id, tmp_path):
 def test_frame_stacked_agent_sees_what_sb3_stacked_in_training(tmp_path):
     """An agent trained with rl-zoo3's frame_stack acts in the benchmark on the last k
     normalised features as SB3's VecFrameStack stacked them in training (zeros before the
-    episode's first), and its actions depend on the history, not only the last features."""
+    episode's first), and its actions depend on the history, not only the last features.
+    It identifies (``identify``): each interval's features carry the step gains learned
+    from every interval before it, the reset observation's none."""
     from stable_baselines3.common.vec_env.stacked_observations import StackedObservations
 
     hp, tr = _smoke_hyperparams("ppo", tmp_path)
     cfg = yaml.safe_load(hp.read_text())
     cfg[AGENT_ENV_ID]["frame_stack"] = 3
+    cfg[AGENT_ENV_ID]["env_kwargs"]["interface"]["identify"] = True
     hp.write_text(yaml.safe_dump(cfg))
     res = train("ppo", timesteps=128, seed=2, out=tmp_path / "run", hyperparams=hp,
                 training=tr, progress=False)  # fmt: skip
-    assert res.model.observation_space.shape == (24,)
-    env = gym.make("PiezoTurntable-v0", noise=True, move_range=(1e-6, 1e-3))
+    assert res.model.observation_space.shape == (42,)
+    env = gym.make("PiezoTurntable-v0", noise=True, move_range=(5e-5, 1e-4))
     ctl = AgentController(ControllerContext.from_env(env), res.run, shield=False)
     ref = StackedObservations(1, 3, ctl.interface.observation_space)
+    ident = ctl.interface.identifier()  # the training env's per-turntable state
     obs, info = env.reset(seed=4)
     ctl.reset(obs, LabBrief(float(info["target_rad"])))
+    ident.reset(obs)
     for t in range(6):
-        f = res.vecnormalize.normalize_obs(ctl.interface.features(obs)[None, :])
+        if t:
+            ident.update(obs)
+        f = res.vecnormalize.normalize_obs(ctl.interface.features(obs, ident)[None, :])
         seen = ref.reset(f) if t == 0 else ref.update(f, np.array([False]), [{}])[0]
         want, _ = res.model.predict(seen, deterministic=True)
         got = ctl.policy_action(obs)
         np.testing.assert_array_equal(got, want[0])
-        obs = env.step(ctl.interface.env_action(got, obs))[0]
+        # the env is driven by 5 V steps towards the target (the untrained policy idles)
+        err = obs[OBS.target_angle_rad] - obs[OBS.measured_angle_rad]
+        drive = np.array([0.5 * np.sign(err), -1.0, 0.0])
+        obs = env.step(ctl.interface.env_action(drive if t % 2 else got, obs))[0]
+    assert ident.features().any()  # the episode's steps were measured
     fresh = AgentController(ControllerContext.from_env(env), res.run, shield=False)
     fresh.reset(obs, LabBrief(float(info["target_rad"])))
     assert not np.array_equal(fresh.policy_action(obs), ctl.policy_action(obs))
@@ -114,16 +126,21 @@ def test_shipped_agents_load_and_act():
             obs, *_ = env.step(action)
 
 
-def test_native_vec_env_equals_the_wrapped_single_env():
-    """Same seed and actions: NativeVecEnv (N = 1) and AgentWrapper see the same features."""
+@pytest.mark.parametrize("identify", [False, True])
+def test_native_vec_env_equals_the_wrapped_single_env(identify):
+    """Same seed and actions: NativeVecEnv (N = 1) and AgentWrapper see the same features
+    (with ``identify``, the step identifier's too, reset with the episode)."""
     kwargs = {"noise": True, "randomize": True, "move_range": (1e-6, 1e-3)}
-    venv = NativeVecEnv(1, max_episode_steps=5, **kwargs)
+    iface = InterfaceConfig(identify=identify)
+    venv = NativeVecEnv(1, max_episode_steps=5, interface=iface, **kwargs)
     venv.seed(3)
-    single = AgentWrapper(gym.make("PiezoTurntable-v0", max_episode_steps=5, **kwargs))
+    single = AgentWrapper(gym.make("PiezoTurntable-v0", max_episode_steps=5, **kwargs), iface)
     f_vec = venv.reset()
     f_one, _ = single.reset(seed=3)
     np.testing.assert_array_equal(f_vec[0], f_one)
     rng = np.random.default_rng(0)
+    assert f_vec.shape == (1, 14 if identify else 8)
+    learned = False
     for _ in range(5):
         a = rng.uniform(-1, 1, size=3).astype(np.float32)
         f_vec, r_vec, done, infos = venv.step(a[None, :])
@@ -133,8 +150,12 @@ def test_native_vec_env_equals_the_wrapped_single_env():
             assert term or trunc
         else:
             np.testing.assert_array_equal(f_vec[0], f_one)
+            learned |= bool(np.any(f_one[8:] != 0.0))
         assert r_vec[0] == pytest.approx(r_one, rel=1e-6)
     assert done[0]  # the time limit of 5 steps ended the episode
+    # the gains were learned within the episode and forgotten with it (a new turntable)
+    assert learned == identify
+    assert not np.any(f_vec[0, 8:])
 
 
 CALIBRATED_DOMAIN = {"plant": "calibrated", "fidelity": "reduced", "randomize": True}
@@ -277,3 +298,79 @@ def test_agent_deadzone_idles_and_offset_accumulates():
 def test_agent_configuration_errors(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@pytest.fixture(scope="module")
+def nominal_ctx():
+    from turntable_env.envs.config import EnvConfig
+
+    return ControllerContext.from_config(EnvConfig())
+
+
+def _obs(ctx, angle, amplitude=0.0, frequency=100.0, offset=0.0):
+    """An env observation: reading ``angle`` [rad] after an interval of this setting."""
+    o = np.zeros(8, dtype=np.float32)
+    o[OBS.measured_angle_rad] = angle
+    o[OBS.last_amplitude :] = ctx.scaling.encode(amplitude, frequency, 0.9, 1.0, offset)
+    return o
+
+
+@pytest.mark.parametrize("gain", [0.4, 1.0, 3.0])
+@pytest.mark.parametrize("direction", [1, -1])
+def test_step_identifier_measures_how_far_the_plant_steps_against_the_map(
+    nominal_ctx, gain, direction
+):
+    """ρ = (Δθ − K·Δu)/(m·s_map): a plant stepping ``gain`` × the map, with the scan offset
+    moved in the same interval, gives log₁₀ gain in its direction's features (the other
+    direction stays at the map's 0); a saturated reading, the interval after it and an idle
+    generator teach nothing; a reset forgets."""
+    from agents.identification import StepIdentifier
+    from controllers.step_map import StepMap
+
+    ctx, smap = nominal_ctx, StepMap.load()
+    ident = StepIdentifier(ctx, 0.9, 1.0, smap)
+    amp, freq = 5.0 * direction, 300.0  # m = 3 periods per 10 ms interval
+    # between the map's 200 and 500 Hz: linear in ln f; on its grid, the map itself
+    s = ident.nominal_step(amp, freq)
+    lo, hi = (smap.step_size("B", amp, f, 0.9, 1.0) for f in (200.0, 500.0))
+    w = np.log(300.0 / 200.0) / np.log(500.0 / 200.0)
+    assert s == pytest.approx(lo + w * (hi - lo), rel=1e-12)
+    assert ident.nominal_step(amp, 500.0) == pytest.approx(hi, rel=1e-12)
+    theta0, u0, u1 = 1e-4, 1.0, -2.0
+    ident.reset(_obs(ctx, theta0, offset=u0))
+    theta1 = theta0 + gain * 3 * s + ctx.scan_gain * (u1 - u0)
+    ident.update(_obs(ctx, theta1, amp, freq, u1))
+    f = ident.features()
+    own, other = (f[:3], f[3:]) if direction > 0 else (f[3:], f[:3])
+    np.testing.assert_allclose(own, np.log10(gain), atol=2e-6)
+    assert not other.any()
+    before = f.copy()
+    edge = ctx.detector.angle_range  # the Eq. 4.1 reading at the detector's edge
+    ident.update(_obs(ctx, edge, amp, freq, u1))  # saturated
+    ident.update(_obs(ctx, theta1, amp, freq, u1))  # after a saturated reading
+    ident.update(_obs(ctx, theta1 + 1e-5, 0.0, freq, u1))  # generator idle: a scan interval
+    np.testing.assert_array_equal(ident.features(), before)
+    ident.reset(_obs(ctx, theta0))
+    assert not ident.features().any()
+
+
+def test_step_identifier_tells_the_calibrated_plant_from_the_nominal_one():
+    """On the thesis calibration's plant the same 5 V, 100 Hz steps measure a gain at
+    least 1.24× the nominal plant's (the survey's smallest ratio from 2 V up,
+    experiments/step_gain_survey.py), while the nominal plant steps near its own map."""
+    domains = [{"share": 1}, {"share": 1, "env_kwargs": CALIBRATED_DOMAIN | {"randomize": False}}]
+    venv = NativeVecEnv(4, 10, InterfaceConfig(identify=True), domains, noise=True,
+                        move_range=(5e-5, 1e-4))  # fmt: skip
+    venv.seed(0)
+    f = venv.reset()
+    for _ in range(4):
+        a = np.zeros((4, 3), np.float32)
+        a[:, 0] = 0.5 * np.sign(f[:, 0])  # 5 V towards the target, one period per interval
+        a[:, 1] = -1.0
+        f = venv.step(a)[0]
+    gains = 10.0 ** f[:, 8:]
+    learned = gains != 1.0
+    assert learned.any(axis=1).all()  # every turntable measured its gain in a direction
+    nominal, calibrated = gains[:2][learned[:2]], gains[2:][learned[2:]]
+    assert 0.5 < nominal.min() and nominal.max() < 1.1
+    assert calibrated.min() > 1.24 * nominal.max()
