@@ -56,10 +56,13 @@ def train_seeds(
     backend: str = "auto",
     address: str | None = None,
     workers: int | None = None,
+    trained_agent: str | None = None,
 ) -> list[Path]:
     """Train ``algo`` once per seed (module docstring); the run directories, in seed order.
 
     Args:
+        trained_agent: each seed continues this run directory, ``{seed}`` replaced by its
+            seed (:func:`agents.train.train`'s ``trained_agent``).
         backend: ``"auto"`` (Ray if installed), ``"ray"`` or ``"processes"``.
         address: a Ray cluster to join (None: a local one).
         workers: parallel runs for the process backend (default: the CPUs this process may use).
@@ -74,6 +77,7 @@ def train_seeds(
             "algo": algo, "env_id": env_id, "timesteps": timesteps, "seed": s,
             "out": str(root / run_name(algo, env_id, s)), "hyperparams": hyperparams,
             "training": training,
+            "trained_agent": None if trained_agent is None else trained_agent.format(seed=s),
         }
         for s in seeds
     ]  # fmt: skip

@@ -248,10 +248,17 @@ def train(
     tensorboard: bool = False,
     progress: bool = True,
     overrides: dict[str, Any] | None = None,
+    trained_agent: str | Path | None = None,
 ) -> TrainedAgent:
     """Train ``algo`` on ``env_id`` (module docstring); ``hyperparams``/``training``
     replace ``<algo>.yml``/``training.yml``, ``overrides`` replaces SB3 arguments of the
-    entry (:func:`apply_overrides`; how :mod:`agents.tune` tries a trial)."""
+    entry (:func:`apply_overrides`; how :mod:`agents.tune` tries a trial).
+
+    ``trained_agent``: a run directory to continue (rl-zoo3's ``--trained-agent``): its
+    model and VecNormalize statistics go on learning for ``timesteps`` more steps (the
+    step count and the evaluations' steps continue from the run's), with the entry's
+    hyperparameters except ``policy_kwargs`` (the network is the run's); ValueError
+    naming the directory for a missing file or another algorithm or env id."""
     import stable_baselines3
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
@@ -273,7 +280,13 @@ def train(
     norm = dict(cfg.get("normalize", {"norm_obs": True, "norm_reward": False}))
     gamma = float(cfg.get("gamma", 0.99))
     domains = proj["domains"]
-    venv = VecNormalize(make_vec_env(cfg, n_envs, seed, env_id, domains), gamma=gamma, **norm)
+    prev = None if trained_agent is None else _trained_run(trained_agent, algo, env_id)
+    rows = make_vec_env(cfg, n_envs, seed, env_id, domains)
+    if prev is None:
+        venv = VecNormalize(rows, gamma=gamma, **norm)
+    else:  # the run's statistics, updated on as they were
+        venv = VecNormalize.load(str(prev / "vecnormalize.pkl"), rows)
+        venv.training = True
     ev = dict(proj["eval"])
     eval_env = VecNormalize(
         make_vec_env(cfg, int(ev.get("n_envs", 4)), seed + 10_000, env_id, domains),
@@ -287,7 +300,16 @@ def train(
     hyper = {k: v for k, v in cfg.items() if k not in ZOO_KEYS}
     if "policy_kwargs" in hyper:
         hyper["policy_kwargs"] = parse_policy_kwargs(hyper["policy_kwargs"])
-    model = _algos()[algo](cfg["policy"], learn_env, seed=seed, verbose=0, **copy.deepcopy(hyper))
+    if prev is None:
+        model = _algos()[algo](
+            cfg["policy"], learn_env, seed=seed, verbose=0, **copy.deepcopy(hyper)
+        )
+    else:
+        hyper.pop("policy_kwargs", None)
+        model = _algos()[algo].load(
+            prev / "model.zip", env=learn_env, device="cpu", seed=seed, verbose=0,
+            **copy.deepcopy(hyper),
+        )  # fmt: skip
     formats = ["csv"] + (["tensorboard"] if tensorboard else [])
     model.set_logger(configure(str(out / "logs"), formats))
     callbacks = [
@@ -307,7 +329,10 @@ def train(
         ),
     ]
     t0 = time.perf_counter()
-    model.learn(total_timesteps=n_steps, callback=callbacks, progress_bar=progress)
+    model.learn(
+        total_timesteps=n_steps, callback=callbacks, progress_bar=progress,
+        reset_num_timesteps=prev is None,
+    )  # fmt: skip
     wall = time.perf_counter() - t0
     model.logger.close()  # flush and close logs/progress.csv (and TensorBoard)
     model.save(out / "model.zip")
@@ -320,6 +345,8 @@ def train(
             "env_id": env_id,
             "seed": seed,
             "timesteps": n_steps,
+            "total_timesteps": int(model.num_timesteps),  # with the continued run's
+            "trained_agent": None if prev is None else str(prev),
             "wall_s": round(wall, 1),
             "versions": {
                 "stable_baselines3": stable_baselines3.__version__,
@@ -332,6 +359,21 @@ def train(
     plot_learning_curve(out)
     eval_env.close()
     return TrainedAgent(out, model, venv)
+
+
+def _trained_run(run: str | Path, algo: str, env_id: str) -> Path:
+    """The run directory ``run`` to continue, checked (:func:`train`'s ``trained_agent``)."""
+    d = Path(run)
+    for name in ("model.zip", "vecnormalize.pkl", "config.yml"):
+        if not (d / name).is_file():
+            raise ValueError(f"trained_agent={str(d)!r}: {name} missing")
+    was = yaml.safe_load((d / "config.yml").read_text(encoding="utf-8"))["run"]
+    if was.get("algo") != algo or was.get("env_id", RAW_ENV_ID) != env_id:
+        raise ValueError(
+            f"trained_agent={str(d)!r}: a {was.get('algo')} run on {was.get('env_id')}, "
+            f"not {algo} on {env_id}"
+        )
+    return d
 
 
 SHIPPED_FILES = (

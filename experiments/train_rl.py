@@ -42,8 +42,7 @@ def _multi(args: argparse.Namespace, name: str) -> None:
     runs = train_seeds(
         args.algo, seeds, env_id=args.env_id, timesteps=args.timesteps, out=root,
         hyperparams=args.hyperparams, training=args.training, backend=args.backend,
-        address=args.address,
-        workers=args.workers,
+        address=args.address, workers=args.workers, trained_agent=args.trained_agent,
     )  # fmt: skip
     c = seed_curves(runs)
     p = plot_seed_curves({name: c}, f"{root}/learning_curves_{name}.png")
@@ -81,6 +80,11 @@ def main() -> None:
     )
     ap.add_argument("--address", default=None, help="Ray cluster to join (default: local)")
     ap.add_argument("--workers", type=int, default=None, help="processes for --seeds")
+    ap.add_argument(
+        "-i", "--trained-agent", default=None,
+        help="continue this run directory for --timesteps more steps (rl-zoo3's option; "
+        "with --seeds, {seed} in it is each seed)",
+    )  # fmt: skip
     args = ap.parse_args()
     name = args.algo + ("_raw" if args.env_id == RAW_ENV_ID else "")
     if args.seeds:
@@ -97,6 +101,7 @@ def main() -> None:
         training=args.training,
         tensorboard=args.tensorboard,
         progress=not args.no_progress,
+        trained_agent=args.trained_agent,
     ).run
     import yaml
 

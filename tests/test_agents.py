@@ -374,3 +374,31 @@ def test_step_identifier_tells_the_calibrated_plant_from_the_nominal_one():
     nominal, calibrated = gains[:2][learned[:2]], gains[2:][learned[2:]]
     assert 0.5 < nominal.min() and nominal.max() < 1.1
     assert calibrated.min() > 1.24 * nominal.max()
+
+
+def test_a_trained_agent_continues_where_its_run_ended(tmp_path):
+    """rl-zoo3's --trained-agent: the run's model and VecNormalize statistics learn on, the
+    step count continues, and the new run records what it continued; a run of another
+    algorithm or a directory without the agent is refused, naming it."""
+    hp, tr = _smoke_hyperparams("ppo", tmp_path)
+    first = train("ppo", timesteps=128, seed=0, out=tmp_path / "a", hyperparams=hp,
+                  training=tr, progress=False)  # fmt: skip
+    count = first.vecnormalize.obs_rms.count
+    res = train("ppo", timesteps=128, seed=1, out=tmp_path / "b", hyperparams=hp,
+                training=tr, progress=False, trained_agent=first.run)  # fmt: skip
+    assert res.model.num_timesteps == 2 * 128
+    # the statistics go on: 128 steps more and the new env's reset of its 2 rows
+    assert res.vecnormalize.obs_rms.count == pytest.approx(count + 128 + 2)
+    cfg = load_agent(res.run)[2]["run"]
+    assert cfg["total_timesteps"] == 256 and cfg["trained_agent"] == str(first.run)
+    # the learning went on from the run's weights, not from a new network
+    w0, w1 = (dict(m.policy.named_parameters()) for m in (first.model, res.model))
+    assert all(w0[k].shape == w1[k].shape for k in w0)
+    assert any(not np.array_equal(w0[k].detach(), w1[k].detach()) for k in w0)
+    with pytest.raises(ValueError, match=r"trained_agent=.*model.zip missing"):
+        train("ppo", timesteps=8, out=tmp_path / "c", hyperparams=hp, training=tr,
+              progress=False, trained_agent=tmp_path / "none")  # fmt: skip
+    hs, ts = _smoke_hyperparams("sac", tmp_path)
+    with pytest.raises(ValueError, match=r"a ppo run on PiezoTurntableAgent-v0, not sac"):
+        train("sac", timesteps=8, out=tmp_path / "d", hyperparams=hs, training=ts,
+              progress=False, trained_agent=first.run)  # fmt: skip
