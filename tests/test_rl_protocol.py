@@ -17,7 +17,10 @@ from agents.scale import seed_curves, train_seeds
 from agents.train import HYPERPARAMS_DIR, ZOO_KEYS, _algos, load_training
 
 
-@pytest.mark.parametrize(("algo", "name"), [("ppo", "ppo"), ("sac", "sac"), ("ppo", "ppo_history")])
+@pytest.mark.parametrize(
+    ("algo", "name"),
+    [("ppo", "ppo"), ("sac", "sac"), ("ppo", "ppo_history"), ("ppo", "ppo_identify")],
+)
 def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
     """rl-zoo3 passes every key it does not know to the algorithm: so every key must be a
     zoo key or an argument of the SB3 class (the project's own settings live elsewhere)."""
@@ -33,11 +36,15 @@ def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
     assert load_training(algo)["eval"]["episodes"] > 0
 
 
-def test_agent_interface_is_an_env_id_that_passes_gymnasiums_checker():
+@pytest.mark.parametrize(("identify", "width"), [(False, 8), (True, 14)])
+def test_agent_interface_is_an_env_id_that_passes_gymnasiums_checker(identify, width):
+    """The agent env (with ``identify``: the step gains appended) passes Gymnasium's
+    checker: spaces, seeded resets, observations within the space."""
     from gymnasium.utils.env_checker import check_env
 
-    env = gym.make(AGENT_ENV_ID, interface={"max_steps": 10}, randomize=True)
-    assert env.action_space.shape == (3,) and env.observation_space.shape == (8,)
+    env = gym.make(AGENT_ENV_ID, interface={"max_steps": 10, "identify": identify},
+                   randomize=True)  # fmt: skip
+    assert env.action_space.shape == (3,) and env.observation_space.shape == (width,)
     with warnings.catch_warnings():  # the agent env is a wrapper by design: check the stack
         warnings.filterwarnings("ignore", message=".*different from the unwrapped version")
         check_env(env, skip_render_check=True)
