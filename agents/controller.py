@@ -89,28 +89,24 @@ class AgentController(Controller):
         # (SB3's VecFrameStack, as in training: rl-zoo3's frame_stack)
         self._stack = np.zeros((frame_stack(entry), width), dtype=np.float32)
         self._ident = self.interface.identifier()  # the plant's step gains (``identify``)
-        self._fresh = True  # the next observation is the episode's first (already known)
+        self._fresh = True  # the next observation is the episode's first
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         # the policy sees the observation (and, with frame_stack, the episode's last ones);
         # the shield takes the brief's dead-reckoned start for its blind budget
         self._stack[:] = 0.0
-        if self._ident is not None:
-            self._ident.reset(obs)
         self._fresh = True
         if self.shield is not None:
             self.shield.reset(obs, brief)
 
     def _features(self, obs: np.ndarray) -> np.ndarray:
-        """This interval's features; the step identifier first learns from the interval
-        ``obs`` closes (as in training: :class:`~agents.vec_env.NativeVecEnv`)."""
-        if self._ident is not None and not self._fresh:
-            self._ident.update(obs)
-        self._fresh = False
-        return self.interface.features(obs, self._ident)
+        """This interval's features, in training's order (:meth:`AgentInterface.observe`):
+        the episode's first observation resets the step identifier, a later one updates it."""
+        first, self._fresh = self._fresh, False
+        return self.interface.observe(obs, self._ident, first)
 
     def _seen(self, normalized: np.ndarray) -> np.ndarray:
-        """What the policy sees of this interval's normalised features (8,): the features
+        """What the policy sees of this interval's normalised features: the features
         themselves, or with frame_stack the last k, flattened oldest first."""
         if self._stack.shape[0] == 1:
             return normalized

@@ -125,6 +125,20 @@ class AgentInterface:
             return np.concatenate([self._features(obs), ident.features()])
         return self._features(obs)
 
+    def observe(
+        self, obs: np.ndarray, ident: StepIdentifier | None, first: bool = False
+    ) -> np.ndarray:
+        """The features of ``obs`` for the turntable whose :meth:`identifier` is ``ident``
+        (None without ``identify``), which first learns from the interval ``obs`` closes,
+        or, for the episode's ``first`` observation, is reset by it: the one order of
+        training (:class:`AgentWrapper`, :class:`~agents.vec_env.NativeVecEnv`) and
+        benchmark (:class:`~agents.controller.AgentController`)."""
+        if ident is not None and first:
+            ident.reset(obs)
+        elif ident is not None:
+            ident.update(obs)
+        return self.features(obs, ident)
+
     def _features(self, obs: np.ndarray) -> np.ndarray:
         c = self.ctx
         obs = c.lab_observation(obs)  # the reading as the table angle, by the rig's calibration
@@ -183,6 +197,9 @@ class RawInterface:
     def identifier(self) -> None:
         return None
 
+    def observe(self, obs: np.ndarray, ident: None, first: bool = False) -> np.ndarray:
+        return self.features(obs)
+
     def features(self, obs: np.ndarray, ident: None = None) -> np.ndarray:
         # the default env's 8 components (an env with ``detector_y`` appends the y channel)
         return np.asarray(obs[..., : len(OBSERVATION_NAMES)], dtype=np.float32)
@@ -226,15 +243,11 @@ class AgentWrapper(gym.Wrapper):
     def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
         self._raw = obs
-        if self._ident is not None:
-            self._ident.reset(obs)
-        return self.interface.features(obs, self._ident), info
+        return self.interface.observe(obs, self._ident, first=True), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._raw is None:
             raise gym.error.ResetNeeded("PiezoTurntableAgent-v0: call reset() before step()")
         obs, r, term, trunc, info = self.env.step(self.interface.env_action(action, self._raw))
         self._raw = obs
-        if self._ident is not None:
-            self._ident.update(obs)
-        return self.interface.features(obs, self._ident), r, term, trunc, info
+        return self.interface.observe(obs, self._ident), r, term, trunc, info

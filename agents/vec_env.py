@@ -83,17 +83,12 @@ class NativeVecEnv(VecEnv):
     def _features(
         self, raw: np.ndarray, g: int, rows: Sequence[int], new: bool = False
     ) -> np.ndarray:
-        """Group g's features of rows ``rows`` (their raw observations ``raw``), each
-        row's step identifier first updated with its observation (``new``: reset by it)."""
-        out = []
-        for o, i in zip(raw, rows, strict=True):
-            ident = self._idents[i]
-            if ident is not None and new:
-                ident.reset(o)
-            elif ident is not None:
-                ident.update(o)
-            out.append(self.interfaces[g].features(o, ident))
-        return np.stack(out)
+        """Group g's features of rows ``rows`` (their raw observations ``raw``; ``new``:
+        each the first of its episode), through :meth:`AgentInterface.observe`."""
+        iface = self.interfaces[g]
+        return np.stack(
+            [iface.observe(o, self._idents[i], new) for o, i in zip(raw, rows, strict=True)]
+        )
 
     def reset(self) -> np.ndarray:
         feats, raws = [], []
