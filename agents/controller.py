@@ -18,14 +18,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from controllers.base import Controller, ControllerContext
 from controllers.lab import LabBrief
 from controllers.shield import BlindShield
 
 from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig, make_interface
-from .train import _algos, frame_stack
+from .train import _algos, frame_stack, run_config
 
 __all__ = ["AgentController", "interface_of", "load_agent"]
 
@@ -35,10 +34,7 @@ def load_agent(run: str | Path) -> tuple[Any, Any, dict[str, Any]]:
 
     Raises ValueError naming the missing file."""
     d = Path(run)
-    for name in ("model.zip", "vecnormalize.pkl", "config.yml"):
-        if not (d / name).is_file():
-            raise ValueError(f"agent {d}: {name} missing")
-    cfg = yaml.safe_load((d / "config.yml").read_text(encoding="utf-8"))
+    cfg = run_config(d, f"agent {d}")
     algo = cfg["run"]["algo"]
     model = _algos()[algo].load(d / "model.zip", device="cpu")
     with (d / "vecnormalize.pkl").open("rb") as fh:

@@ -42,6 +42,7 @@ __all__ = [
     "load_training",
     "make_vec_env",
     "parse_policy_kwargs",
+    "run_config",
     "ship",
     "train",
 ]
@@ -361,14 +362,25 @@ def train(
     return TrainedAgent(out, model, venv)
 
 
+RUN_FILES = ("model.zip", "vecnormalize.pkl", "config.yml")  # what a run directory holds
+
+
+def run_config(run: str | Path, label: str) -> dict[str, Any]:
+    """A run directory's config.yml, after checking it holds :data:`RUN_FILES`
+    (ValueError ``"<label>: <file> missing"``)."""
+    d = Path(run)
+    for name in RUN_FILES:
+        if not (d / name).is_file():
+            raise ValueError(f"{label}: {name} missing")
+    return yaml.safe_load((d / "config.yml").read_text(encoding="utf-8"))
+
+
 def _trained_run(run: str | Path, algo: str, env_id: str) -> Path:
     """The run directory ``run`` to continue, checked (:func:`train`'s ``trained_agent``)."""
     d = Path(run)
-    for name in ("model.zip", "vecnormalize.pkl", "config.yml"):
-        if not (d / name).is_file():
-            raise ValueError(f"trained_agent={str(d)!r}: {name} missing")
-    was = yaml.safe_load((d / "config.yml").read_text(encoding="utf-8"))["run"]
-    if was.get("algo") != algo or was.get("env_id", RAW_ENV_ID) != env_id:
+    was = run_config(d, f"trained_agent={str(d)!r}")["run"]
+    # runs made before the env ids were the structured interface's (controller.interface_of)
+    if was.get("algo") != algo or was.get("env_id", AGENT_ENV_ID) != env_id:
         raise ValueError(
             f"trained_agent={str(d)!r}: a {was.get('algo')} run on {was.get('env_id')}, "
             f"not {algo} on {env_id}"
