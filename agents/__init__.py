@@ -2,13 +2,15 @@
 
 * :mod:`.interface` — the agent's observation features and reduced action;
 * :mod:`.identification` — the plant's online step gains as features (``identify``);
+* :mod:`.residual` — a residual agent: a baseline plans, the agent scales its aim (``base``);
 * :mod:`.vec_env` — the native batched vector env as an SB3 ``VecEnv``;
 * :mod:`.train` — training from ``hyperparams/<algo>.yml`` (rl-baselines3-zoo layout);
 * :mod:`.controller` — a trained agent behind the common controller interface.
 
 Importing the package registers the env id ``PiezoTurntableAgent-v0`` (the env seen
 through :class:`AgentInterface`: 8 features (14 with ``identify``), 3-D structured
-action; kwargs: the env's and ``interface``) and every shipped agent in
+action; with a ``base``, a residual agent's 10 features and 1-D action; kwargs: the env's
+and ``interface``) and every shipped agent in
 ``agents/pretrained/<algo>/`` as a controller named after its algorithm, so
 ``turntable benchmark`` includes it.
 """

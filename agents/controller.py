@@ -78,28 +78,40 @@ class AgentController(Controller):
         self.model, self.vecnorm, cfg = load_agent(run)
         self.name = name or cfg["run"]["algo"]
         self.interface = make_interface(ctx, interface_of(cfg))
-        self.shield = BlindShield(ctx) if shield else None
+        # a residual agent's base has its own safety monitor, which the shield would blind
+        self.shield = BlindShield(ctx) if shield and not self.interface.monitors else None
         entry = cfg.get(cfg["run"].get("env_id") or RAW_ENV_ID, {})
         width = self.interface.observation_space.shape[0]
         # the last k normalised features, oldest first, zeros before the episode's first
         # (SB3's VecFrameStack, as in training: rl-zoo3's frame_stack)
         self._stack = np.zeros((frame_stack(entry), width), dtype=np.float32)
-        self._ident = self.interface.identifier()  # the plant's step gains (``identify``)
+        # the turntable's interface state: the plant's step gains (``identify``), a residual
+        # agent's base controller
+        self._state = self.interface.row_state()
         self._fresh = True  # the next observation is the episode's first
+        self._brief: LabBrief | None = None
+
+    @property
+    def state(self) -> Any:
+        """This turntable's interface state (:meth:`AgentInterface.row_state`): the step
+        identifier, a residual agent's base controller, or None; for inspection."""
+        return self._state
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         # the policy sees the observation (and, with frame_stack, the episode's last ones);
         # the shield takes the brief's dead-reckoned start for its blind budget
         self._stack[:] = 0.0
         self._fresh = True
+        self._brief = brief
         if self.shield is not None:
             self.shield.reset(obs, brief)
 
     def _features(self, obs: np.ndarray) -> np.ndarray:
         """This interval's features, in training's order (:meth:`AgentInterface.observe`):
-        the episode's first observation resets the step identifier, a later one updates it."""
+        the episode's first observation resets the step identifier (a residual agent's base,
+        with the lab's brief), a later one updates it."""
         first, self._fresh = self._fresh, False
-        return self.interface.observe(obs, self._ident, first)
+        return self.interface.observe(obs, self._state, first, self._brief)
 
     def _seen(self, normalized: np.ndarray) -> np.ndarray:
         """What the policy sees of this interval's normalised features: the features
@@ -114,13 +126,14 @@ class AgentController(Controller):
         return action if self.shield is None else self.shield.filter(obs, action)
 
     def policy_action(self, obs: np.ndarray) -> np.ndarray:
-        """The agent's own action (3,) for an env observation."""
+        """The agent's own action for an env observation ((3,); a residual agent's (1,))."""
         feats = self.vecnorm.normalize_obs(self._features(obs)[None, :])
         action, _ = self.model.predict(self._seen(feats[0])[None, :], deterministic=True)
         return np.asarray(action[0])
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        return self._shielded(obs, self.interface.env_action(self.policy_action(obs), obs))
+        action = self.interface.env_action(self.policy_action(obs), obs, self._state)
+        return self._shielded(obs, action)
 
     @classmethod
     def act_many(cls, controllers: Sequence[Controller], obs: np.ndarray) -> np.ndarray:
@@ -134,7 +147,7 @@ class AgentController(Controller):
         actions, _ = first.model.predict(seen, deterministic=True)
         return np.stack(
             [
-                c._shielded(o, c.interface.env_action(a, o))
+                c._shielded(o, c.interface.env_action(a, o, c._state))
                 for c, a, o in zip(controllers, actions, obs, strict=True)
             ]
         )

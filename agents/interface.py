@@ -32,6 +32,14 @@ Action (3 values in [-1, 1]):
 
 The waveform is the slew-adapted flyback (a = ``ramp_ratio``, k = ``slew_adaptation``),
 whose step grows with the amplitude at every frequency (``controllers/data/step_map.csv``).
+
+With a ``base`` (:class:`InterfaceConfig`), the agent is a residual one
+(:mod:`agents.residual`): a baseline controller plans every interval and the agent's one
+action scales the error that plan aims at; 10 features, 1-D action.
+
+Every interface keeps one state per turntable (:meth:`AgentInterface.row_state`: the step
+identifier, a residual agent's base, or None), which its caller passes to ``observe`` and
+``env_action``.
 """
 
 from __future__ import annotations
@@ -44,9 +52,11 @@ import gymnasium as gym
 import numpy as np
 
 from controllers.base import SATURATION_FRACTION, ControllerContext
+from controllers.lab import LabBrief
 from turntable_env.envs.config import OBS, OBSERVATION_NAMES, check_action
 
 from .identification import StepIdentifier
+from .residual import BASES, ResidualInterface
 
 __all__ = [
     "AGENT_ENV_ID",
@@ -77,6 +87,10 @@ class InterfaceConfig:
     ramp_ratio: float = 0.9
     slew_adaptation: float = 1.0
     identify: bool = False  # append the online step gains (StepIdentifier) to the features
+    # a residual agent (agents/residual.py): the base controller that plans, and the largest
+    # factor on the error it aims at; the fields above but ``identify`` are then unused
+    base: str | None = None
+    scale_max: float = 2.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.deadzone < 1.0:
@@ -92,12 +106,21 @@ class InterfaceConfig:
             raise ValueError(f"offset_step={self.offset_step!r}: must be > 0")
         if not isinstance(self.identify, bool):
             raise ValueError(f"identify={self.identify!r}: must be true or false")
+        if self.base is not None and self.base not in BASES:
+            raise ValueError(f"base={self.base!r}: one of {', '.join(BASES)}, or none")
+        if self.base is not None and self.identify:
+            raise ValueError("identify=True with a base: the base's step gains are its features")
+        if isinstance(self.scale_max, bool) or not (
+            isinstance(self.scale_max, int | float) and 1.0 < self.scale_max < math.inf
+        ):
+            raise ValueError(f"scale_max={self.scale_max!r}: must be a finite number > 1")
 
 
 class AgentInterface:
     """Feature and action maps for one plant context (module docstring)."""
 
     action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+    monitors = False  # no safety monitor of its own (the benchmark's shield filters it)
 
     def __init__(self, ctx: ControllerContext, config: InterfaceConfig | None = None) -> None:
         self.ctx = ctx
@@ -116,6 +139,11 @@ class AgentInterface:
             return None
         return StepIdentifier(self.ctx, self.config.ramp_ratio, self.config.slew_adaptation)
 
+    def row_state(self) -> StepIdentifier | None:
+        """Each turntable's own state, kept by the caller and passed to :meth:`observe` and
+        :meth:`env_action` (every interface has one): here the :meth:`identifier`."""
+        return self.identifier()
+
     def features(self, obs: np.ndarray, ident: StepIdentifier | None = None) -> np.ndarray:
         """(8,) float32 features of one env observation; with ``identify``, (14,): ``ident``
         (this turntable's :meth:`identifier`, already updated with ``obs``) appended."""
@@ -126,13 +154,18 @@ class AgentInterface:
         return self._features(obs)
 
     def observe(
-        self, obs: np.ndarray, ident: StepIdentifier | None, first: bool = False
+        self,
+        obs: np.ndarray,
+        ident: StepIdentifier | None,
+        first: bool = False,
+        brief: LabBrief | None = None,
     ) -> np.ndarray:
         """The features of ``obs`` for the turntable whose :meth:`identifier` is ``ident``
         (None without ``identify``), which first learns from the interval ``obs`` closes,
         or, for the episode's ``first`` observation, is reset by it: the one order of
         training (:class:`AgentWrapper`, :class:`~agents.vec_env.NativeVecEnv`) and
-        benchmark (:class:`~agents.controller.AgentController`)."""
+        benchmark (:class:`~agents.controller.AgentController`). ``brief`` (what the lab
+        knows at the start) is for interfaces whose state is a controller; unused here."""
         if ident is not None and first:
             ident.reset(obs)
         elif ident is not None:
@@ -161,10 +194,11 @@ class AgentInterface:
             dtype=np.float32,
         )
 
-    def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
-        """The env action for an agent action, given the env observation it answered;
-        ValueError for anything but 3 finite real numbers (as ``PiezoTurntable-v0``'s own
-        check: :func:`~turntable_env.envs.config.check_action`)."""
+    def env_action(self, action: np.ndarray, obs: np.ndarray, state: Any = None) -> np.ndarray:
+        """The env action for an agent action, given the env observation it answered (and
+        the turntable's :meth:`row_state`, unused here); ValueError for anything but 3
+        finite real numbers (as ``PiezoTurntable-v0``'s own check:
+        :func:`~turntable_env.envs.config.check_action`)."""
         cfg, c = self.config, self.ctx
         a = check_action(action, (3,))
         mag = abs(a[0])
@@ -187,6 +221,7 @@ class RawInterface:
     (same methods as :class:`AgentInterface`)."""
 
     action_space = gym.spaces.Box(-1.0, 1.0, (5,), np.float32)
+    monitors = False
 
     def __init__(self, ctx: ControllerContext) -> None:
         from turntable_env.envs.piezo_turntable import observation_space
@@ -194,35 +229,42 @@ class RawInterface:
         self.ctx = ctx
         self.observation_space = observation_space(ctx.angle_range)
 
-    def identifier(self) -> None:
+    def row_state(self) -> None:
         return None
 
-    def observe(self, obs: np.ndarray, ident: None, first: bool = False) -> np.ndarray:
+    def observe(
+        self, obs: np.ndarray, ident: None, first: bool = False, brief: LabBrief | None = None
+    ) -> np.ndarray:
         return self.features(obs)
 
     def features(self, obs: np.ndarray, ident: None = None) -> np.ndarray:
         # the default env's 8 components (an env with ``detector_y`` appends the y channel)
         return np.asarray(obs[..., : len(OBSERVATION_NAMES)], dtype=np.float32)
 
-    def env_action(self, action: np.ndarray, obs: np.ndarray) -> np.ndarray:
+    def env_action(self, action: np.ndarray, obs: np.ndarray, state: None = None) -> np.ndarray:
         return check_action(action, (5,)).astype(np.float32)
 
 
 def make_interface(
     ctx: ControllerContext, config: InterfaceConfig | str | None = None
-) -> AgentInterface | RawInterface:
-    """:class:`RawInterface` for ``config == RAW``, else :class:`AgentInterface`."""
+) -> AgentInterface | RawInterface | ResidualInterface:
+    """:class:`RawInterface` for ``config == RAW``; a residual agent's
+    (:class:`~agents.residual.ResidualInterface`) for a config with a ``base``; else
+    :class:`AgentInterface`."""
     if isinstance(config, str):
         if config != RAW:
             raise ValueError(f"interface={config!r}: an InterfaceConfig, None or {RAW!r}")
         return RawInterface(ctx)
+    if config is not None and config.base is not None:
+        return ResidualInterface(AgentInterface(ctx), config.base, config.scale_max)
     return AgentInterface(ctx, config)
 
 
 def make_agent_env(interface: dict[str, Any] | None = None, **env_kwargs: Any) -> gym.Env:
     """``PiezoTurntableAgent-v0``: ``PiezoTurntable-v0`` (``env_kwargs``) seen through
     :class:`AgentInterface` with ``interface`` (:class:`InterfaceConfig` fields): the
-    8 features and the 3-D structured action the shipped agents use."""
+    8 features and the 3-D structured action the shipped agents use (with a ``base``, a
+    residual agent's 10 features and 1-D action: :mod:`agents.residual`)."""
     from turntable_env.envs import PiezoTurntableEnv
 
     cfg = InterfaceConfig(**(interface or {}))
@@ -234,20 +276,21 @@ class AgentWrapper(gym.Wrapper):
 
     def __init__(self, env: gym.Env, config: InterfaceConfig | None = None) -> None:
         super().__init__(env)
-        self.interface = AgentInterface(ControllerContext.from_env(env), config)
+        self.interface = make_interface(ControllerContext.from_env(env), config)
         self.observation_space = self.interface.observation_space
         self.action_space = self.interface.action_space
         self._raw: np.ndarray | None = None
-        self._ident = self.interface.identifier()
+        self._state = self.interface.row_state()
 
     def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
         self._raw = obs
-        return self.interface.observe(obs, self._ident, first=True), info
+        return self.interface.observe(obs, self._state, first=True), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._raw is None:
             raise gym.error.ResetNeeded("PiezoTurntableAgent-v0: call reset() before step()")
-        obs, r, term, trunc, info = self.env.step(self.interface.env_action(action, self._raw))
+        act = self.interface.env_action(action, self._raw, self._state)
+        obs, r, term, trunc, info = self.env.step(act)
         self._raw = obs
-        return self.interface.observe(obs, self._ident), r, term, trunc, info
+        return self.interface.observe(obs, self._state), r, term, trunc, info

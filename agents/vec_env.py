@@ -67,9 +67,10 @@ class NativeVecEnv(VecEnv):
         # observation bounds are the first group's detector range: SB3 reads only the shape)
         spaces = self.interfaces[0]
         super().__init__(num_envs, spaces.observation_space, spaces.action_space)
-        # per row: the turntable's online step gains, where the interface identifies
-        self._idents = [
-            self.interfaces[g].identifier()
+        # per row: the turntable's own interface state (the online step gains, where the
+        # interface identifies; a residual agent's base controller)
+        self._states = [
+            self.interfaces[g].row_state()
             for g, n in enumerate(sizes)
             for _ in range(n)
         ]
@@ -87,7 +88,7 @@ class NativeVecEnv(VecEnv):
         each the first of its episode), through :meth:`AgentInterface.observe`."""
         iface = self.interfaces[g]
         return np.stack(
-            [iface.observe(o, self._idents[i], new) for o, i in zip(raw, rows, strict=True)]
+            [iface.observe(o, self._states[i], new) for o, i in zip(raw, rows, strict=True)]
         )
 
     def reset(self) -> np.ndarray:
@@ -117,12 +118,17 @@ class NativeVecEnv(VecEnv):
     def _step_group(self, g: int, sl: slice) -> tuple:
         """Group g's step: its rows' env actions, one batched step, its finished rows reset."""
         iface, venv = self.interfaces[g], self.venvs[g]
+        rows = range(sl.start, sl.stop)
+        acts, raws = self._actions[sl], self._raw[sl]
         env_act = np.stack(
-            [iface.env_action(a, o) for a, o in zip(self._actions[sl], self._raw[sl], strict=True)]
+            [
+                iface.env_action(a, o, self._states[i])
+                for a, o, i in zip(acts, raws, rows, strict=True)
+            ]
         )
         obs, reward, term, trunc, info = venv.step(env_act)
         dones = term | trunc
-        rows = np.arange(sl.start, sl.stop)
+        rows = np.arange(sl.start, sl.stop)  # as an array, for the finished rows' mask
         feats = self._features(obs, g, rows)
         infos: list[dict[str, Any]] = [
             {k: v[i].item() for k, v in info.items()} for i in range(venv.num_envs)

@@ -258,6 +258,9 @@ class StepScanController(Controller):
         self.pid = ScanPID(ctx.pid_gains, ctx.input_limit)
         self.gains: StepGains | None = None  # online step gains (set by map-based subclasses)
         self.min_learn = MIN_LEARN
+        # the error a step plan aims at, as a multiple of the remaining one [-] (1: the
+        # controller's own plan; a residual agent sets it each interval, agents/residual.py)
+        self.remaining_scale = 1.0
         self.misalignment = AxisMisalignment()  # learned from the y channel, where observed
         # a saturated reading sits at the edge plus the detector's noise (1 mV ≈ 0.3 µrad)
         self._sat = ctx.angle_range * SATURATION_FRACTION
@@ -416,7 +419,7 @@ class StepScanController(Controller):
         if abs(remaining) > self.scan_fraction * self.ctx.scan_range or sat:
             if self.steps and abs(self.offset) > UNWIND_FRACTION * self.ctx.input_limit:
                 return self._unwind()
-            move = self.choose_move(remaining, meas, sat)
+            move = self.choose_move(remaining * self.remaining_scale, meas, sat)
             if move is None and (sat or abs(remaining) > self.scan_exit * self.ctx.scan_range):
                 move = self.search_move(1 if remaining > 0 else -1, sat)  # the safety monitor
         if move is None:

@@ -2,7 +2,7 @@
 
     python experiments/agent_seeds.py --runs ppo=DIR,DIR,DIR --runs sac=DIR,DIR,DIR \
         [--plant-sets randomized,held_out] [--out experiments/results/agent_seeds]
-        [--backend auto|ray|processes [--address auto]]
+        [--baselines closed_loop,fuzzy] [--backend auto|ray|processes [--address auto]]
 
 Each run directory becomes a controller ``<label>_s<seed>`` (``turntable benchmark
 --agent``); the benchmark runs them on the plant sets (20 paired seeds per cell, every
@@ -10,6 +10,9 @@ task) and writes its files to ``--out``. Printed per label and plant set: each s
 mean success over the tasks, and the interquartile mean (IQM) of the seed × task success
 scores with a 95 % interval from a bootstrap over seeds (as rliable recommends for few
 runs: the IQM is robust to one outlying seed, the interval says how few there are).
+``--baselines`` runs registered controllers beside them on the same plants and seeds, so
+the benchmark's paired differences (``separations`` in benchmark.json) compare each seed
+with them, e.g. a residual agent with its own base; printed: each baseline's mean success.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import yaml
 
 from agents import register_run
 from controllers.benchmark import run_benchmark, write_outputs
+from controllers.registry import spec as controller_spec
 from turntable_env.scale import BACKENDS
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "agent_seeds"
@@ -42,11 +46,30 @@ def iqm_ci(scores: np.ndarray, n_boot: int = 2000, seed: int = 0) -> tuple[float
     return iqm, float(lo), float(hi)
 
 
+PAIRED_METRICS = ("success", "settle_time_s", "tracking_rms_nm", "runaway_um")
+
+
+def paired_against(cells: dict, a: str, b: str) -> dict:
+    """Controller ``a`` against ``b`` on one plant set's tasks (``cells``: the summary's
+    task entries): the mean success difference over the tasks, and each task and metric
+    whose paired difference's 95 % interval excludes 0 (``separated``), with its mean."""
+    success = float(np.mean([c["paired"][f"{a} - {b}"]["success"]["mean"] for c in cells.values()]))
+    sep = []
+    for task, c in cells.items():
+        for metric in PAIRED_METRICS:
+            d = c["paired"][f"{a} - {b}"][metric]
+            if d["separated"]:
+                sep.append(f"{task}: {metric} {d['mean']:+.3g}")
+    return {"success": success, "separated": sep}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", action="append", required=True, help="LABEL=DIR,DIR,...")
     ap.add_argument("--plant-sets", default="randomized,held_out")
     ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--baselines", default="",
+                    help="registered controllers run beside the agents (paired), comma-separated")
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     ap.add_argument("--backend", choices=BACKENDS, default=None,
                     help="the benchmark's cells as Ray tasks (auto: when installed) or processes")
@@ -60,7 +83,10 @@ def main() -> None:
             name = f"{label}_s{s}"
             register_run(name, d)
             groups.setdefault(label, []).append(name)
-    names = [n for v in groups.values() for n in v]
+    baselines = [b for b in args.baselines.split(",") if b]
+    for b in baselines:
+        controller_spec(b)  # ValueError naming an unregistered controller, before any work
+    names = [n for v in groups.values() for n in v] + baselines
     sets = [p for p in args.plant_sets.split(",") if p]
     res = run_benchmark(names, plant_sets=sets, seeds=args.seeds, progress=args.backend is None,
                         backend=args.backend, address=args.address)  # fmt: skip
@@ -78,6 +104,17 @@ def main() -> None:
             out.setdefault(label, {})[ps] = entry
             print(f"{label} on {ps}: IQM success {iqm:.2f} [{lo:.2f}, {hi:.2f}] over "
                   f"{len(members)} seeds × {len(tasks)} tasks; per seed {per_seed}")  # fmt: skip
+    for b in baselines:
+        for ps in sets:
+            cells = [summ[ps][t]["controllers"][b]["success"]["mean"] for t in summ[ps]]
+            mean = float(np.mean(cells))
+            out.setdefault(b, {})[ps] = {"mean": mean}
+            print(f"{b} on {ps}: mean success {mean:.3f}")
+            for m in names[: len(names) - len(baselines)]:
+                diff = paired_against(summ[ps], m, b)
+                out[b][ps][m] = diff
+                print(f"  {m} - {b}: success {diff['success']:+.3f}; separated (task: metric "
+                      f"difference) {diff['separated'] or 'none'}")  # fmt: skip
     Path(args.out, "aggregate.json").write_text(json.dumps(out, indent=1), encoding="utf-8")
     print(f"{res.settings['wall_s']:.0f} s; files in {args.out}")
 

@@ -1,12 +1,15 @@
 """Learning curves across seeds: mean evaluation return with its 95 % bootstrap interval.
 
     python experiments/seed_curves.py --runs ppo=/tmp/rl/ppo_seed0,/tmp/rl/ppo_seed1,... \
-        --runs sac=... --out agents/pretrained/learning_curves.png
+        --runs sac=... --out agents/pretrained/learning_curves.png [--ship NAME]
 
 Each ``--runs LABEL=DIR,DIR,...`` names the run directories of one algorithm (written by
 ``python experiments/train_rl.py``); the figure holds one band per label, and the command
 prints, per label, the last common evaluation's mean [95 % interval] and every seed's
-value and the seed whose last evaluation is best (the one to ship).
+value and the seed whose last evaluation is best (the one to ship). ``--ship NAME`` copies
+that seed's run of the first label to ``agents/pretrained/NAME/`` (``agents.train.ship``),
+where ``import agents`` registers it as the controller NAME: the choice is the training's
+own evaluation, never the benchmark's plants.
 """
 
 from __future__ import annotations
@@ -17,15 +20,22 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from agents import PRETRAINED_DIR
 from agents.scale import plot_seed_curves, seed_curves
+from agents.train import ship
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", action="append", required=True, help="LABEL=DIR,DIR,...")
     ap.add_argument("--out", default="learning_curves.png")
+    ap.add_argument("--ship", default=None, metavar="NAME",
+                    help="copy the first label's best seed to agents/pretrained/NAME/")
     args = ap.parse_args()
+    if args.ship is not None and not args.ship.isidentifier():
+        raise SystemExit(f"--ship {args.ship!r}: must be an identifier (the controller name)")
     curves = {}
+    to_ship: Path | None = None
     for spec in args.runs:
         label, _, dirs = spec.partition("=")
         runs = [Path(d) for d in dirs.split(",") if d]
@@ -41,7 +51,10 @@ def main() -> None:
               f"{int(c['timesteps'][-1])} steps: {c['mean'][-1]:.1f} "
               f"[{c['ci_low'][-1]:.1f}, {c['ci_high'][-1]:.1f}]; per seed "
               f"{last}; best seed {seeds[best]}; wall s {walls}")  # fmt: skip
+        to_ship = runs[best] if to_ship is None else to_ship
     print(f"figure: {plot_seed_curves(curves, args.out)}")
+    if args.ship is not None and to_ship is not None:
+        print(f"shipped {to_ship} to {ship(to_ship, PRETRAINED_DIR / args.ship)}")
 
 
 if __name__ == "__main__":

@@ -123,3 +123,28 @@ def experiment(name: str):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+def smoke_hyperparams(algo: str, tmp_path: Path, env_id: str | None = None, source=None):
+    """(hyperparameter file, training file) in ``tmp_path`` for a training run of a few
+    hundred steps: ``source`` (default ``agents/hyperparams/<algo>.yml``) with 2 rows,
+    20-interval episodes and small batches, evaluated and checkpointed every 200 steps."""
+    import yaml
+
+    from agents.interface import AGENT_ENV_ID
+    from agents.train import load_hyperparams
+
+    env_id = env_id or AGENT_ENV_ID
+    cfg = load_hyperparams(algo, source, env_id=env_id)
+    cfg.update(n_envs=2)
+    cfg["env_kwargs"]["max_episode_steps"] = 20
+    if algo == "ppo":
+        cfg.update(n_steps=64, batch_size=64, n_epochs=2)
+    else:
+        cfg.update(learning_starts=50, batch_size=32, buffer_size=1000)
+    p = tmp_path / f"{algo}.yml"
+    p.write_text(yaml.safe_dump({env_id: cfg}))
+    t = tmp_path / "training.yml"
+    t.write_text(yaml.safe_dump({algo: {"eval": {"freq": 200, "n_envs": 2, "episodes": 2},
+                                        "checkpoint_freq": 200}}))  # fmt: skip
+    return p, t

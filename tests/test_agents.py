@@ -6,6 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
+from conftest import smoke_hyperparams
 
 import turntable_env  # noqa: F401
 from agents import AgentController, AgentWrapper, InterfaceConfig, load_agent, pretrained
@@ -21,27 +22,11 @@ from turntable_env.envs.config import OBS
 FIXED_OBS = np.random.default_rng(7).uniform(-2.0, 2.0, size=(16, 8)).astype(np.float32)
 
 
-def _smoke_hyperparams(algo, tmp_path, env_id=AGENT_ENV_ID):
-    cfg = load_hyperparams(algo, env_id=env_id)
-    cfg.update(n_envs=2)
-    cfg["env_kwargs"]["max_episode_steps"] = 20
-    if algo == "ppo":
-        cfg.update(n_steps=64, batch_size=64, n_epochs=2)
-    else:
-        cfg.update(learning_starts=50, batch_size=32, buffer_size=1000)
-    p = tmp_path / f"{algo}.yml"
-    p.write_text(yaml.safe_dump({env_id: cfg}))
-    t = tmp_path / "training.yml"
-    t.write_text(yaml.safe_dump({algo: {"eval": {"freq": 200, "n_envs": 2, "episodes": 2},
-                                        "checkpoint_freq": 200}}))  # fmt: skip
-    return p, t
-
-
 @pytest.mark.parametrize(
     ("algo", "env_id"), [("ppo", AGENT_ENV_ID), ("sac", AGENT_ENV_ID), ("sac", RAW_ENV_ID)]
 )
 def test_train_save_reload_gives_identical_actions(algo, env_id, tmp_path):
-    hp, tr = _smoke_hyperparams(algo, tmp_path, env_id)
+    hp, tr = smoke_hyperparams(algo, tmp_path, env_id)
     res = train(
         algo, env_id=env_id, timesteps=300, seed=1, out=tmp_path / "run",
         hyperparams=hp, training=tr, progress=False,
@@ -75,7 +60,7 @@ def test_frame_stacked_agent_sees_what_sb3_stacked_in_training(tmp_path):
     from every interval before it, the reset observation's none."""
     from stable_baselines3.common.vec_env.stacked_observations import StackedObservations
 
-    hp, tr = _smoke_hyperparams("ppo", tmp_path)
+    hp, tr = smoke_hyperparams("ppo", tmp_path)
     cfg = yaml.safe_load(hp.read_text())
     cfg[AGENT_ENV_ID]["frame_stack"] = 3
     cfg[AGENT_ENV_ID]["env_kwargs"]["interface"]["identify"] = True
@@ -126,12 +111,21 @@ def test_shipped_agents_load_and_act():
             obs, *_ = env.step(action)
 
 
-@pytest.mark.parametrize("identify", [False, True])
-def test_native_vec_env_equals_the_wrapped_single_env(identify):
+@pytest.mark.parametrize(
+    ("iface", "width"),
+    [
+        (InterfaceConfig(), 8),
+        (InterfaceConfig(identify=True), 14),
+        (InterfaceConfig(base="closed_loop"), 10),
+    ],
+)
+def test_native_vec_env_equals_the_wrapped_single_env(iface, width):
     """Same seed and actions: NativeVecEnv (N = 1) and AgentWrapper see the same features
-    (with ``identify``, the step identifier's too, reset with the episode)."""
-    kwargs = {"noise": True, "randomize": True, "move_range": (1e-6, 1e-3)}
-    iface = InterfaceConfig(identify=identify)
+    (with ``identify``, the step identifier's too, reset with the episode; a residual
+    agent's, from its base controller, one per turntable, reset with the episode). The
+    episode runs to its time limit (a base reaches the band before it)."""
+    kwargs = {"noise": True, "randomize": True, "move_range": (1e-6, 1e-3),
+              "terminate_on_success": False}  # fmt: skip
     venv = NativeVecEnv(1, max_episode_steps=5, interface=iface, **kwargs)
     venv.seed(3)
     single = AgentWrapper(gym.make("PiezoTurntable-v0", max_episode_steps=5, **kwargs), iface)
@@ -139,10 +133,10 @@ def test_native_vec_env_equals_the_wrapped_single_env(identify):
     f_one, _ = single.reset(seed=3)
     np.testing.assert_array_equal(f_vec[0], f_one)
     rng = np.random.default_rng(0)
-    assert f_vec.shape == (1, 14 if identify else 8)
+    assert f_vec.shape == (1, width)
     learned = False
     for _ in range(5):
-        a = rng.uniform(-1, 1, size=3).astype(np.float32)
+        a = rng.uniform(-1, 1, size=single.action_space.shape).astype(np.float32)
         f_vec, r_vec, done, infos = venv.step(a[None, :])
         f_one, r_one, term, trunc, _ = single.step(a)
         if done[0]:  # finished: SB3 gets the last features as terminal_observation
@@ -154,7 +148,7 @@ def test_native_vec_env_equals_the_wrapped_single_env(identify):
         assert r_vec[0] == pytest.approx(r_one, rel=1e-6)
     assert done[0]  # the time limit of 5 steps ended the episode
     # the gains were learned within the episode and forgotten with it (a new turntable)
-    assert learned == identify
+    assert learned == (width > 8)
     assert not np.any(f_vec[0, 8:])
 
 
@@ -240,7 +234,7 @@ def test_a_bad_training_domain_is_refused_naming_the_file(tmp_path):
     t.write_text(yaml.safe_dump({"ppo": {"domains": [{"share": -1}]}}))
     with pytest.raises(ValueError, match=r"bad_training.yml: 'ppo': domains\[0\].share=-1"):
         load_training("ppo", t)
-    hp, tr = _smoke_hyperparams("ppo", tmp_path)
+    hp, tr = smoke_hyperparams("ppo", tmp_path)
     cfg = yaml.safe_load(hp.read_text())
     cfg[AGENT_ENV_ID]["frame_stack"] = 0
     hp.write_text(yaml.safe_dump(cfg))
@@ -292,6 +286,10 @@ def test_agent_deadzone_idles_and_offset_accumulates():
         (lambda: load_hyperparams("ppo", "/nonexistent.yml"), "does not exist"),
         (lambda: InterfaceConfig(deadzone=1.0), "deadzone"),
         (lambda: InterfaceConfig(max_steps=0), "max_steps"),
+        (lambda: InterfaceConfig(base="fuzzy"), "base='fuzzy'"),
+        (lambda: InterfaceConfig(base="closed_loop", identify=True), "identify"),
+        (lambda: InterfaceConfig(base="closed_loop", scale_max=1.0), "scale_max=1.0"),
+        (lambda: InterfaceConfig(base="closed_loop", scale_max=float("nan")), "scale_max=nan"),
         (lambda: load_agent("/nonexistent"), "model.zip missing"),
     ],
 )
@@ -380,7 +378,7 @@ def test_a_trained_agent_continues_where_its_run_ended(tmp_path):
     """rl-zoo3's --trained-agent: the run's model and VecNormalize statistics learn on, the
     step count continues, and the new run records what it continued; a run of another
     algorithm or a directory without the agent is refused, naming it."""
-    hp, tr = _smoke_hyperparams("ppo", tmp_path)
+    hp, tr = smoke_hyperparams("ppo", tmp_path)
     first = train("ppo", timesteps=128, seed=0, out=tmp_path / "a", hyperparams=hp,
                   training=tr, progress=False)  # fmt: skip
     count = first.vecnormalize.obs_rms.count
@@ -398,7 +396,7 @@ def test_a_trained_agent_continues_where_its_run_ended(tmp_path):
     with pytest.raises(ValueError, match=r"trained_agent=.*model.zip missing"):
         train("ppo", timesteps=8, out=tmp_path / "c", hyperparams=hp, training=tr,
               progress=False, trained_agent=tmp_path / "none")  # fmt: skip
-    hs, ts = _smoke_hyperparams("sac", tmp_path)
+    hs, ts = smoke_hyperparams("sac", tmp_path)
     with pytest.raises(ValueError, match=r"a ppo run on PiezoTurntableAgent-v0, not sac"):
         train("sac", timesteps=8, out=tmp_path / "d", hyperparams=hs, training=ts,
               progress=False, trained_agent=first.run)  # fmt: skip

@@ -150,6 +150,12 @@ def test_out_of_range_action_is_clipped():
         ({"move_range": (1e-6, 0.06)}, "move_range"),
         ({"reward": "square"}, "reward"),
         ({"success_bonus": -1.0}, "success_bonus"),
+        ({"retarget_share": 1.5}, "retarget_share"),
+        ({"retarget_share": -0.1}, "retarget_share"),
+        ({"retarget_legs": (0, 3)}, "retarget_legs"),
+        ({"retarget_legs": (5, 3)}, "retarget_legs"),
+        ({"retarget_legs": (1.5, 3)}, "retarget_legs"),
+        ({"retarget_legs": "ab"}, "retarget_legs"),
     ],
 )
 def test_bad_kwargs_raise_naming_field(kwargs, field):
@@ -464,6 +470,50 @@ def test_move_range_draws_log_uniform_moves():
     assert 0.3 < np.mean(np.array(moves) > 0) < 0.7  # both directions
     # log-uniform: the median is the geometric mean of the bounds (within sampling error)
     assert np.median(np.log(mag)) == pytest.approx(np.log(np.sqrt(1e-6 * 5e-3)), abs=0.6)
+
+
+def test_retargeting_episodes_hold_each_target_for_a_leg():
+    """retarget_share = 1: the target holds for legs of 5–8 intervals, then jumps within
+    ±target_range·θ_lin; the env and its vector form agree. A given target stays fixed."""
+    kw = {"retarget_share": 1.0, "retarget_legs": (5, 8), "target_range": 0.8,
+          "terminate_on_success": False, "max_episode_steps": 60}  # fmt: skip
+    env = gym.make(ENV_ID, **kw)
+    venv = PiezoTurntableVectorEnv(num_envs=1, **kw)
+    lim = env.unwrapped.task.angle_range
+    for seed in range(3):
+        _, info = env.reset(seed=seed)
+        _, vinfo = venv.reset(seed=seed)
+        targets = [info["target_rad"]]
+        for _ in range(60):
+            info = env.step(np.zeros(5, np.float32))[4]
+            vinfo = venv.step(np.zeros((1, 5), np.float32))[4]
+            assert vinfo["target_rad"][0] == info["target_rad"]
+            targets.append(info["target_rad"])
+        jumps = np.flatnonzero(np.diff(targets)) + 1
+        legs = np.diff(np.concatenate([[0], jumps]))
+        assert len(jumps) >= 60 // 8 - 1 and legs.min() >= 5 and legs.max() <= 8
+        assert np.abs(targets).max() <= 0.8 * lim
+    _, info = env.reset(seed=0, options={"target_angle": 1e-4})
+    assert all(env.step(np.zeros(5, np.float32))[4]["target_rad"] == 1e-4 for _ in range(20))
+
+
+def test_retarget_share_is_the_share_of_jumping_episodes_and_zero_draws_nothing():
+    """About half the episodes retarget at share 0.5 (binomial, 200 episodes, ±4σ); share
+    0 consumes no draw: the episodes equal a config without the option, bit for bit."""
+    env = gym.make(ENV_ID, retarget_share=0.5, retarget_legs=(2, 2), max_episode_steps=3,
+                   terminate_on_success=False)  # fmt: skip
+    jumped = 0
+    for seed in range(200):
+        _, info = env.reset(seed=seed)
+        t0 = info["target_rad"]
+        jumped += any(env.step(np.zeros(5, np.float32))[4]["target_rad"] != t0 for _ in range(3))
+    assert abs(jumped - 100) <= 4 * np.sqrt(200 * 0.25)
+    a, b = gym.make(ENV_ID, retarget_share=0.0), gym.make(ENV_ID)
+    for seed in range(3):
+        np.testing.assert_array_equal(a.reset(seed=seed)[0], b.reset(seed=seed)[0])
+        np.testing.assert_array_equal(
+            a.step(np.full(5, 0.3, np.float32))[0], b.step(np.full(5, 0.3, np.float32))[0]
+        )
 
 
 @pytest.mark.parametrize("bonus", [0.0, 1.0])

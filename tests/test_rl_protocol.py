@@ -19,7 +19,14 @@ from agents.train import HYPERPARAMS_DIR, ZOO_KEYS, _algos, load_training
 
 @pytest.mark.parametrize(
     ("algo", "name"),
-    [("ppo", "ppo"), ("sac", "sac"), ("ppo", "ppo_history"), ("ppo", "ppo_identify")],
+    [
+        ("ppo", "ppo"),
+        ("sac", "sac"),
+        ("ppo", "ppo_history"),
+        ("ppo", "ppo_identify"),
+        ("ppo", "ppo_residual"),
+        ("ppo", "ppo_residual_tracking"),
+    ],
 )
 def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
     """rl-zoo3 passes every key it does not know to the algorithm: so every key must be a
@@ -36,15 +43,22 @@ def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
     assert load_training(algo)["eval"]["episodes"] > 0
 
 
-@pytest.mark.parametrize(("identify", "width"), [(False, 8), (True, 14)])
-def test_agent_interface_is_an_env_id_that_passes_gymnasiums_checker(identify, width):
-    """The agent env (with ``identify``: the step gains appended) passes Gymnasium's
-    checker: spaces, seeded resets, observations within the space."""
+@pytest.mark.parametrize(
+    ("interface", "width", "actions"),
+    [
+        ({"max_steps": 10}, 8, 3),
+        ({"max_steps": 10, "identify": True}, 14, 3),
+        ({"base": "closed_loop"}, 10, 1),
+    ],
+)
+def test_agent_interface_is_an_env_id_that_passes_gymnasiums_checker(interface, width, actions):
+    """The agent env (with ``identify``: the step gains appended; with a ``base``: the
+    residual agent's) passes Gymnasium's checker: spaces, seeded resets (the residual
+    agent's base reset with them), observations within the space."""
     from gymnasium.utils.env_checker import check_env
 
-    env = gym.make(AGENT_ENV_ID, interface={"max_steps": 10, "identify": identify},
-                   randomize=True)  # fmt: skip
-    assert env.action_space.shape == (3,) and env.observation_space.shape == (width,)
+    env = gym.make(AGENT_ENV_ID, interface=interface, randomize=True)
+    assert env.action_space.shape == (actions,) and env.observation_space.shape == (width,)
     with warnings.catch_warnings():  # the agent env is a wrapper by design: check the stack
         warnings.filterwarnings("ignore", message=".*different from the unwrapped version")
         check_env(env, skip_render_check=True)

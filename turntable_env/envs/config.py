@@ -160,6 +160,7 @@ def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 
 MAX_CONTROL_INTERVAL = 10.0  # s: one env step at most (a frozen env below one grid step)
+RETARGET_HORIZON = 1000  # control intervals of a retargeting episode's legs (the last holds)
 
 
 def _pair(name: str, value: Any) -> tuple[Any, Any]:
@@ -222,6 +223,15 @@ class EnvConfig:
             tolerance up (d = |θ* − θ|, tol = ``tolerance``).
         success_bonus: reward added in every interval that ends within ``tolerance`` [-]
             (0: none; a training aid for holding the target).
+        retarget_share: share of episodes whose target jumps [-] (0, the default: every
+            target fixed): such an episode holds each target for a leg of
+            ``retarget_legs`` control intervals (integers drawn uniformly, both ends
+            included) and then jumps to a new one within ±``target_range``·θ_lin, as the
+            controller benchmark's tracking tasks do (waypoints, back and forth), so
+            training meets a controller holding one target when the next is commanded.
+            The legs are a ``reference`` (reset option) of :data:`RETARGET_HORIZON`
+            intervals; an episode given a reference or a target keeps it.
+        retarget_legs: (shortest, longest) leg [control intervals], 1 <= low <= high.
         angle_limit: |θ| beyond which the episode is truncated (the table leaves the
             small-angle workspace the model covers) [rad].
     """
@@ -244,6 +254,8 @@ class EnvConfig:
     move_range: tuple[float, float] | None = None
     reward: Literal["linear", "log"] = "linear"
     success_bonus: float = 0.0
+    retarget_share: float = 0.0
+    retarget_legs: tuple[int, int] = (15, 40)
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict, init=False)
 
     def __post_init__(self) -> None:
@@ -277,6 +289,15 @@ class EnvConfig:
                 raise ValueError(f"move_range={self.move_range!r}: need low <= high < angle_limit")
             object.__setattr__(self, "move_range", (lo, hi))
         check_nonnegative("success_bonus", self.success_bonus)
+        share = check_nonnegative("retarget_share", self.retarget_share)
+        if share > 1.0:
+            raise ValueError(f"retarget_share={share!r}: must be <= 1 (a share of episodes)")
+        legs = _pair("retarget_legs", self.retarget_legs)
+        if not all(isinstance(x, int | np.integer) and not isinstance(x, bool) for x in legs):
+            raise ValueError(f"retarget_legs={self.retarget_legs!r}: must be two integers")
+        if not 1 <= legs[0] <= legs[1]:
+            raise ValueError(f"retarget_legs={self.retarget_legs!r}: need 1 <= low <= high")
+        object.__setattr__(self, "retarget_legs", (int(legs[0]), int(legs[1])))
         if self.reward not in ("linear", "log"):
             raise ValueError(f"reward={self.reward!r}: must be 'linear' or 'log'")
         # every draw of a reset within the factors' bounds, checked now (Plant.check_ranges)

@@ -31,9 +31,9 @@ from typing import Any
 import numpy as np
 
 from ..plant import IntervalResult, Plant, PlantStepper, load_capacitance
-from .config import OBS, OBS_Y, EnvConfig, check_action
+from .config import OBS, OBS_Y, RETARGET_HORIZON, EnvConfig, check_action
 
-__all__ = ["RESET_OPTIONS", "StepResult", "TurntableTask"]
+__all__ = ["RESET_OPTIONS", "StepResult", "TurntableTask", "retarget_legs"]
 
 RESET_OPTIONS = ("start_angle", "target_angle", "reference", "knock")
 
@@ -152,6 +152,9 @@ class TurntableTask:
             start = _option_angle("start_angle", opts["start_angle"], cfg.angle_limit)
         if "target_angle" in opts:
             target = _option_angle("target_angle", opts["target_angle"], lim)
+        fixed = reference is not None or "target_angle" in opts
+        if not fixed and cfg.retarget_share > 0.0 and rng.uniform() < cfg.retarget_share:
+            reference = retarget_legs(rng, target, cfg.retarget_legs, cfg.target_range * lim)
         if reference is not None:
             target = float(reference[0])
         self.reference[b] = reference
@@ -266,6 +269,23 @@ class TurntableTask:
             "out_of_workspace": np.abs(self.angle) > self.config.angle_limit,
             "time_s": self.time.astype(float),
         }
+
+
+def retarget_legs(
+    rng: np.random.Generator, first: float, legs: tuple[int, int], half_width: float
+) -> np.ndarray:
+    """A retargeting episode's reference [rad], :data:`~.config.RETARGET_HORIZON` intervals:
+    ``first`` held for a leg of ``legs`` intervals (uniform integers, both ends included),
+    then each next target uniform within ±``half_width`` [rad] for a leg of its own
+    (``EnvConfig.retarget_share``)."""
+    out = np.empty(RETARGET_HORIZON)
+    k, target = 0, first
+    while k < RETARGET_HORIZON:
+        n = int(rng.integers(legs[0], legs[1] + 1))
+        out[k : k + n] = target
+        k += n
+        target = float(rng.uniform(-1.0, 1.0)) * half_width
+    return out
 
 
 def _option_reference(value: Any, limit: float) -> np.ndarray | None:

@@ -124,7 +124,10 @@ class PiezoTurntableEnv(gym.Env):
     is the target at time k·Δt (the last value held after the end; observation and reward
     use the target of the moment); ``options={"knock": (t, dθ)}`` displaces the table by
     dθ [rad] at the end of the interval ending at t [s] (every contact re-sticks at the new
-    angle; a disturbance, :meth:`~turntable_env.plant.PlantStepper.displace`). With
+    angle; a disturbance, :meth:`~turntable_env.plant.PlantStepper.displace`).
+    ``retarget_share`` of the episodes draw such a reference themselves: each target held
+    for ``retarget_legs`` intervals, the next drawn within ±``target_range``·θ_lin (a
+    training distribution with the tracking tasks' target jumps). With
     ``randomize``, the friction coefficients, preload, amplifier slew and sensor noise
     are redrawn each episode (ranges: :data:`~turntable_env.envs.config.DEFAULT_RANDOMIZATION`).
 
@@ -171,8 +174,9 @@ class PiezoTurntableEnv(gym.Env):
     * v0: initial version (reduced per-axis model, real parameters). Later additions that
       keep v0's behaviour: ``info["steps"]``, ``terminate_on_success``, ``move_range``,
       ``reward="log"``, ``success_bonus``, ``plant`` (the plant layer: calibrated plants
-      with effects), the registered variants, and the ``reference`` and ``knock`` reset
-      options (tracking and disturbance tasks).
+      with effects), the registered variants, the ``reference`` and ``knock`` reset
+      options (tracking and disturbance tasks), and ``retarget_share``/``retarget_legs``
+      (0 by default: no episode retargets, and no draw is added).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
