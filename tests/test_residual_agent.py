@@ -107,3 +107,4 @@ def test_the_benchmark_runs_a_residual_agent_as_it_was_trained(tmp_path):
         np.testing.assert_array_equal(got, want)
         obs = env.step(got)[0]
     assert scales != {1.0}  # the policy's scale, not the base alone
+
