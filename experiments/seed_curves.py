@@ -45,12 +45,15 @@ def main() -> None:
         curves[label] = c
         seeds = [yaml.safe_load((r / "config.yml").read_text())["run"]["seed"] for r in runs]
         walls = [yaml.safe_load((r / "config.yml").read_text())["run"]["wall_s"] for r in runs]
+        first = [round(float(x), 1) for x in c["per_run"][:, 0]]
         last = [round(float(x), 1) for x in c["per_run"][:, -1]]
         best = int(np.argmax(last))
+        margin = last[best] - max((v for i, v in enumerate(last) if i != best), default=np.nan)
         print(f"{label}: {len(runs)} seeds {seeds}, last common evaluation at "
               f"{int(c['timesteps'][-1])} steps: {c['mean'][-1]:.1f} "
               f"[{c['ci_low'][-1]:.1f}, {c['ci_high'][-1]:.1f}]; per seed "
-              f"{last}; best seed {seeds[best]}; wall s {walls}")  # fmt: skip
+              f"{last} (first evaluation, at {int(c['timesteps'][0])} steps: {first}); "
+              f"best seed {seeds[best]}, by {margin:.1f}; wall s {walls}")  # fmt: skip
         to_ship = runs[best] if to_ship is None else to_ship
     print(f"figure: {plot_seed_curves(curves, args.out)}")
     if args.ship is not None and to_ship is not None:
