@@ -56,7 +56,7 @@ from controllers.lab import LabBrief
 from turntable_env.envs.config import OBS, OBSERVATION_NAMES, check_action
 
 from .identification import StepIdentifier
-from .residual import BASES, ResidualInterface
+from .residual import ResidualInterface, check_residual
 
 __all__ = [
     "AGENT_ENV_ID",
@@ -106,14 +106,10 @@ class InterfaceConfig:
             raise ValueError(f"offset_step={self.offset_step!r}: must be > 0")
         if not isinstance(self.identify, bool):
             raise ValueError(f"identify={self.identify!r}: must be true or false")
-        if self.base is not None and self.base not in BASES:
-            raise ValueError(f"base={self.base!r}: one of {', '.join(BASES)}, or none")
-        if self.base is not None and self.identify:
-            raise ValueError("identify=True with a base: the base's step gains are its features")
-        if isinstance(self.scale_max, bool) or not (
-            isinstance(self.scale_max, int | float) and 1.0 < self.scale_max < math.inf
-        ):
-            raise ValueError(f"scale_max={self.scale_max!r}: must be a finite number > 1")
+        if self.base is not None:
+            check_residual(self.base, self.scale_max)
+            if self.identify:
+                raise ValueError("identify=True with a base: the base's step gains are features")
 
 
 class AgentInterface:

@@ -41,13 +41,25 @@ from controllers.feedforward import FeedForwardController
 from controllers.lab import LabBrief
 from turntable_env.envs.config import OBS, check_action
 
-__all__ = ["BASES", "ResidualInterface"]
+__all__ = ["BASES", "ResidualInterface", "check_residual"]
 
 BASES: dict[str, type[StepScanController]] = {
     "closed_loop": ClosedLoopStepController,
     "feedforward": FeedForwardController,
 }
 GAIN_AMPLITUDE = 6.0  # V input: the amplitude whose step gain feature 9 reports
+
+
+def check_residual(base: Any, scale_max: Any) -> None:
+    """ValueError naming the field unless ``base`` is one of :data:`BASES` and
+    ``scale_max`` a finite real number > 1 (:class:`~agents.interface.InterfaceConfig`'s
+    check, and :class:`ResidualInterface`'s)."""
+    if base not in BASES:
+        raise ValueError(f"base={base!r}: one of {', '.join(BASES)}")
+    if isinstance(scale_max, bool) or not (
+        isinstance(scale_max, int | float) and 1.0 < scale_max < math.inf
+    ):
+        raise ValueError(f"scale_max={scale_max!r}: must be a finite number > 1")
 
 
 class ResidualInterface:
@@ -65,10 +77,7 @@ class ResidualInterface:
     monitors = True  # the base's safety monitor watches the spot: no shield over it
 
     def __init__(self, plain: Any, base: str, scale_max: float) -> None:
-        if base not in BASES:
-            raise ValueError(f"base={base!r}: one of {', '.join(BASES)}")
-        if not scale_max > 1.0 or not math.isfinite(scale_max):
-            raise ValueError(f"scale_max={scale_max!r}: must be a finite number > 1")
+        check_residual(base, scale_max)
         self.ctx: ControllerContext = plain.ctx
         self.base = base
         self._plain = plain
