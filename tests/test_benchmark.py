@@ -76,6 +76,30 @@ def test_cell_results_do_not_depend_on_the_other_controllers():
         np.testing.assert_array_equal(v, beside.metrics[m], err_msg=m)
 
 
+def test_agent_seeds_paired_comparison_is_the_benchmarks_own():
+    """experiments/agent_seeds.py --baselines: the mean success difference it prints is the
+    difference of the two controllers' mean successes over the tasks (paired seeds), and
+    it lists exactly the task × metric differences the benchmark marks separated."""
+    from conftest import experiment
+
+    paired_against = experiment("agent_seeds").paired_against
+    kw = {"plant_sets": ["held_out"], "tasks": ["knock", "point_2um"], "seeds": 3}
+    summ = run_benchmark(["closed_loop", "scan_pid"], **kw).summary()["held_out"]
+    got = paired_against(summ, "closed_loop", "scan_pid")
+    means = {c: np.mean([summ[t]["controllers"][c]["success"]["mean"] for t in summ])
+             for c in ("closed_loop", "scan_pid")}  # fmt: skip
+    assert got["success"] == pytest.approx(means["closed_loop"] - means["scan_pid"])
+    assert got["success"] > 0.5  # the scan PID alone cannot step: it fails both tasks
+    want = [
+        (t, m)
+        for t in summ
+        for m, d in summ[t]["paired"]["closed_loop - scan_pid"].items()
+        if d["separated"] and m in ("success", "settle_time_s", "tracking_rms_nm", "runaway_um")
+    ]
+    listed = [tuple(x.split(" ")[:2]) for x in got["separated"]]  # "task: metric diff"
+    assert want and listed == [(f"{t}:", m) for t, m in want]
+
+
 @pytest.mark.parametrize(  # one local Ray instance at a time (xdist: one worker for "ray")
     "backend",
     ["processes", pytest.param("ray", marks=[pytest.mark.slow, pytest.mark.xdist_group("ray")])],
