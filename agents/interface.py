@@ -91,6 +91,9 @@ class InterfaceConfig:
     # factor on the error it aims at; the fields above but ``identify`` are then unused
     base: str | None = None
     scale_max: float = 2.0
+    # a residual agent's cost of leaving its base, λ·a² per interval [reward units]: the
+    # reward's ``reward_action`` term (agents/residual.py)
+    action_cost: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.deadzone < 1.0:
@@ -107,9 +110,11 @@ class InterfaceConfig:
         if not isinstance(self.identify, bool):
             raise ValueError(f"identify={self.identify!r}: must be true or false")
         if self.base is not None:
-            check_residual(self.base, self.scale_max)
+            check_residual(self.base, self.scale_max, self.action_cost)
             if self.identify:
                 raise ValueError("identify=True with a base: the base's step gains are features")
+        elif self.action_cost != 0.0:
+            raise ValueError(f"action_cost={self.action_cost!r}: only a residual agent's (base)")
 
 
 class AgentInterface:
@@ -190,6 +195,11 @@ class AgentInterface:
             dtype=np.float32,
         )
 
+    def cost(self, action: np.ndarray) -> float:
+        """The reward's action term for ``action`` (every interface has one): 0 here, a
+        residual agent's λ·a² (:meth:`~agents.residual.ResidualInterface.cost`)."""
+        return 0.0
+
     def env_action(self, action: np.ndarray, obs: np.ndarray, state: Any = None) -> np.ndarray:
         """The env action for an agent action, given the env observation it answered (and
         the turntable's :meth:`row_state`, unused here); ValueError for anything but 3
@@ -237,6 +247,9 @@ class RawInterface:
         # the default env's 8 components (an env with ``detector_y`` appends the y channel)
         return np.asarray(obs[..., : len(OBSERVATION_NAMES)], dtype=np.float32)
 
+    def cost(self, action: np.ndarray) -> float:
+        return 0.0
+
     def env_action(self, action: np.ndarray, obs: np.ndarray, state: None = None) -> np.ndarray:
         return check_action(action, (5,)).astype(np.float32)
 
@@ -252,7 +265,9 @@ def make_interface(
             raise ValueError(f"interface={config!r}: an InterfaceConfig, None or {RAW!r}")
         return RawInterface(ctx)
     if config is not None and config.base is not None:
-        return ResidualInterface(AgentInterface(ctx), config.base, config.scale_max)
+        return ResidualInterface(
+            AgentInterface(ctx), config.base, config.scale_max, config.action_cost
+        )
     return AgentInterface(ctx, config)
 
 
@@ -287,6 +302,10 @@ class AgentWrapper(gym.Wrapper):
         if self._raw is None:
             raise gym.error.ResetNeeded("PiezoTurntableAgent-v0: call reset() before step()")
         act = self.interface.env_action(action, self._raw, self._state)
+        cost = self.interface.cost(action)
         obs, r, term, trunc, info = self.env.step(act)
         self._raw = obs
-        return self.interface.observe(obs, self._state), r, term, trunc, info
+        # the reward's action term: the interface's cost of the action (0 but a residual
+        # agent's with an action_cost), a component in info as the env's own are
+        info = {**info, "reward_action": 0.0 - cost}
+        return self.interface.observe(obs, self._state), r - cost, term, trunc, info

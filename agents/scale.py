@@ -11,7 +11,10 @@ is :func:`agents.train.train` in its own process, seeded, writing its own direct
 
 :func:`seed_curves` reads the runs' evaluations and gives the learning curve across seeds
 (mean and 95 % interval at each evaluation step, the runs' own evaluation means as the
-samples); :func:`plot_seed_curves` draws it.
+samples); :func:`plot_seed_curves` draws it. :func:`validate_seeds` runs every seed's
+final policy on one set of validation episodes, the same for all, and picks the seed to
+ship by their paired returns: each run's own evaluation draws its episodes from its own
+seed, so their last values differ by the episodes as much as by the policies.
 """
 
 from __future__ import annotations
@@ -27,7 +30,19 @@ from turntable_env.scale import BACKENDS, map_tasks, resolve_backend
 from .interface import RAW_ENV_ID
 from .train import ENV_ID
 
-__all__ = ["BACKENDS", "plot_seed_curves", "run_name", "seed_curves", "train_seeds"]
+__all__ = [
+    "BACKENDS",
+    "VALIDATION_SEED",
+    "plot_seed_curves",
+    "run_name",
+    "seed_curves",
+    "train_seeds",
+    "validate_seeds",
+]
+
+# the validation episodes' env seed: no training row's (seed + row, seeds < 10 000) and no
+# training evaluation's (seed + 10 000)
+VALIDATION_SEED = 20_000
 
 
 def run_name(algo: str, env_id: str, seed: int) -> str:
@@ -111,6 +126,69 @@ def seed_curves(runs: Sequence[str | Path]) -> dict[str, np.ndarray]:
         "ci_low": np.array([c["ci_low"] for c in cis]),
         "ci_high": np.array([c["ci_high"] for c in cis]),
         "per_run": per_run,
+    }
+
+
+def validate_seeds(
+    runs: Sequence[str | Path], episodes: int = 64, n_envs: int = 8, seed: int = VALIDATION_SEED
+) -> dict[str, Any]:
+    """Every run's final policy on the same ``episodes`` validation episodes: the runs'
+    training env (their config.yml's entry and training domains, which must be the same
+    for all) seeded ``seed``, their own VecNormalize statistics frozen, deterministic
+    actions (SB3's ``evaluate_policy``; returns as the env pays them, unnormalised).
+
+    Returns ``returns`` (runs × episodes), ``mean`` (per run), ``best`` and ``runner_up``
+    (indices into ``runs``), ``margin`` (the difference of their means with its paired 95 %
+    bootstrap interval, ``margin_ci``; episode by episode, for the episodes are the same)
+    and ``decided``: the interval excludes 0 (otherwise the seeds are tied and the choice
+    is not a result). ValueError for fewer than 2 runs, runs of different configs, or
+    ``episodes`` not a positive multiple of ``n_envs``."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
+
+    from controllers.metrics import paired_difference
+
+    from .controller import load_agent
+    from .train import frame_stack, make_vec_env
+
+    if len(runs) < 2:
+        raise ValueError(f"runs: need at least 2 to choose between, got {len(runs)}")
+    if episodes < n_envs or episodes % n_envs:
+        raise ValueError(f"episodes={episodes!r}: must be a positive multiple of n_envs={n_envs}")
+    loaded = [load_agent(r) for r in runs]
+    env_id = loaded[0][2]["run"]["env_id"]
+
+    def setting(cfg: dict[str, Any]) -> tuple[Any, Any]:
+        return cfg.get(cfg["run"]["env_id"]), cfg.get("training", {}).get("domains")
+
+    for r, (_, _, cfg) in zip(runs, loaded, strict=True):
+        if setting(cfg) != setting(loaded[0][2]):
+            raise ValueError(f"run {r}: another env entry or training domains than {runs[0]}")
+    entry, domains = setting(loaded[0][2])
+    returns = []
+    for r, (model, _, _) in zip(runs, loaded, strict=True):
+        env = VecNormalize.load(
+            str(Path(r) / "vecnormalize.pkl"), make_vec_env(entry, n_envs, seed, env_id, domains)
+        )
+        env.training, env.norm_reward = False, False
+        seen = VecFrameStack(env, frame_stack(entry)) if frame_stack(entry) > 1 else env
+        rew, _ = evaluate_policy(model, seen, n_eval_episodes=episodes, deterministic=True,
+                                 return_episode_rewards=True)  # fmt: skip
+        returns.append(np.asarray(rew, dtype=float))
+        env.close()
+    ret = np.array(returns)
+    mean = ret.mean(axis=1)
+    order = np.argsort(-mean, kind="stable")
+    best, runner = int(order[0]), int(order[1])
+    diff = paired_difference(ret[best], ret[runner])
+    return {
+        "returns": ret,
+        "mean": mean,
+        "best": best,
+        "runner_up": runner,
+        "margin": float(diff["mean"]),
+        "margin_ci": (float(diff["ci_low"]), float(diff["ci_high"])),
+        "decided": bool(diff["ci_low"] > 0.0),
     }
 
 

@@ -126,12 +126,15 @@ class NativeVecEnv(VecEnv):
                 for a, o, i in zip(acts, raws, rows, strict=True)
             ]
         )
+        cost = np.array([iface.cost(a) for a in acts])  # the reward's action term (wrapper's)
         obs, reward, term, trunc, info = venv.step(env_act)
+        reward = reward - cost
         dones = term | trunc
         rows = np.arange(sl.start, sl.stop)  # as an array, for the finished rows' mask
         feats = self._features(obs, g, rows)
         infos: list[dict[str, Any]] = [
-            {k: v[i].item() for k, v in info.items()} for i in range(venv.num_envs)
+            {**{k: v[i].item() for k, v in info.items()}, "reward_action": 0.0 - cost[i].item()}
+            for i in range(venv.num_envs)
         ]
         if dones.any():
             for i in np.flatnonzero(dones):

@@ -211,7 +211,8 @@ class FuzzyStepController(StepScanController):
         self.estimate = measured  # the fuzzy controller believes the detector only
 
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
-        err = self.target - measured
+        # the error the rules see, × the aim's scale (1 here; a residual agent's s: agents.residual)
+        err = (self.target - measured) * self.remaining_scale
         d = 1 if err > 0 else -1
         g, upper = self.gains.estimate(d, self.amplitude)
         # input scaling by the learned step gain: the rules see the error in nominal steps

@@ -10,6 +10,13 @@ value and the seed whose last evaluation is best (the one to ship). ``--ship NAM
 that seed's run of the first label to ``agents/pretrained/NAME/`` (``agents.train.ship``),
 where ``import agents`` registers it as the controller NAME: the choice is the training's
 own evaluation, never the benchmark's plants.
+
+``--validate N`` chooses instead by N validation episodes of the training's own
+distribution, the same episodes for every seed (``agents.scale.validate_seeds``): each
+run's last evaluation drew its episodes from its own seed, so its value moves with them
+(docs/rl.md, result 5). It prints each seed's mean validation return and the best seed's
+paired margin over the runner-up with its 95 % interval; an interval that includes 0 is
+a tie, and ``--ship`` then ships nothing.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ import numpy as np
 import yaml
 
 from agents import PRETRAINED_DIR
-from agents.scale import plot_seed_curves, seed_curves
+from agents.scale import plot_seed_curves, seed_curves, validate_seeds
 from agents.train import ship
 
 
@@ -31,12 +38,16 @@ def main() -> None:
     ap.add_argument("--out", default="learning_curves.png")
     ap.add_argument("--ship", default=None, metavar="NAME",
                     help="copy the first label's best seed to agents/pretrained/NAME/")
+    ap.add_argument("--validate", type=int, default=None, metavar="N",
+                    help="choose the first label's seed by N common validation episodes")
     args = ap.parse_args()
+    if args.validate is not None and (args.validate < 8 or args.validate % 8):
+        raise SystemExit(f"--validate {args.validate!r}: a positive multiple of 8 (the envs)")
     if args.ship is not None and not args.ship.isidentifier():
         raise SystemExit(f"--ship {args.ship!r}: must be an identifier (the controller name)")
     curves = {}
-    to_ship: Path | None = None
-    for spec in args.runs:
+    to_ship: Path | None = None  # the first label's chosen seed (None: a tie)
+    for i, spec in enumerate(args.runs):
         label, _, dirs = spec.partition("=")
         runs = [Path(d) for d in dirs.split(",") if d]
         if not label or len(runs) < 2:
@@ -54,7 +65,17 @@ def main() -> None:
               f"[{c['ci_low'][-1]:.1f}, {c['ci_high'][-1]:.1f}]; per seed "
               f"{last} (first evaluation, at {int(c['timesteps'][0])} steps: {first}); "
               f"best seed {seeds[best]}, by {margin:.1f}; wall s {walls}")  # fmt: skip
-        to_ship = runs[best] if to_ship is None else to_ship
+        if i == 0 and args.validate is not None:
+            v = validate_seeds(runs, episodes=args.validate)
+            b, lo, hi = v["best"], *v["margin_ci"]
+            print(f"{label}: validation, {args.validate} common episodes: mean return per "
+                  f"seed {[round(float(m), 1) for m in v['mean']]}; best seed {seeds[b]}, "
+                  f"by {v['margin']:.1f} [{lo:.1f}, {hi:.1f}] over seed "
+                  f"{seeds[v['runner_up']]} (paired, 95 %): "
+                  f"{'decided' if v['decided'] else 'a tie, nothing to ship'}")  # fmt: skip
+            to_ship = runs[b] if v["decided"] else None
+        elif i == 0:
+            to_ship = runs[best]
     print(f"figure: {plot_seed_curves(curves, args.out)}")
     if args.ship is not None and to_ship is not None:
         print(f"shipped {to_ship} to {ship(to_ship, PRETRAINED_DIR / args.ship)}")

@@ -117,6 +117,7 @@ def test_shipped_agents_load_and_act():
         (InterfaceConfig(), 8),
         (InterfaceConfig(identify=True), 14),
         (InterfaceConfig(base="closed_loop"), 10),
+        (InterfaceConfig(base="fuzzy", scale_max=1.5, action_cost=0.05), 10),
     ],
 )
 def test_native_vec_env_equals_the_wrapped_single_env(iface, width):
@@ -286,10 +287,13 @@ def test_agent_deadzone_idles_and_offset_accumulates():
         (lambda: load_hyperparams("ppo", "/nonexistent.yml"), "does not exist"),
         (lambda: InterfaceConfig(deadzone=1.0), "deadzone"),
         (lambda: InterfaceConfig(max_steps=0), "max_steps"),
-        (lambda: InterfaceConfig(base="fuzzy"), "base='fuzzy'"),
+        (lambda: InterfaceConfig(base="scan_pid"), "base='scan_pid'"),
         (lambda: InterfaceConfig(base="closed_loop", identify=True), "identify"),
         (lambda: InterfaceConfig(base="closed_loop", scale_max=1.0), "scale_max=1.0"),
         (lambda: InterfaceConfig(base="closed_loop", scale_max=float("nan")), "scale_max=nan"),
+        (lambda: InterfaceConfig(action_cost=0.1), "action_cost=0.1: only a residual"),
+        (lambda: InterfaceConfig(base="fuzzy", action_cost=-0.1), "action_cost=-0.1"),
+        (lambda: InterfaceConfig(base="fuzzy", action_cost=float("inf")), "action_cost=inf"),
         (lambda: load_agent("/nonexistent"), "model.zip missing"),
     ],
 )

@@ -2,6 +2,7 @@
 env id, runs for several seeds go to Ray (or local processes), curves across seeds."""
 
 import inspect
+import shutil
 import subprocess
 import sys
 import warnings
@@ -13,7 +14,7 @@ import yaml
 
 import agents  # noqa: F401  (registers PiezoTurntableAgent-v0)
 from agents.interface import AGENT_ENV_ID, RAW_ENV_ID
-from agents.scale import seed_curves, train_seeds
+from agents.scale import seed_curves, train_seeds, validate_seeds
 from agents.train import HYPERPARAMS_DIR, ZOO_KEYS, _algos, load_training
 
 
@@ -26,6 +27,8 @@ from agents.train import HYPERPARAMS_DIR, ZOO_KEYS, _algos, load_training
         ("ppo", "ppo_identify"),
         ("ppo", "ppo_residual"),
         ("ppo", "ppo_residual_tracking"),
+        ("ppo", "ppo_residual_fuzzy"),
+        ("ppo", "ppo_residual_fuzzy_cost"),
     ],
 )
 def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
@@ -49,6 +52,7 @@ def test_hyperparameter_files_hold_only_zoo_keys_and_sb3_arguments(algo, name):
         ({"max_steps": 10}, 8, 3),
         ({"max_steps": 10, "identify": True}, 14, 3),
         ({"base": "closed_loop"}, 10, 1),
+        ({"base": "fuzzy", "scale_max": 1.5, "action_cost": 0.05}, 10, 1),
     ],
 )
 def test_agent_interface_is_an_env_id_that_passes_gymnasiums_checker(interface, width, actions):
@@ -111,6 +115,37 @@ def test_seed_curves_take_the_common_steps_and_bracket_the_mean(tmp_path):
     assert (c["ci_low"] <= c["mean"]).all() and (c["mean"] <= c["ci_high"]).all()
     with pytest.raises(ValueError, match="at least 2"):
         seed_curves(runs[:1])
+
+
+def test_validation_gives_every_seed_the_same_episodes_and_calls_a_tie(tmp_path):
+    """validate_seeds: a run against itself meets the same episodes, return for return,
+    and its margin, 0, is a tie; two seeds' policies differ on those episodes; a run of
+    another config cannot be compared, nor a count of episodes the envs cannot share."""
+    from conftest import smoke_hyperparams
+
+    from agents.train import train
+
+    hp, tr = smoke_hyperparams("ppo", tmp_path, source=HYPERPARAMS_DIR / "ppo_residual.yml")
+    runs = [train("ppo", timesteps=128, seed=s, out=tmp_path / f"s{s}", hyperparams=hp,
+                  training=tr, progress=False).run for s in (0, 1)]  # fmt: skip
+    same = validate_seeds([runs[0], runs[0]], episodes=8, n_envs=4)
+    assert same["returns"].shape == (2, 8)
+    np.testing.assert_array_equal(*same["returns"])
+    assert same["margin"] == 0.0 and not same["decided"]
+    two = validate_seeds(runs, episodes=8, n_envs=4)
+    assert not np.array_equal(*two["returns"])
+    assert two["mean"][two["best"]] >= two["mean"][two["runner_up"]]
+    lo, hi = two["margin_ci"]
+    assert lo <= two["margin"] <= hi and two["decided"] == (lo > 0.0)
+    other = tmp_path / "other"
+    shutil.copytree(runs[1], other)
+    cfg = yaml.safe_load((other / "config.yml").read_text())
+    cfg["PiezoTurntableAgent-v0"]["env_kwargs"]["target_range"] = 0.3
+    (other / "config.yml").write_text(yaml.safe_dump(cfg))
+    with pytest.raises(ValueError, match="another env entry"):
+        validate_seeds([runs[0], other], episodes=8, n_envs=4)
+    with pytest.raises(ValueError, match="episodes=6"):
+        validate_seeds(runs, episodes=6, n_envs=4)
 
 
 @pytest.mark.parametrize(
