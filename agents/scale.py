@@ -33,6 +33,7 @@ from .train import ENV_ID
 __all__ = [
     "BACKENDS",
     "VALIDATION_SEED",
+    "check_validation",
     "plot_seed_curves",
     "run_name",
     "seed_curves",
@@ -129,6 +130,14 @@ def seed_curves(runs: Sequence[str | Path]) -> dict[str, np.ndarray]:
     }
 
 
+def check_validation(episodes: int, n_envs: int = 8) -> None:
+    """ValueError naming the field unless ``episodes`` is a positive multiple of ``n_envs``
+    (:func:`validate_seeds`' check, and ``seed_curves.py --validate``'s before any work)."""
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < n_envs \
+            or episodes % n_envs:  # fmt: skip
+        raise ValueError(f"episodes={episodes!r}: must be a positive multiple of n_envs={n_envs}")
+
+
 def validate_seeds(
     runs: Sequence[str | Path], episodes: int = 64, n_envs: int = 8, seed: int = VALIDATION_SEED
 ) -> dict[str, Any]:
@@ -138,11 +147,14 @@ def validate_seeds(
     actions (SB3's ``evaluate_policy``; returns as the env pays them, unnormalised).
 
     Returns ``returns`` (runs × episodes), ``mean`` (per run), ``best`` and ``runner_up``
-    (indices into ``runs``), ``margin`` (the difference of their means with its paired 95 %
-    bootstrap interval, ``margin_ci``; episode by episode, for the episodes are the same)
-    and ``decided``: the interval excludes 0 (otherwise the seeds are tied and the choice
-    is not a result). ValueError for fewer than 2 runs, runs of different configs, or
-    ``episodes`` not a positive multiple of ``n_envs``."""
+    (indices into ``runs``), ``margin`` (the difference of their means with its 95 %
+    bootstrap interval, ``margin_ci``) and ``decided``: the interval excludes 0 (otherwise
+    the seeds are tied and the choice is not a result). ``paired``: every episode ran to
+    the same length in every run, so episode k is the same draw in each (SB3 lists the
+    returns in the order the episodes end) and the interval is that of the paired
+    differences; otherwise (an episode truncated in one run) it is the two samples'
+    (scipy.stats.bootstrap, unpaired). ValueError for fewer than 2 runs, runs of
+    different configs, or ``episodes`` refused by :func:`check_validation`."""
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 
@@ -153,8 +165,7 @@ def validate_seeds(
 
     if len(runs) < 2:
         raise ValueError(f"runs: need at least 2 to choose between, got {len(runs)}")
-    if episodes < n_envs or episodes % n_envs:
-        raise ValueError(f"episodes={episodes!r}: must be a positive multiple of n_envs={n_envs}")
+    check_validation(episodes, n_envs)
     loaded = [load_agent(r) for r in runs]
     env_id = loaded[0][2]["run"]["env_id"]
 
@@ -165,31 +176,49 @@ def validate_seeds(
         if setting(cfg) != setting(loaded[0][2]):
             raise ValueError(f"run {r}: another env entry or training domains than {runs[0]}")
     entry, domains = setting(loaded[0][2])
-    returns = []
+    returns, lengths = [], []
     for r, (model, _, _) in zip(runs, loaded, strict=True):
         env = VecNormalize.load(
             str(Path(r) / "vecnormalize.pkl"), make_vec_env(entry, n_envs, seed, env_id, domains)
         )
         env.training, env.norm_reward = False, False
         seen = VecFrameStack(env, frame_stack(entry)) if frame_stack(entry) > 1 else env
-        rew, _ = evaluate_policy(model, seen, n_eval_episodes=episodes, deterministic=True,
-                                 return_episode_rewards=True)  # fmt: skip
+        rew, length = evaluate_policy(model, seen, n_eval_episodes=episodes, deterministic=True,
+                                      return_episode_rewards=True)  # fmt: skip
         returns.append(np.asarray(rew, dtype=float))
+        lengths.append(np.asarray(length))
         env.close()
     ret = np.array(returns)
     mean = ret.mean(axis=1)
     order = np.argsort(-mean, kind="stable")
     best, runner = int(order[0]), int(order[1])
-    diff = paired_difference(ret[best], ret[runner])
+    paired = all(np.array_equal(n, lengths[0]) for n in lengths)
+    if paired:
+        diff = paired_difference(ret[best], ret[runner])
+        ci = (float(diff["ci_low"]), float(diff["ci_high"]))
+    else:
+        ci = _unpaired_ci(ret[best], ret[runner])
     return {
         "returns": ret,
         "mean": mean,
         "best": best,
         "runner_up": runner,
-        "margin": float(diff["mean"]),
-        "margin_ci": (float(diff["ci_low"]), float(diff["ci_high"])),
-        "decided": bool(diff["ci_low"] > 0.0),
+        "margin": float(mean[best] - mean[runner]),
+        "margin_ci": ci,
+        "decided": bool(ci[0] > 0.0),
+        "paired": paired,
     }
+
+
+def _unpaired_ci(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """95 % percentile bootstrap interval of mean(a) − mean(b), the samples resampled apart."""
+    import scipy.stats
+
+    res = scipy.stats.bootstrap(
+        (a, b), lambda x, y, axis: x.mean(axis=axis) - y.mean(axis=axis), paired=False,
+        vectorized=True, confidence_level=0.95, method="percentile", rng=0,
+    )  # fmt: skip
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 def plot_seed_curves(curves: dict[str, dict[str, np.ndarray]], path: str | Path) -> Path:

@@ -28,7 +28,7 @@ import numpy as np
 import yaml
 
 from agents import PRETRAINED_DIR
-from agents.scale import plot_seed_curves, seed_curves, validate_seeds
+from agents.scale import check_validation, plot_seed_curves, seed_curves, validate_seeds
 from agents.train import ship
 
 
@@ -41,10 +41,13 @@ def main() -> None:
     ap.add_argument("--validate", type=int, default=None, metavar="N",
                     help="choose the first label's seed by N common validation episodes")
     args = ap.parse_args()
-    if args.validate is not None and (args.validate < 8 or args.validate % 8):
-        raise SystemExit(f"--validate {args.validate!r}: a positive multiple of 8 (the envs)")
+    if args.validate is not None:
+        try:
+            check_validation(args.validate)
+        except ValueError as e:
+            ap.error(f"--validate: {e}")  # exit 2, one line, before any work
     if args.ship is not None and not args.ship.isidentifier():
-        raise SystemExit(f"--ship {args.ship!r}: must be an identifier (the controller name)")
+        ap.error(f"--ship {args.ship!r}: must be an identifier (the controller name)")
     curves = {}
     to_ship: Path | None = None  # the first label's chosen seed (None: a tie)
     for i, spec in enumerate(args.runs):
@@ -71,7 +74,7 @@ def main() -> None:
             print(f"{label}: validation, {args.validate} common episodes: mean return per "
                   f"seed {[round(float(m), 1) for m in v['mean']]}; best seed {seeds[b]}, "
                   f"by {v['margin']:.1f} [{lo:.1f}, {hi:.1f}] over seed "
-                  f"{seeds[v['runner_up']]} (paired, 95 %): "
+                  f"{seeds[v['runner_up']]} ({'paired' if v['paired'] else 'unpaired'}, 95 %): "
                   f"{'decided' if v['decided'] else 'a tie, nothing to ship'}")  # fmt: skip
             to_ship = runs[b] if v["decided"] else None
         elif i == 0:

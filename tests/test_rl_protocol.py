@@ -129,10 +129,11 @@ def test_validation_gives_every_seed_the_same_episodes_and_calls_a_tie(tmp_path)
     runs = [train("ppo", timesteps=128, seed=s, out=tmp_path / f"s{s}", hyperparams=hp,
                   training=tr, progress=False).run for s in (0, 1)]  # fmt: skip
     same = validate_seeds([runs[0], runs[0]], episodes=8, n_envs=4)
-    assert same["returns"].shape == (2, 8)
+    assert same["returns"].shape == (2, 8) and same["paired"]
     np.testing.assert_array_equal(*same["returns"])
     assert same["margin"] == 0.0 and not same["decided"]
     two = validate_seeds(runs, episodes=8, n_envs=4)
+    assert two["paired"]  # every episode ran its 20 intervals: episode k is one draw
     assert not np.array_equal(*two["returns"])
     assert two["mean"][two["best"]] >= two["mean"][two["runner_up"]]
     lo, hi = two["margin_ci"]
@@ -146,6 +147,20 @@ def test_validation_gives_every_seed_the_same_episodes_and_calls_a_tie(tmp_path)
         validate_seeds([runs[0], other], episodes=8, n_envs=4)
     with pytest.raises(ValueError, match="episodes=6"):
         validate_seeds(runs, episodes=6, n_envs=4)
+
+
+def test_an_unpaired_margin_interval_brackets_the_difference_of_the_means():
+    """Where an episode ended early in one run the returns are not paired: the interval is
+    the two samples' bootstrap, around the difference of means (1 here), and a sample
+    against a shuffled copy of itself is a tie."""
+    from agents.scale import _unpaired_ci
+
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(1.0, 1.0, 200), rng.normal(0.0, 1.0, 200)
+    lo, hi = _unpaired_ci(a, b)
+    assert 0.0 < lo < a.mean() - b.mean() < hi
+    lo, hi = _unpaired_ci(a, rng.permutation(a))
+    assert lo < 0.0 < hi
 
 
 @pytest.mark.parametrize(
