@@ -133,8 +133,8 @@ def seed_curves(runs: Sequence[str | Path]) -> dict[str, np.ndarray]:
 def check_validation(episodes: int, n_envs: int = 8) -> None:
     """ValueError naming the field unless ``episodes`` is a positive multiple of ``n_envs``
     (:func:`validate_seeds`' check, and ``seed_curves.py --validate``'s before any work)."""
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < n_envs \
-            or episodes % n_envs:  # fmt: skip
+    whole = isinstance(episodes, int) and not isinstance(episodes, bool)
+    if not (whole and episodes >= n_envs and episodes % n_envs == 0):
         raise ValueError(f"episodes={episodes!r}: must be a positive multiple of n_envs={n_envs}")
 
 
@@ -156,7 +156,7 @@ def validate_seeds(
     (scipy.stats.bootstrap, unpaired). ValueError for fewer than 2 runs, runs of
     different configs, or ``episodes`` refused by :func:`check_validation`."""
     from stable_baselines3.common.evaluation import evaluate_policy
-    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack
 
     from controllers.metrics import paired_difference
 
@@ -167,20 +167,21 @@ def validate_seeds(
         raise ValueError(f"runs: need at least 2 to choose between, got {len(runs)}")
     check_validation(episodes, n_envs)
     loaded = [load_agent(r) for r in runs]
-    env_id = loaded[0][2]["run"]["env_id"]
 
-    def setting(cfg: dict[str, Any]) -> tuple[Any, Any]:
-        return cfg.get(cfg["run"]["env_id"]), cfg.get("training", {}).get("domains")
+    def setting(r: str | Path, cfg: dict[str, Any]) -> tuple[str, Any, Any]:
+        env_id = cfg["run"].get("env_id")
+        if env_id is None:  # its entry sits where make_vec_env does not read it
+            raise ValueError(f"run {r}: config.yml has no run.env_id (a run before the env ids)")
+        return env_id, cfg.get(env_id), cfg.get("training", {}).get("domains")
 
+    first = setting(runs[0], loaded[0][2])
     for r, (_, _, cfg) in zip(runs, loaded, strict=True):
-        if setting(cfg) != setting(loaded[0][2]):
+        if setting(r, cfg) != first:
             raise ValueError(f"run {r}: another env entry or training domains than {runs[0]}")
-    entry, domains = setting(loaded[0][2])
+    env_id, entry, domains = first
     returns, lengths = [], []
-    for r, (model, _, _) in zip(runs, loaded, strict=True):
-        env = VecNormalize.load(
-            str(Path(r) / "vecnormalize.pkl"), make_vec_env(entry, n_envs, seed, env_id, domains)
-        )
+    for model, env, _ in loaded:  # each run's own VecNormalize statistics, frozen
+        env.set_venv(make_vec_env(entry, n_envs, seed, env_id, domains))
         env.training, env.norm_reward = False, False
         seen = VecFrameStack(env, frame_stack(entry)) if frame_stack(entry) > 1 else env
         rew, length = evaluate_policy(model, seen, n_eval_episodes=episodes, deterministic=True,

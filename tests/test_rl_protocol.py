@@ -145,6 +145,10 @@ def test_validation_gives_every_seed_the_same_episodes_and_calls_a_tie(tmp_path)
     (other / "config.yml").write_text(yaml.safe_dump(cfg))
     with pytest.raises(ValueError, match="another env entry"):
         validate_seeds([runs[0], other], episodes=8, n_envs=4)
+    del cfg["run"]["env_id"]  # a run made before the env ids: its entry is elsewhere
+    (other / "config.yml").write_text(yaml.safe_dump(cfg))
+    with pytest.raises(ValueError, match=r"no run\.env_id"):
+        validate_seeds([runs[0], other], episodes=8, n_envs=4)
     with pytest.raises(ValueError, match="episodes=6"):
         validate_seeds(runs, episodes=6, n_envs=4)
 
