@@ -6,7 +6,10 @@ mode, the agent's action a (the scale 2^a on the base's aim) and the error at th
 
 RUN is a residual agent's run directory (``interface: {base: ...}``; agents/residual.py).
 The episode is the benchmark's (:mod:`controllers.tasks`, suite seed 2026) on the plant
-set's plant for that seed; the error is the true one (evaluation only, never the agent's).
+set's plant for that seed; the error is the true one (evaluation only, never the agent's),
+at the interval's start (before its action). The detector's noise is the env's own draw
+for that seed, not the benchmark's noise streams (nor its y channel), so the values
+differ from the benchmark's by the noise.
 Printed: one line per interval (``k mode a error_um``), then the mean |a| while stepping
 and in the interval a new target is commanded.
 """
