@@ -7,9 +7,9 @@ mode, the agent's action a (the scale 2^a on the base's aim) and the error at th
 RUN is a residual agent's run directory (``interface: {base: ...}``; agents/residual.py).
 The episode is the benchmark's (:mod:`controllers.tasks`, suite seed 2026) on the plant
 set's plant for that seed; the error is the true one (evaluation only, never the agent's),
-at the interval's start (before its action). The detector's noise is the env's own draw
-for that seed, not the benchmark's noise streams (nor its y channel), so the values
-differ from the benchmark's by the noise.
+at the interval's start (before its action). The env reads the y channel, as the
+benchmark's does; the detector's noise is the env's own draw for that seed, not the
+benchmark's noise streams, so the values differ from the benchmark's by the noise.
 Printed: one line per interval (``k mode a error_um``), then the mean |a| while stepping
 and in the interval a new target is commanded.
 """
@@ -41,14 +41,14 @@ def main() -> None:
     plant, _ = plant_set.plant(args.seed, SUITE_SEED)  # the seed's plant (evaluation only)
     task = TASKS[args.task]
     # the controller is built for the set's base plant, as in the benchmark
-    ctx = ControllerContext.from_env(PiezoTurntableEnv(plant=plant_set.base))
+    ctx = ControllerContext.from_env(PiezoTurntableEnv(plant=plant_set.base, detector_y=True))
     try:
         ctl = AgentController(ctx, args.run)
     except ValueError as exc:  # a missing file of the run, named
         raise SystemExit(f"error: {exc}") from None
     if not isinstance(ctl.interface, ResidualInterface):
         raise SystemExit(f"{args.run}: not a residual agent (its config has no interface base)")
-    env = PiezoTurntableEnv(plant=plant, terminate_on_success=False)
+    env = PiezoTurntableEnv(plant=plant, terminate_on_success=False, detector_y=True)
     spec = task.episode(args.seed, ctx.detector, SUITE_SEED)
     obs, info = env.reset(seed=args.seed, options=spec.options())
     ctl.reset(obs, spec.brief)
