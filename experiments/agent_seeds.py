@@ -70,6 +70,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--baselines", default="",
                     help="registered controllers run beside the agents (paired), comma-separated")
+    ap.add_argument("--suite-seed", type=int, default=None,
+                    help="another draw of the episodes, plants and noise than the committed "
+                         "suite's (a validation draw; turntable benchmark --suite-seed)")
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     ap.add_argument("--backend", choices=BACKENDS, default=None,
                     help="the benchmark's cells as Ray tasks (auto: when installed) or processes")
@@ -88,8 +91,9 @@ def main() -> None:
         controller_spec(b)  # ValueError naming an unregistered controller, before any work
     names = [n for v in groups.values() for n in v] + baselines
     sets = [p for p in args.plant_sets.split(",") if p]
+    suite = {} if args.suite_seed is None else {"suite_seed": args.suite_seed}
     res = run_benchmark(names, plant_sets=sets, seeds=args.seeds, progress=args.backend is None,
-                        backend=args.backend, address=args.address)  # fmt: skip
+                        backend=args.backend, address=args.address, **suite)  # fmt: skip
     write_outputs(res, args.out)
     summ = res.summary()
     out: dict[str, dict] = {}
