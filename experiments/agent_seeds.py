@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 import scipy.stats
-import yaml
 
 from agents import register_run
+from agents.train import run_config
 from controllers.benchmark import run_benchmark, write_outputs
 from controllers.registry import spec as controller_spec
 from turntable_env.scale import BACKENDS
@@ -78,17 +78,25 @@ def main() -> None:
                     help="the benchmark's cells as Ray tasks (auto: when installed) or processes")
     ap.add_argument("--address", default=None, help="Ray cluster to join (default: local)")
     args = ap.parse_args()
+    if args.suite_seed is not None and not 0 <= args.suite_seed < 2**32:
+        ap.error(f"--suite-seed {args.suite_seed}: must be in [0, 2**32)")
     groups: dict[str, list[str]] = {}
     for spec in args.runs:
         label, _, dirs = spec.partition("=")
         for d in (x for x in dirs.split(",") if x):
-            s = yaml.safe_load((Path(d) / "config.yml").read_text())["run"]["seed"]
+            try:  # the run's files, checked and named, before any work
+                s = run_config(d, f"--runs {label}: {d}")["run"]["seed"]
+            except ValueError as exc:
+                ap.error(str(exc))
             name = f"{label}_s{s}"
             register_run(name, d)
             groups.setdefault(label, []).append(name)
     baselines = [b for b in args.baselines.split(",") if b]
     for b in baselines:
-        controller_spec(b)  # ValueError naming an unregistered controller, before any work
+        try:
+            controller_spec(b)  # an unregistered controller, named, before any work
+        except ValueError as exc:
+            ap.error(f"--baselines: {exc}")
     names = [n for v in groups.values() for n in v] + baselines
     sets = [p for p in args.plant_sets.split(",") if p]
     suite = {} if args.suite_seed is None else {"suite_seed": args.suite_seed}

@@ -76,6 +76,29 @@ def test_cell_results_do_not_depend_on_the_other_controllers():
         np.testing.assert_array_equal(v, beside.metrics[m], err_msg=m)
 
 
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["--runs", "x=/nonexistent"], "--runs x: /nonexistent: model.zip missing"),
+        (["--runs", "x=agents/pretrained/ppo_residual", "--suite-seed", "-1"], "--suite-seed -1"),
+        (["--runs", "x=agents/pretrained/ppo_residual", "--baselines", "nope"], "'nope'"),
+    ],
+)
+def test_agent_seeds_refuses_bad_arguments_before_any_work(args, match, monkeypatch, capsys):
+    """experiments/agent_seeds.py: a missing run file, a suite seed out of range or an
+    unknown baseline exits 2 with one line naming it, before the benchmark starts."""
+    from conftest import experiment
+
+    mod = experiment("agent_seeds")
+    monkeypatch.setattr(mod, "run_benchmark", lambda *a, **k: pytest.fail("work started"))
+    monkeypatch.setattr("sys.argv", ["agent_seeds.py", *args])
+    with pytest.raises(SystemExit) as exc:
+        mod.main()
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert match in err
+
+
 def test_agent_seeds_paired_comparison_is_the_benchmarks_own():
     """experiments/agent_seeds.py --baselines: the mean success difference it prints is the
     difference of the two controllers' mean successes over the tasks (paired seeds), and
