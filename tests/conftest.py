@@ -7,6 +7,7 @@ import hashlib
 import json
 import os
 import pickle
+import sys
 from pathlib import Path
 
 import pytest
@@ -119,8 +120,10 @@ def experiment(name: str):
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
+    key = f"experiments.{name}"  # registered, as importlib's recipe does: dataclasses
+    spec = importlib.util.spec_from_file_location(key, path)
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[key] = mod  # (a fresh module on every call) look their module up there
     spec.loader.exec_module(mod)
     return mod
 

@@ -46,6 +46,7 @@ from .tube import TubeParams, TubeStiffness
 from .validation import check_finite, check_in_open
 
 __all__ = [
+    "AMPLIFIER_FACTORS",
     "FACTORS",
     "PARAMETER_SETS",
     "RIG_CHOICES",
@@ -206,12 +207,17 @@ FACTORS: dict[str, tuple[float, float, str]] = {
     "friction": (0.1, 10.0, "μ_s and μ_c together (dry-contact scatter)"),
     "preload": (0.1, 10.0, "normal force F_N of the preload spring (not documented)"),
     "amplifier": (0.1, 10.0, "HVA 900 slew rate per input volt and current limit"),
+    # each alone (the trace calibration's nominal model): another unit or make settles
+    # slower (a small lab amplifier of ~1 mA is 0.04 of the HVA 900's 25 mA)
+    "amplifier_slew": (0.03, 10.0, "amplifier slew rate per input volt alone (τ ÷)"),
+    "amplifier_current": (0.03, 10.0, "amplifier current limit alone"),
     "coulomb": (0.1, 10.0, "μ_c alone, on top of friction (μ_c ≤ μ_s)"),
     "stribeck_velocity": (0.01, 100.0, "Stribeck velocity v_S of the contact"),
     "contact_damping": (0.01, 1000.0, "tangential micro-slip damping β_t of the contact"),
     "tube_damping": (0.01, 100.0, "tube loss 1/Q_m"),
 }
 SET_FACTORS = tuple(FACTORS)
+AMPLIFIER_FACTORS = ("amplifier", "amplifier_slew", "amplifier_current")  # no unlisted inputs
 RIG_PRIORS: dict[str, tuple[float, float, float, float, str]] = {
     # name: (low, high, prior mean, prior std, source) — continuous rig parameters
     "d31_factor": (
@@ -463,7 +469,8 @@ class ParameterSet:
           :func:`real_parameters`); they need a set with unlisted inputs;
         * ``contact_damping``: the tangential micro-slip damping β_t of the sticking GMS
           elements (the bristle damping σ₁ of LuGre-type models), after the re-derivation;
-        * ``amplifier``: slew rate per input volt and current limit (:meth:`Amplifier.scaled`).
+        * ``amplifier``: slew rate per input volt and current limit (:meth:`Amplifier.scaled`);
+          ``amplifier_slew`` and ``amplifier_current`` each alone, on top of it.
 
         Factors of 1 (or none) return the set unchanged."""
         unknown = set(factors) - set(SET_FACTORS)
@@ -471,7 +478,7 @@ class ParameterSet:
             raise ValueError(f"factors: unknown {sorted(unknown)} ({', '.join(SET_FACTORS)})")
         over: dict[str, float] = {}
         u = self.unlisted
-        physical = [k for k in factors if k != "amplifier" and factors[k] != 1.0]
+        physical = [k for k in factors if k not in AMPLIFIER_FACTORS and factors[k] != 1.0]
         if physical:
             if u is None:
                 raise ValueError(
@@ -502,9 +509,11 @@ class ParameterSet:
             assert c is not None
             beta_t = c.tangential_damping * factors["contact_damping"]
             ps = replace(ps, contact=replace(c, tangential_damping=beta_t))
-        if factors.get("amplifier", 1.0) != 1.0:
-            s = factors["amplifier"]
-            ps = replace(ps, amplifier=ps.amplifier.scaled(s, s))
+        s = factors.get("amplifier", 1.0)
+        slew = s * factors.get("amplifier_slew", 1.0)
+        current = s * factors.get("amplifier_current", 1.0)
+        if slew != 1.0 or current != 1.0:
+            ps = replace(ps, amplifier=ps.amplifier.scaled(slew, current))
         return ps
 
     def with_rig(self, rig: RigParams) -> ParameterSet:

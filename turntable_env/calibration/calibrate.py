@@ -129,6 +129,8 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
         "",
         f"Target max(3× floor, 2 % of the RMS motion {d['rms_motion']:.4g} {u}) = "
         f"{d['target']:.3g} {u}: {'met' if result.error_after <= d['target'] else 'not met'}.",
+        *(["", f"Amplifier (fitted in the nominal stage): {d['amplifier']['text']}."]
+          if "amplifier" in d else []),
         "",
         f"## Global stage: {d['starts']['agreeing']} of {d['starts']['total']} local fits "
         "reach the optimum (within 2σ or 1 % of its cost)",
