@@ -1344,7 +1344,9 @@ def _from_the_prior(
                     max_nfev=6, pool=pool)  # fmt: skip
     kept = alt.cost < current.cost
     history[-1]["from_prior"] = {"cost": alt.cost, "cost_before": current.cost,
-                                 "heldout_rms": alt.heldout_rms, "kept": kept}  # fmt: skip
+                                 "heldout_rms": alt.heldout_rms,
+                                 "heldout_rms_before": current.heldout_rms,
+                                 "kept": kept}  # fmt: skip
     if kept:
         say(f"  from the prior with {', '.join(selected)}: held-out error "
             f"{alt.heldout_rms:.3g} {ERROR_UNIT} (cost {alt.cost:.4g} against {current.cost:.4g})")
