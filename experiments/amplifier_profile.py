@@ -15,7 +15,9 @@ there. Prints one line per point: the held-out error of the nominal fit [nm] and
 portion's, the noise floor and the wall time; ``--json`` writes the same.
 
 The amplifier scales are the base's, not the catalogue effect's, so a point may lie
-outside the effect's range (slew ≥ 0.3, current ≥ 0.3).
+outside the effect's range (slew ≥ 0.3, current ≥ 0.3). Since stop 56 the calibration's
+nominal stage fits the amplifier's two scales itself; the profile holds them at each
+point (``PROFILE_NOMINAL``: the nominal parameters less the amplifier's).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from turntable_env.calibration.measurement import load_measurement
-from turntable_env.calibration.trace_fit import calibrate_traces
+from turntable_env.calibration.trace_fit import AMPLIFIER_SCALES, TRACE_NOMINAL, calibrate_traces
 from turntable_env.files import write_atomic
 from turntable_env.plant import Plant
 
@@ -43,6 +45,10 @@ def _scales(text: str) -> list[float]:
     return out
 
 
+# the nominal parameters a profile point frees: all but the amplifier, which the point fixes
+PROFILE_NOMINAL = tuple(n for n in TRACE_NOMINAL if n not in AMPLIFIER_SCALES)
+
+
 def base_with_amplifier(slew: float, current: float) -> Plant:
     """The calibration's ``real`` base (per-axis model) with its amplifier scaled."""
     base = Plant("real", fidelity="reduced")
@@ -54,7 +60,8 @@ def profile_point(path: Path, slew: float, current: float, workers: int, seed: i
     """The nominal calibration of ``path`` on the base with the amplifier scaled."""
     t0 = time.perf_counter()
     res = calibrate_traces([path], base=base_with_amplifier(slew, current), candidates=[],
-                           max_effects=0, workers=workers, seed=seed, progress=None)  # fmt: skip
+                           max_effects=0, workers=workers, seed=seed, progress=None,
+                           nominal=PROFILE_NOMINAL)  # fmt: skip
     d = res.diagnosis
     return {
         "slew_scale": slew,

@@ -107,3 +107,34 @@ def test_the_independent_plants_slower_amplifier_is_named_by_the_nominal_stage(t
            "met": res.error_after <= res.diagnosis["target"],
            "flagged": res.diagnosis["unexplained"]}  # fmt: skip
     assert table.verdict(row)
+
+
+def test_an_unknown_nominal_parameter_is_refused_before_any_work(tmp_path):
+    from turntable_env.calibration.trace_fit import calibrate_traces
+
+    with pytest.raises(ValueError, match="nominal: unknown parameter 'slew'"):
+        calibrate_traces([tmp_path / "never-read.csv"], nominal=("stroke", "slew"))
+
+
+def test_the_amplifier_profile_holds_the_amplifier_at_each_point():
+    """experiments/amplifier_profile.py profiles the nominal fit over a fixed amplifier:
+    its points free every nominal parameter but the amplifier's two scales."""
+    from conftest import experiment
+
+    script = experiment("amplifier_profile")
+    assert set(script.PROFILE_NOMINAL) == set(TRACE_NOMINAL) - set(AMPLIFIER_SCALES)
+
+
+def test_the_nominal_stages_finding_leads_the_selected_effects_and_the_history():
+    from turntable_env.calibration.trace_fit import _amplifier_named
+
+    history = [{"effects": [], "heldout_rms": 30.0},
+               {"effects": ["piezo_creep"], "heldout_rms": 9.0, "decided_by": "signature"}]
+    selected, out = _amplifier_named(["piezo_creep"], history, 14.0)
+    assert selected == ["amplifier_dynamics", "piezo_creep"]
+    assert out[1] == {"effects": ["amplifier_dynamics"], "heldout_rms": 14.0,
+                      "decided_by": "nominal stage"}
+    assert out[2]["effects"] == ["amplifier_dynamics", "piezo_creep"]
+    assert out[2]["decided_by"] == "signature" and history[1]["effects"] == ["piezo_creep"]
+    # one decided_by per selected effect, as the tables read them
+    assert len([h for h in out[1:] if "decided_by" in h]) == len(selected)

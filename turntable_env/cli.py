@@ -522,10 +522,12 @@ def _add_calibrate(sub: Any) -> None:
         "are steps), cuts it into segments with fit and held-out portions interleaved by "
         "drive condition, estimates the noise floor, fits the nominal model (stroke, "
         "detector gain, friction levels, Stribeck velocity, preload, presliding, damping, "
-        "inertia; priors, a parallel Sobol global stage, least squares), then adds a "
-        "catalogue effect only if it beats the nominal refit on held-out data, is 3-sigma "
-        "significant and consistent between portions; writes report.json, report.md, an "
-        "overlay and a residual plot. A TOML file of summary-level figures (the format of "
+        "inertia, the amplifier's slew and current limit; priors, a parallel Sobol global "
+        "stage, least squares, basin hopping; amplifier_dynamics is named when the "
+        "amplifier lies 3 sigma from the datasheet), then names catalogue effects by the "
+        "protocol features they must explain, or by the held-out error; writes "
+        "report.json, report.md, an overlay and a residual plot. A TOML file of "
+        "summary-level figures (the format of "
         "turntable_env/data/thesis_measurements.toml; --thesis for that file) runs the same "
         "loop on figures: ideal-source nominal, leave-one-out held-out error.",
     )

@@ -76,7 +76,7 @@ from ..effects import CATALOGUE, apply_output
 from ..plant import Plant
 from .identify import CandidateFit, SignatureSearch, decide, main_at_bound, supports
 from .measurement import Measurement, load_measurement
-from .nominal import NominalModel
+from .nominal import NOMINAL_PARAMETERS, NominalModel
 from .residual import (
     Anchoring,
     correlation_tests,
@@ -866,6 +866,7 @@ def calibrate_traces(
     workers: int | None = None,
     seed: int = 0,
     progress: Callable[[str], None] | None = print,
+    nominal: Sequence[str] = TRACE_NOMINAL,
 ) -> Any:
     """Calibrate measurement files (module docstring); returns a
     :class:`~turntable_env.calibration.result.CalibrationResult`.
@@ -886,6 +887,9 @@ def calibrate_traces(
             candidates (default: the CPUs this process may use).
         seed: the Sobol design's scrambling seed.
         progress: message sink (None: silent); tqdm bars go to stderr when given.
+        nominal: the nominal parameters to free (:data:`~.nominal.NOMINAL_PARAMETERS`
+            names); without the amplifier's two the amplifier is the base's, and
+            ``amplifier_dynamics`` is searched as an effect again.
     """
     t0 = time.perf_counter()
     if not 0.0 <= min_improvement < 1.0:
@@ -894,6 +898,10 @@ def calibrate_traces(
                         ("hops", hops, 0), ("max_effects", max_effects, 0)):  # fmt: skip
         if not isinstance(v, int) or v < lo:
             raise ValueError(f"{name}={v!r}: must be an integer ≥ {lo}")
+    known = {p.name: p for p in NOMINAL_PARAMETERS}
+    for n in nominal:
+        if n not in known:
+            raise ValueError(f"nominal: unknown parameter {n!r} ({', '.join(known)})")
     names = list(candidates) if candidates is not None else list(CATALOGUE)
     for n in names:
         if n not in CATALOGUE:
@@ -919,7 +927,7 @@ def calibrate_traces(
     base_plant = base if isinstance(base, Plant) else Plant(base, fidelity="reduced")
     if base_plant.fidelity != "reduced":
         base_plant = base_plant.replace(fidelity="reduced")
-    model = NominalModel(base_plant, TRACE_NOMINAL)
+    model = NominalModel(base_plant, tuple(nominal))
     problem = TraceProblem(traces, model)
     floor = float(np.sqrt(np.mean([td.floor**2 for td in traces])))
     motion = float(
@@ -960,12 +968,7 @@ def calibrate_traces(
         diag["amplifier"] = amplifier_finding(model, current)
         say(f"amplifier: {diag['amplifier']['text']}")
         if diag["amplifier"]["named"] and "amplifier_dynamics" in names:
-            selected = ["amplifier_dynamics", *selected]
-            history = [history[0], {"effects": ["amplifier_dynamics"],
-                                    "heldout_rms": nominal.heldout_rms,
-                                    "decided_by": "nominal stage"},
-                       *({**h, "effects": ["amplifier_dynamics", *h["effects"]]}
-                         for h in history[1:])]  # fmt: skip
+            selected, history = _amplifier_named(selected, history, nominal.heldout_rms)
     diag.update(
         noise_floor=floor, noise_floor_source=traces[0].floor_source, rms_motion=motion,
         target=max(3.0 * floor, 0.02 * motion), starts=spread, n_simulations=problem.n_sims,
@@ -1431,6 +1434,17 @@ def _fitted(
         for k, s in current.std_effects.get(name, {}).items():
             unc[f"{name}.{k}"] = float(s)
     return params, plant.replace(uncertainty=unc)
+
+
+def _amplifier_named(
+    selected: list[str], history: list[dict], nominal_rms: float
+) -> tuple[list[str], list[dict]]:
+    """``amplifier_dynamics`` first among the selected effects and in the history, as the
+    nominal stage's finding (its held-out error the nominal fit's)."""
+    named = {"effects": ["amplifier_dynamics"], "heldout_rms": nominal_rms,
+             "decided_by": "nominal stage"}  # fmt: skip
+    later = [{**h, "effects": ["amplifier_dynamics", *h["effects"]]} for h in history[1:]]
+    return ["amplifier_dynamics", *selected], [history[0], named, *later]
 
 
 def amplifier_finding(model: NominalModel, fit: LocalFit) -> dict[str, Any]:
