@@ -74,6 +74,7 @@ import scipy.stats.qmc
 
 from ..effects import CATALOGUE, apply_output
 from ..plant import Plant
+from ..plant.value import DEFAULT_RANDOMIZATION
 from .identify import CandidateFit, SignatureSearch, decide, main_at_bound, supports
 from .measurement import Measurement, load_measurement
 from .nominal import NOMINAL_PARAMETERS, NominalModel
@@ -1455,8 +1456,6 @@ def amplifier_finding(model: NominalModel, fit: LocalFit) -> dict[str, Any]:
     (the randomisation's ``amplifier`` range, ±10 %), as an effect's parameter must lie
     3 σ from neutral. A scale the data do not constrain keeps its prior σ and so is not
     named from a lean of the fit."""
-    from ..plant.value import DEFAULT_RANDOMIZATION
-
     lo, hi = DEFAULT_RANDOMIZATION["amplifier"]
     scales: dict[str, dict[str, float]] = {}
     named = False
