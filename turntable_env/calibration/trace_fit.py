@@ -818,9 +818,14 @@ def _sigmas_from_neutral(fit: LocalFit, name: str) -> dict[str, float]:
     std = fit.std_effects.get(name, {})
     out = {}
     for k, v in fit.effects[name].items():
-        d, s = abs(v - neutral[k]), std.get(k, math.inf)
-        out[k] = (math.inf if d > 0 else 0.0) if s == 0 else d / s  # nan stays nan
+        out[k] = _in_sigmas(abs(v - neutral[k]), std.get(k, math.inf))
     return out
+
+
+def _in_sigmas(d: float, s: float) -> float:
+    """A distance d in standard errors s: inf for a moved value with a zero error, 0 for
+    an unmoved one; nan stays nan (never significant)."""
+    return (math.inf if d > 0 else 0.0) if s == 0 else d / s
 
 
 def is_significant(fit: LocalFit, name: str, n_sigma: float = 3.0) -> bool:
@@ -1462,7 +1467,7 @@ def amplifier_finding(model: NominalModel, fit: LocalFit) -> dict[str, Any]:
     for nom, key in AMPLIFIER_SCALES.items():
         i = model.names.index(nom)
         ln, s = float(fit.x[i]), float(fit.std_x[i])
-        d = abs(ln) / s if s > 0 else (math.inf if ln else 0.0)
+        d = _in_sigmas(abs(ln), s)
         v = math.exp(ln)
         scales[key] = {"value": v, "std": v * s, "sigmas": d}
         named |= bool(d >= AMPLIFIER_SIGMAS and not lo <= v <= hi)
