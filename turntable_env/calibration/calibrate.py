@@ -142,7 +142,6 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
             for k, f in enumerate(d["starts"]["fits"])
         ],
         *_md_hops(d["starts"].get("hops"), "the best start", u),
-        *_md_wide(d["starts"].get("wide"), u),
         "",
         "## Parameters",
         "",
@@ -180,21 +179,6 @@ def _md_hops(rows: list[dict[str, Any]] | None, start: str, u: str) -> list[str]
           f"{', '.join(f'{c:.5g}' for c in h['costs'])} | "
           f"{'yes' if h['accepted'] else 'no'} | {h['heldout_rms']:.3g} |"
           for k, h in enumerate(rows)],
-    ]  # fmt: skip
-
-
-def _md_wide(row: dict[str, Any] | None, u: str) -> list[str]:
-    """report.md lines of the second, wider global stage (:func:`~.trace_fit._wide_stage`);
-    none when the nominal fit met its target without it."""
-    if not row:
-        return []
-    costs = ", ".join(f"{c:.5g}" for c in row["costs"]) or "none finite"
-    return [
-        "", f"Second global stage (the nominal fit, {row['heldout_before']:.3g} {u}, stayed "
-        f"above the target): {row['points']} Sobol points over ±{row['box_sigma']:g} prior "
-        f"σ; its starts reached costs {costs} against {row['cost_before']:.5g}; "
-        f"{'kept' if row['kept'] else 'not kept'} (held-out {row['heldout_rms']:.3g} {u}).",
-        *_md_hops(row.get("hops"), "the second stage's best start", u),
     ]  # fmt: skip
 
 

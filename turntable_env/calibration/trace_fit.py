@@ -122,11 +122,6 @@ AMPLIFIER_SCALES = {"amplifier_slew": "slew_scale", "amplifier_current": "curren
 AMPLIFIER_SIGMAS = 3.0  # a scale named only this many standard errors from the datasheet …
 # … and outside the datasheet unit's scatter (the randomisation's ±10 %, plant.value)
 GLOBAL_BOX = 2.5  # Sobol design over ±GLOBAL_BOX prior σ
-# a nominal fit above its target gets a second design, twice the points over a wider box
-# (a current limit changes nothing until it binds: its basin lies past ±2.5 σ, ln 0.1 =
-# −3.3 σ at σ 0.7; twelve dimensions need more than 64 points to hold every basin)
-WIDE_BOX = 3.5
-WIDE_SEED = 1000  # the second design's scrambling seed, offset from the first's
 FIRST_NFEV = 15  # least-squares iterations of each start of the nominal fit, first pass
 START_NFEV = 30  # … and continued under the data's weight (most end sooner)
 # monotonic basin hopping from the best start (:func:`_basin_hops`): at most HOPS hops,
@@ -712,15 +707,13 @@ def _safe_objective(
 
 
 def global_stage(
-    problem: TraceProblem, n_points: int, workers: int, seed: int, bar: Callable | None,
-    box: float = GLOBAL_BOX,
-) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """(points, objectives) of a scrambled Sobol design over ±``box`` prior σ of the
-    prior (clipped to the factors' bounds)."""
+    problem: TraceProblem, n_points: int, workers: int, seed: int, bar: Callable | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(points, objectives) of a scrambled Sobol design over ±GLOBAL_BOX prior σ."""
     mdl = problem.model
     sob = scipy.stats.qmc.Sobol(len(mdl), scramble=True, seed=seed)
     u = sob.random_base2(max(0, math.ceil(math.log2(n_points))))[:n_points]
-    pts = np.clip((2.0 * u - 1.0) * box * mdl.sigma, mdl.low, mdl.high)
+    pts = np.clip((2.0 * u - 1.0) * GLOBAL_BOX * mdl.sigma, mdl.low, mdl.high)
     return pts, _objectives(problem, pts, workers, bar)
 
 
@@ -948,8 +941,10 @@ def calibrate_traces(
                                         for td in traces]) ** 2))
     )  # fmt: skip
     ident = identifiable_effects(traces)
-    say(f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
-        f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})")  # fmt: skip
+    say(
+        f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
+        f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})"
+    )
     x_prior = np.zeros(len(model))
     before = problem.rms(x_prior, {}, "heldout")
     r0 = problem.residual(x_prior, {}, "fit")
@@ -958,9 +953,8 @@ def calibrate_traces(
     )
     say(f"prior model: held-out error {before:.3g} {ERROR_UNIT}")
 
-    target = max(3.0 * floor, 0.02 * motion)  # the acceptance's bar (module docstring)
-    nominal, spread = _fit_nominal(problem, x_prior, (floor, target), global_points, starts,
-                                   n_workers, seed, bar, say, hops)  # fmt: skip
+    nominal, spread = _fit_nominal(problem, x_prior, floor, global_points, starts, n_workers,
+                                   seed, bar, say, hops)  # fmt: skip
     for n in names:
         if ident.get(n):
             warnings.append(f"{n}: not identifiable from this protocol ({ident[n]})")
@@ -983,7 +977,7 @@ def calibrate_traces(
             selected, history = _amplifier_named(selected, history, nominal.heldout_rms)
     diag.update(
         noise_floor=floor, noise_floor_source=traces[0].floor_source, rms_motion=motion,
-        target=target, starts=spread, n_simulations=problem.n_sims,
+        target=max(3.0 * floor, 0.02 * motion), starts=spread, n_simulations=problem.n_sims,
         identifiability={k: (v or "identifiable") for k, v in ident.items()},
         error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
         drive_recording=[td.reading.recording for td in traces],
@@ -1018,9 +1012,8 @@ def calibrate_traces(
 
 
 def _fit_nominal(
-    problem: TraceProblem, x_prior: np.ndarray, bars: tuple[float, float], global_points: int,
-    starts: int, n_workers: int, seed: int, bar: Any, say: Callable[[str], None],
-    hops: int = HOPS,
+    problem: TraceProblem, x_prior: np.ndarray, floor: float, global_points: int, starts: int,
+    n_workers: int, seed: int, bar: Any, say: Callable[[str], None], hops: int = HOPS,
 ) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
     """The nominal model: the global stage's best points and the prior, each refined by
     least squares (``FIRST_NFEV`` iterations, the starts over ``n_workers`` processes);
@@ -1030,10 +1023,8 @@ def _fit_nominal(
     starts' optima. Every start is continued, not only the leader: under the prior
     residual's weight the priors dominate, and a start that trails after the first pass
     may end in a better basin (the first plant's stepping-only trace: 72 → 30 nm). The
-    best is then moved on by basin hopping (:func:`_basin_hops`), and where it stays above
-    the target a second, wider design is searched (:func:`_wide_stage`), before the
-    re-weighting and polish. ``bars``: (noise floor, target) [nm]."""
-    floor, target = bars
+    best is then moved on by basin hopping (:func:`_basin_hops`) before the re-weighting
+    and polish."""
     starts_x = [x_prior]
     if global_points > 0:
         say(f"global stage: {global_points} Sobol points on {n_workers} process(es)")
@@ -1049,10 +1040,6 @@ def _fit_nominal(
             f"{f1.nfev} iterations)")  # fmt: skip
     best, hop_rows = _basin_hops(problem, min(fits, key=lambda f: f.cost), n_workers, seed,
                                  say, hops)  # fmt: skip
-    wide = None
-    if global_points > 0 and best.heldout_rms > target:
-        best, wide = _wide_stage(problem, best, target, (global_points, starts), n_workers,
-                                 seed, bar, say, hops)  # fmt: skip
     _reweight(problem, best, floor)
     if n_workers > 1:  # the polish's finite differences over the workers
         with ProcessPoolExecutor(n_workers, initializer=_init_worker, initargs=(problem,)) as ex:
@@ -1061,45 +1048,9 @@ def _fit_nominal(
         nominal = local_fit(problem, best.x, {}, max_nfev=10)
     if nominal.heldout_rms > best.heldout_rms:
         nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
-    spread = {**_start_spread(fits, nominal), "hops": hop_rows, "wide": wide}
+    spread = {**_start_spread(fits, nominal), "hops": hop_rows}
     say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
     return nominal, spread
-
-
-def _wide_stage(
-    problem: TraceProblem, best: LocalFit, target: float, design: tuple[int, int],
-    n_workers: int, seed: int, bar: Any, say: Callable[[str], None], hops: int,
-) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
-    """A second global stage for a nominal fit that stays above its ``target`` [nm]: a new
-    scrambled Sobol design of twice the first's points over ±:data:`WIDE_BOX` prior σ,
-    least squares from its best ``starts`` points (``START_NFEV`` iterations, under the
-    data weight in force, so costs compare) and basin hopping from the best of them; kept
-    where it lowers the cost by :data:`HOP_TOL`. A parameter whose effect starts only past
-    a threshold (a current limit that binds, §4.1.2) has a flat objective around the
-    datasheet, and the first design's ±:data:`GLOBAL_BOX` σ rarely reaches its basin.
-    ``design``: (the first stage's points, starts). (the best fit, the report's row)."""
-    n_points, starts = 2 * design[0], design[1]
-    say(f"nominal fit {best.heldout_rms:.3g} {ERROR_UNIT} above the target {target:.3g} "
-        f"{ERROR_UNIT}: a second global stage, {n_points} points over ±{WIDE_BOX:g} σ")  # fmt: skip
-    pts, vals = global_stage(problem, n_points, n_workers, seed + WIDE_SEED, bar, WIDE_BOX)
-    order = [i for i in np.argsort(vals)[:starts] if np.isfinite(vals[i])]
-    fits = _local_fits(problem, [pts[i] for i in order], n_workers, START_NFEV)
-    row: dict[str, Any] = {"points": n_points, "box_sigma": WIDE_BOX, "cost_before": best.cost,
-                           "heldout_before": best.heldout_rms,
-                           "costs": [f.cost for f in fits], "kept": False, "hops": [],
-                           "heldout_rms": best.heldout_rms}  # fmt: skip
-    if not fits:
-        return best, row
-    cand = min(fits, key=lambda f: f.cost)
-    if cand.cost < (1.0 - HOP_TOL) * best.cost:
-        cand, row["hops"] = _basin_hops(problem, cand, n_workers, seed + WIDE_SEED, say, hops)
-    row["kept"] = bool(cand.cost < (1.0 - HOP_TOL) * best.cost)
-    kept = cand if row["kept"] else best
-    row["heldout_rms"] = kept.heldout_rms
-    say(f"  second stage: costs {', '.join(f'{f.cost:.4g}' for f in fits)} against "
-        f"{best.cost:.4g}; held-out {kept.heldout_rms:.3g} {ERROR_UNIT}"
-        f"{' — kept' if row['kept'] else ''}")  # fmt: skip
-    return kept, row
 
 
 def _basin_hops(
