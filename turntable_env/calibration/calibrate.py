@@ -232,7 +232,31 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
             lines += ["", "Not to be named by the held-out trace error (the signature does not "
                       "back them): " + "; ".join(f"{k}: {v}" for k, v in
                                                 rnd["unsupported"].items()) + "."]  # fmt: skip
+        lines += _md_trace_verdicts(rnd.get("trace_verdicts"), u)
     return lines
+
+
+def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
+    """report.md lines of the held-out trace error's rules on a round's best screened
+    candidates (:func:`~.trace_fit._accept_one`): why each was or was not named."""
+    if not rows:
+        return []
+    out = ["", "By the held-out trace error (the best screened candidates, each refitted "
+           "jointly; named when every rule holds):", "",
+           f"| candidate | held-out [{u}] | model without it [{u}] | gain | 3 σ from neutral "
+           "| portions agree | main parameter at a bound | named |",
+           "|---|---:|---:|---:|---|---|---|---|"]  # fmt: skip
+    for v in rows:
+        agree = "—" if v["consistent"] is None else ("yes" if v["consistent"] else "no")
+        note = f" ({v['note'].strip()})" if v.get("note", "").strip() else ""
+        dist = f" ({v['from_neutral']})" if v.get("from_neutral") else ""
+        out.append(
+            f"| {v['effect']} | {v['heldout_rms']:.3g} | {v['baseline_rms']:.3g} | "
+            f"{v['gain']:+.1%} (≥ {v['min_improvement']:.0%}) | "
+            f"{'yes' if v['three_sigma'] else 'no'}{dist} | {agree}{note} | "
+            f"{v['pinned'] or 'no'} | {'**yes**' if v['named'] else 'no'} |"
+        )
+    return out
 
 
 def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:

@@ -1130,12 +1130,15 @@ def _accept_one(
     problem: TraceProblem, current: LocalFit, top: Sequence[tuple[str, LocalFit]],
     selected: list[str], min_improvement: float, warnings: list[str],
     say: Callable[[str], None], pool: ProcessPoolExecutor | None = None,
+    verdicts: list[dict[str, Any]] | None = None,
 ) -> tuple[str, LocalFit] | None:  # fmt: skip
     """The first of the best screened candidates, refitted jointly with the nominal model,
     that beats the nominal model refitted with the same budget by ``min_improvement`` on
     held-out data, lies 3 σ from neutral, agrees between portions and has its main
     parameter inside its range (:func:`~.identify.main_at_bound`); None if none does. The
-    fits' finite differences run over ``pool`` when given."""
+    fits' finite differences run over ``pool`` when given; each candidate's verdict on
+    every rule is appended to ``verdicts`` (the report's record of why it was or was not
+    named)."""
     refit_nom = local_fit(problem, current.x, current.effects,
                           free_effects=selected, max_nfev=6, pool=pool)  # fmt: skip
     baseline = min(current.heldout_rms, refit_nom.heldout_rms)
@@ -1158,7 +1161,15 @@ def _accept_one(
         pinned = main_at_bound(n, cand.effects[n])
         if pinned:
             say(f"  {n}: {pinned} at its bound (it stands in for a structure it cannot be)")
-        if gain >= min_improvement and sig and ok and not pinned:
+        named = gain >= min_improvement and sig and ok and not pinned
+        if verdicts is not None:
+            verdicts.append({"effect": n, "heldout_rms": cand.heldout_rms,
+                             "baseline_rms": baseline, "gain": gain,
+                             "min_improvement": min_improvement, "three_sigma": bool(sig),
+                             "from_neutral": _from_neutral(cand, n),
+                             "consistent": bool(ok) if sig else None, "note": note,
+                             "pinned": pinned or "", "named": bool(named)})  # fmt: skip
+        if named:
             return n, cand
     return None
 
@@ -1403,8 +1414,9 @@ def _round(
     if not screened:
         return current, None, ""
     top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
+    rnd["trace_verdicts"] = []
     accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say,
-                           pool.executor())  # fmt: skip
+                           pool.executor(), rnd["trace_verdicts"])  # fmt: skip
     if accepted is None:
         say("  no effect beats the nominal model on held-out data")
         return current, None, ""
