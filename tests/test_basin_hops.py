@@ -156,20 +156,25 @@ def test_report_shows_the_hops_of_an_effect_round():
 
 
 @pytest.mark.parametrize("rejected", [None, "held-out 3.22 against 3.19 nm without it"])
-def test_report_gives_the_named_effects_distance_from_neutral_on_the_trace(rejected):
-    """report.md's round line carries the decision's margin on the trace (each parameter's
-    distance from neutral in its standard errors), once: a rejection's text has it."""
+def test_report_gives_the_named_effects_margin_on_the_trace(rejected):
+    """report.md's round line carries the decision's margin on the trace (the held-out
+    errors with and without the effect, the Diebold–Mariano z and the veto's bar) and each
+    parameter's distance from neutral in its standard errors, once: a rejection's text
+    has them."""
     from turntable_env.calibration.calibrate import _md_signatures
 
     decision = {"named": "friction_asymmetry", "margin_nats": 234.9, "undecided": [],
                 **({"rejected": rejected} if rejected else {})}  # fmt: skip
+    test = {"rms_with": 3.22, "rms_without": 3.54, "gain": 0.09, "z": 1.04, "blocks": 14,
+            "block": 300, "z_min": -2.0}  # fmt: skip
     rnd = {"round": 1, "decision": decision, "candidates": [], "hops": {},
-           "on_trace": "alpha 0.9 σ from neutral"}  # fmt: skip
+           "on_trace": "alpha 0.9 σ from neutral", "trace_test": test}  # fmt: skip
     line = next(t for t in _md_signatures({"lines": [], "rounds": [rnd]}, "nm")
                 if t.startswith("Round 1"))  # fmt: skip
     if rejected:
         assert line.startswith("Round 1: led by friction_asymmetry") and rejected in line
-        assert "on the trace alpha" not in line
+        assert "alpha 0.9" not in line and "z +1.0" not in line
     else:
-        assert line == ("Round 1: named friction_asymmetry (lead 234.9 nats); on the trace "
-                        "alpha 0.9 σ from neutral.")  # fmt: skip
+        assert line == ("Round 1: named friction_asymmetry (lead 234.9 nats); on the held-out "
+                        "trace 3.22 against 3.54 nm without it, z +1.0 over 14 blocks (vetoed "
+                        "at ≤ -2); parameters alpha 0.9 σ from neutral.")  # fmt: skip

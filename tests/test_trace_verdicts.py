@@ -3,8 +3,11 @@ are recorded, one verdict per rule, so a report says why a candidate that lowere
 held-out error was not named (the second independent plant's friction asymmetry screened
 at 10.6 nm against the nominal 15.0 nm at stop 56, and its report did not say why it was
 not named). The contract: a candidate is named only when it gains ``min_improvement``
-over the model without it, lies 3 σ from neutral, agrees between portions and keeps its
-main parameter off its bound — the first such candidate, the rest not tried."""
+over the model without it, predicts the held-out samples better at a Diebold–Mariano
+z ≥ 3, agrees between portions and keeps its main parameter off its bound — the first
+such candidate, the rest not tried. And the test itself (``residual.compare_predictions``):
+its z is ≈ N(0, 1) for two equally good predictions with correlated errors, where
+counting samples as independent would not be, and grows with a real difference."""
 
 from __future__ import annotations
 
@@ -12,9 +15,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import scipy.signal
 
 from turntable_env.calibration import trace_fit
 from turntable_env.calibration.calibrate import _md_trace_verdicts
+from turntable_env.calibration.residual import PredictiveComparison, compare_predictions
 from turntable_env.calibration.trace_fit import LocalFit
 
 
@@ -33,7 +38,12 @@ def rules(monkeypatch):
         return _fit(fate[new[-1]]["joint"] if new else 15.0, effects)
 
     monkeypatch.setattr(trace_fit, "local_fit", local_fit)
-    monkeypatch.setattr(trace_fit, "is_significant", lambda f, n: fate[n]["sig"])
+    monkeypatch.setattr(
+        trace_fit, "trace_comparison",
+        lambda _p, f, w: PredictiveComparison(f.heldout_rms, w.heldout_rms,
+                                              1 - f.heldout_rms / w.heldout_rms,
+                                              fate[next(iter(f.effects))]["z"], 20, 400),
+    )  # fmt: skip
     monkeypatch.setattr(trace_fit, "consistent",
                         lambda _p, f, n, _pool: (fate[n]["ok"], f" {n}: portions"))  # fmt: skip
     monkeypatch.setattr(trace_fit, "main_at_bound", lambda n, _v: fate[n].get("pinned", ""))
@@ -52,11 +62,11 @@ def _accept(fate, names):
 
 @pytest.mark.parametrize(
     ("rule", "value"),
-    [("gain", 14.5), ("sig", False), ("ok", False), ("pinned", "alpha at 1")],
+    [("gain", 14.5), ("z", 2.9), ("ok", False), ("pinned", "alpha at 1")],
 )
 def test_a_candidate_failing_one_rule_is_not_named_and_the_rule_is_recorded(rules, rule,
                                                                             value):  # fmt: skip
-    fate = {"screen": 10.6, "joint": 10.5, "sig": True, "ok": True}
+    fate = {"screen": 10.6, "joint": 10.5, "z": 4.0, "ok": True}
     if rule == "gain":  # screened and refitted at 14.5 nm
         fate.update(screen=value, joint=value)
     else:
@@ -67,19 +77,20 @@ def test_a_candidate_failing_one_rule_is_not_named_and_the_rule_is_recorded(rule
     assert v["baseline_rms"] == 15.0
     if rule == "gain":  # 14.5 against 15.0: a 3.3 % gain, under the 5 %
         assert v["gain"] == pytest.approx(1 - 14.5 / 15.0) and v["gain"] < v["min_improvement"]
-    elif rule == "sig":
-        assert v["three_sigma"] is False and v["consistent"] is None  # not tested past it
-        assert v["from_neutral"] == "friction_asymmetry σ"
+    elif rule == "z":  # a 29 % gain the residual's scatter does not back
+        assert v["z"] == 2.9 and v["z_min"] == 3.0 and v["blocks"] == 20
+        assert v["significant"] is False and v["consistent"] is None  # not tested past it
+        assert v["from_neutral"] == "friction_asymmetry σ"  # reported, not judged
     elif rule == "ok":
-        assert v["three_sigma"] and v["consistent"] is False
+        assert v["significant"] and v["consistent"] is False
     else:
         assert v["pinned"] == "alpha at 1"
 
 
 def test_the_first_candidate_passing_every_rule_is_named_and_the_rest_not_tried(rules):
-    rules["friction_wear"] = {"screen": 10.0, "joint": 9.9, "sig": False, "ok": True}
-    rules["friction_asymmetry"] = {"screen": 10.6, "joint": 10.5, "sig": True, "ok": True}
-    rules["vibration"] = {"screen": 11.0, "joint": 9.0, "sig": True, "ok": True}
+    rules["friction_wear"] = {"screen": 10.0, "joint": 9.9, "z": 1.5, "ok": True}
+    rules["friction_asymmetry"] = {"screen": 10.6, "joint": 10.5, "z": 3.5, "ok": True}
+    rules["vibration"] = {"screen": 11.0, "joint": 9.0, "z": 9.0, "ok": True}
     out, verdicts = _accept(rules, ["friction_wear", "friction_asymmetry", "vibration"])
     assert out is not None and out[0] == "friction_asymmetry"
     assert [v["effect"] for v in verdicts] == ["friction_wear", "friction_asymmetry"]
@@ -90,16 +101,78 @@ def test_the_first_candidate_passing_every_rule_is_named_and_the_rest_not_tried(
 def test_report_tables_each_rule_per_candidate():
     rows = [
         {"effect": "friction_wear", "heldout_rms": 9.9, "baseline_rms": 15.0, "gain": 0.34,
-         "min_improvement": 0.05, "three_sigma": False, "consistent": None, "note": "",
+         "min_improvement": 0.05, "z": 1.46, "z_min": 3.0, "blocks": 12,
+         "significant": False, "consistent": None, "note": "",
          "pinned": "", "named": False, "from_neutral": "beta 1.2 σ from neutral"},
         {"effect": "friction_asymmetry", "heldout_rms": 10.5, "baseline_rms": 15.0,
-         "gain": 0.3, "min_improvement": 0.05, "three_sigma": True, "consistent": False,
+         "gain": 0.3, "min_improvement": 0.05, "z": 4.0, "z_min": 3.0, "blocks": 30,
+         "significant": True, "consistent": False,
          "note": " alpha: fit 0.08 ± 0.01, held-out -0.02 ± 0.03", "pinned": "",
          "named": False},
     ]  # fmt: skip
     text = "\n".join(_md_trace_verdicts(rows, "nm"))
-    assert ("| friction_wear | 9.9 | 15 | +34.0% (≥ 5%) | no (beta 1.2 σ from neutral) | — | "
-            "no | no |") in text
-    assert ("| friction_asymmetry | 10.5 | 15 | +30.0% (≥ 5%) | yes | no (alpha: fit 0.08 ± "
-            "0.01, held-out -0.02 ± 0.03) | no | no |") in text
+    assert ("| friction_wear | 9.9 | 15 | +34.0% (≥ 5%) | +1.5 (≥ 3: no; 12 blocks; beta 1.2 σ "
+            "from neutral) | — | no | no |") in text
+    assert ("| friction_asymmetry | 10.5 | 15 | +30.0% (≥ 5%) | +4.0 (≥ 3: yes; 30 blocks) | "
+            "no (alpha: fit 0.08 ± 0.01, held-out -0.02 ± 0.03) | no | no |") in text
     assert _md_trace_verdicts(None, "nm") == [] and _md_trace_verdicts([], "nm") == []
+
+
+def _ar1(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
+    """Unit-variance AR(1) noise: a model residual correlated over ~(1+φ)/(1−φ) samples."""
+    return scipy.signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n)) * np.sqrt(1 - phi**2)
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.9, 0.99])
+def test_equal_predictions_give_a_standard_normal_z_under_correlated_errors(phi):
+    """The test's size: two predictions equally good (a shared error and an independent
+    one each, correlated over up to 200 samples, as the anchored residuals are) reject at
+    |z| > 2 about 5 % of the time. A naive test treating the 20 000 samples as independent
+    rejects far more often at φ = 0.99 (here checked too), which is why the blocks."""
+    rng = np.random.default_rng(1)
+    z, naive = [], []
+    for _ in range(200):
+        shared = 3.0 * _ar1(rng, 20_000, phi)
+        a, b = shared + _ar1(rng, 20_000, phi), shared + _ar1(rng, 20_000, phi)
+        c = compare_predictions(a, b)
+        assert c.blocks >= 5 and c.block >= 5
+        z.append(c.z)
+        d = b**2 - a**2
+        naive.append(d.mean() / (d.std(ddof=1) / np.sqrt(d.size)))
+    size = np.mean(np.abs(z) > 2.0)
+    assert 0.01 <= size <= 0.12
+    assert abs(np.mean(z)) < 0.3  # no side favoured
+    if phi == 0.99:
+        assert np.mean(np.abs(naive) > 2.0) > 0.5
+
+
+def test_a_real_difference_gives_a_large_z_of_the_right_sign_and_the_gain():
+    """A model with half the other's structured error predicts better: z ≫ 3 and the
+    sign flips with the order; the gain is 1 − rms_with/rms_without."""
+    rng = np.random.default_rng(2)
+    noise, err = _ar1(rng, 20_000, 0.9), _ar1(rng, 20_000, 0.9)
+    good, bad = noise + 0.5 * err, noise + err
+    c = compare_predictions(good, bad)
+    assert c.z > 3.0 and compare_predictions(bad, good).z == pytest.approx(-c.z)
+    assert c.gain == pytest.approx(1 - c.rms_with / c.rms_without)
+    assert c.rms_with == pytest.approx(np.sqrt(np.mean(good**2)))
+    same = compare_predictions(good, good)
+    assert same.z == 0.0 and same.gain == 0.0
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "field"),
+    [(np.ones(10), np.ones(11), "11"), (np.array([1.0, np.nan]), np.ones(2), "not finite"),
+     (np.array([]), np.array([]), "empty")],
+)
+def test_compare_predictions_rejects_bad_residuals(a, b, field):
+    with pytest.raises(ValueError, match=field):
+        compare_predictions(a, b)
+
+
+def test_too_few_blocks_is_undecided():
+    """A residual correlated over its whole length leaves fewer than five batch means:
+    z is 0 (a tie), whatever the RMS difference."""
+    t = np.linspace(0.0, 1.0, 400)
+    c = compare_predictions(np.sin(2 * np.pi * t), 2 * np.sin(2 * np.pi * t) + 0.1)
+    assert c.blocks < 5 and c.z == 0.0 and c.gain > 0.4

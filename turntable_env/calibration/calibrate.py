@@ -203,8 +203,13 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
         )
         margin = dec["margin_nats"]
         lead = f" (lead {margin:.1f} nats)" if dec["named"] and margin != float("inf") else ""
+        test = rnd.get("trace_test")
+        if dec["named"] and test and not dec.get("rejected"):
+            lead += (f"; on the held-out trace {test['rms_with']:.3g} against "
+                     f"{test['rms_without']:.3g} {u} without it, z {test['z']:+.1f} over "
+                     f"{test['blocks']} blocks (vetoed at ≤ {test['z_min']:g})")  # fmt: skip
         if dec["named"] and rnd.get("on_trace") and not dec.get("rejected"):
-            lead += f"; on the trace {rnd['on_trace']}"
+            lead += f"; parameters {rnd['on_trace']}"
         if dec.get("rejected"):
             lead += f", then not named: {dec['rejected']}"
         lines += [
@@ -243,17 +248,18 @@ def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
         return []
     out = ["", "By the held-out trace error (the best screened candidates, each refitted "
            "jointly; named when every rule holds):", "",
-           f"| candidate | held-out [{u}] | model without it [{u}] | gain | 3 σ from neutral "
-           "| portions agree | main parameter at a bound | named |",
+           f"| candidate | held-out [{u}] | model without it [{u}] | gain | held-out z "
+           "(Diebold–Mariano) | portions agree | main parameter at a bound | named |",
            "|---|---:|---:|---:|---|---|---|---|"]  # fmt: skip
     for v in rows:
         agree = "—" if v["consistent"] is None else ("yes" if v["consistent"] else "no")
         note = f" ({v['note'].strip()})" if v.get("note", "").strip() else ""
-        dist = f" ({v['from_neutral']})" if v.get("from_neutral") else ""
+        dist = f"; {v['from_neutral']}" if v.get("from_neutral") else ""
         out.append(
             f"| {v['effect']} | {v['heldout_rms']:.3g} | {v['baseline_rms']:.3g} | "
             f"{v['gain']:+.1%} (≥ {v['min_improvement']:.0%}) | "
-            f"{'yes' if v['three_sigma'] else 'no'}{dist} | {agree}{note} | "
+            f"{v['z']:+.1f} (≥ {v['z_min']:g}: {'yes' if v['significant'] else 'no'}; "
+            f"{v['blocks']} blocks{dist}) | {agree}{note} | "
             f"{v['pinned'] or 'no'} | {'**yes**' if v['named'] else 'no'} |"
         )
     return out

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.signal
@@ -39,6 +40,9 @@ from .segments import Segment
 __all__ = [
     "ANCHOR",
     "Anchoring",
+    "PredictiveComparison",
+    "compare_predictions",
+    "correlation_length",
     "correlation_tests",
     "noise_floor",
     "own_ring",
@@ -333,3 +337,90 @@ def correlation_tests(
             "share_outside": float(np.mean(np.abs(v) > band))}
         for k, v in tests.items()
     }  # fmt: skip
+
+
+def correlation_length(r: np.ndarray, max_lag: int = 2000) -> float:
+    """Integrated autocorrelation length of a residual [samples]: 1 + 2Σρ_k up to the
+    first lag where ρ falls below 0.05 (≥ 1)."""
+    r = np.asarray(r, float) - np.mean(r)
+    n = r.size
+    if n < 20:
+        return 1.0
+    f = np.fft.rfft(r, 2 * n)
+    ac = np.fft.irfft(f * np.conj(f))[: min(max_lag, n // 4)]
+    if ac[0] <= 0:
+        return 1.0
+    rho = ac / ac[0]
+    below = np.nonzero(rho < 0.05)[0]
+    k = int(below[0]) if below.size else rho.size
+    return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:k])))
+
+
+class PredictiveComparison(NamedTuple):
+    """Two models' predictions of the same held-out samples compared
+    (:func:`compare_predictions`).
+
+    Attributes:
+        rms_with: the candidate model's RMS error [nm]; rms_without: the model without
+            the candidate's addition [nm].
+        gain: 1 − rms_with / rms_without (positive: the candidate predicts better).
+        z: the Diebold–Mariano statistic of the squared-error difference (positive: the
+            candidate predicts better; ≈ N(0, 1) when both predict equally well).
+        blocks: batch means it rests on; block: their length [samples] (≥ 5 correlation
+            lengths of the loss difference).
+    """
+
+    rms_with: float
+    rms_without: float
+    gain: float
+    z: float
+    blocks: int
+    block: int
+
+    def to_json(self) -> dict[str, Any]:
+        return dict(self._asdict())
+
+    def text(self, unit: str = "nm") -> str:
+        """"held-out 3.37 against 3.31 nm (+1.8 %, z −0.6 over 14 blocks)"."""
+        return (f"held-out {self.rms_with:.3g} against {self.rms_without:.3g} {unit} "
+                f"({-self.gain:+.1%}, z {self.z:+.1f} over {self.blocks} blocks)")  # fmt: skip
+
+
+MIN_BLOCKS = 5  # batch means below which a comparison is not made (z = 0: undecided)
+BLOCK_LENGTHS = 5.0  # a block spans this many correlation lengths of the loss difference
+
+
+def compare_predictions(r_with: np.ndarray, r_without: np.ndarray) -> PredictiveComparison:
+    """Equal predictive accuracy of two models on the same held-out samples: the
+    Diebold–Mariano test (Diebold & Mariano 1995) of the squared-error difference
+    d = r_without² − r_with², its mean's standard error from non-overlapping batch means
+    (blocks of ``BLOCK_LENGTHS`` correlation lengths of d, :func:`correlation_length`):
+    z = mean(d̄_b) / (sd(d̄_b)/√B). A model residual is correlated over hundreds of
+    samples, so counting samples as independent would make any difference significant;
+    the batch means make z ≈ N(0, 1) when the two predict equally well
+    (``tests/test_trace_verdicts.py``). With fewer than ``MIN_BLOCKS`` blocks z is 0
+    (undecided). Residuals [nm]; raises ValueError on unequal or non-finite inputs."""
+    a = np.asarray(r_with, float).ravel()
+    b = np.asarray(r_without, float).ravel()
+    if a.shape != b.shape:
+        raise ValueError(f"residuals: {a.size} samples against {b.size}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("residuals: not finite")
+    if a.size == 0:
+        raise ValueError("residuals: empty")
+    rms_a, rms_b = float(np.sqrt(np.mean(a**2))), float(np.sqrt(np.mean(b**2)))
+    gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
+    d = b**2 - a**2
+    block = max(1, math.ceil(BLOCK_LENGTHS * correlation_length(d)))
+    n_blocks = d.size // block
+    z = 0.0
+    if n_blocks >= MIN_BLOCKS:
+        means = d[: n_blocks * block].reshape(n_blocks, block).mean(axis=1)
+        sd = float(np.std(means, ddof=1))
+        mean = float(np.mean(means))
+        if sd > 0:
+            z = mean / (sd / math.sqrt(n_blocks))
+        elif mean != 0:  # every block moved by the same amount
+            z = math.copysign(math.inf, mean)
+    return PredictiveComparison(rms_a, rms_b, gain, float(z), int(n_blocks), int(block))
+
