@@ -101,6 +101,7 @@ __all__ = [
     "amplifier_finding",
     "calibrate_traces",
     "identifiable_effects",
+    "trace_comparison",
 ]
 
 # the nominal parameters a trace fit frees (nominal.NOMINAL_PARAMETERS; the amplifier's
