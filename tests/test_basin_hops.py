@@ -158,7 +158,7 @@ def test_report_shows_the_hops_of_an_effect_round():
 @pytest.mark.parametrize("rejected", [None, "held-out 3.22 against 3.19 nm without it"])
 def test_report_gives_the_named_effects_margin_on_the_trace(rejected):
     """report.md's round line carries the decision's margin on the trace (the held-out
-    errors with and without the effect, the Diebold–Mariano z and the veto's bar) and each
+    errors with and without the effect, the signed-rank z and the veto's bar) and each
     parameter's distance from neutral in its standard errors, once: a rejection's text
     has them."""
     from turntable_env.calibration.calibrate import _md_signatures

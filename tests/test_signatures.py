@@ -301,7 +301,7 @@ def test_correlation_tests_say_which_dependence_is_left():
 
 
 def _tested(monkeypatch, z_against: dict[float, float]) -> None:
-    """``trace_comparison`` replaced: the Diebold–Mariano z of a fit against the model
+    """``trace_comparison`` replaced: the signed-rank z of a fit against the model
     without it, looked up by that model's held-out error."""
     from turntable_env.calibration import trace_fit
     from turntable_env.calibration.residual import PredictiveComparison
@@ -331,9 +331,10 @@ def test_an_effect_the_trace_contradicts_is_not_named_by_its_signature(
 ):
     """An effect named by its features must not be contradicted by the trace: when its
     best fit predicts the held-out trace worse than the model without it at a
-    Diebold–Mariano z ≤ −2, nothing is named and the report says why, with both errors,
-    the z and the parameters' distance from neutral (issue 31: each candidate tested on
-    its features as well as on the trace); a tie leaves the features' decision standing."""
+    signed-rank z ≤ −2 (over segment blocks), nothing is named and the report says why,
+    with both errors, the z and the parameters' distance from neutral (issue 31: each
+    candidate tested on its features as well as on the trace); a tie leaves the features'
+    decision standing."""
     from dataclasses import replace
     from types import SimpleNamespace
 
@@ -464,7 +465,7 @@ def test_a_further_effect_must_improve_the_trace_beyond_its_scatter(
 ):
     """After the first round an effect named by its signature must also lower the held-out
     error by ``min_improvement`` against the current model refitted with the same budget,
-    and beyond the residual's scatter (Diebold–Mariano z ≥ 2): what the first effect's
+    and beyond the residual's scatter (signed-rank z ≥ 2): what the first effect's
     imperfect form leaves can show in another effect's features."""
     from dataclasses import replace
     from types import SimpleNamespace

@@ -249,7 +249,7 @@ def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
     out = ["", "By the held-out trace error (the best screened candidates, each refitted "
            "jointly; named when every rule holds):", "",
            f"| candidate | held-out [{u}] | model without it [{u}] | gain | held-out z "
-           "(Diebold–Mariano) | portions agree | main parameter at a bound | named |",
+           "(signed ranks) | portions agree | main parameter at a bound | named |",
            "|---|---:|---:|---:|---|---|---|---|"]  # fmt: skip
     for v in rows:
         agree = "—" if v["consistent"] is None else ("yes" if v["consistent"] else "no")

@@ -28,12 +28,14 @@ structure, spectral peaks, ringing after flybacks, correlations.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.signal
+import scipy.stats
 
 from .segments import Segment
 
@@ -364,10 +366,12 @@ class PredictiveComparison(NamedTuple):
         rms_with: the candidate model's RMS error [nm]; rms_without: the model without
             the candidate's addition [nm].
         gain: 1 − rms_with / rms_without (positive: the candidate predicts better).
-        z: the Diebold–Mariano statistic of the squared-error difference (positive: the
-            candidate predicts better; ≈ N(0, 1) when both predict equally well).
-        blocks: batch means it rests on; block: their length [samples] (≥ 5 correlation
-            lengths of the loss difference).
+        z: the signed-rank statistic of the squared-error difference over blocks
+            (positive: the candidate predicts better; ≈ N(0, 1) when both predict
+            equally well).
+        blocks: the blocks it rests on (segments, long ones split; those where the two
+            agree exactly left out); block: the length a long segment is split into
+            [samples] (5 correlation lengths of the loss difference).
     """
 
     rms_with: float
@@ -386,24 +390,51 @@ class PredictiveComparison(NamedTuple):
                 f"({-self.gain:+.1%}, z {self.z:+.1f} over {self.blocks} blocks)")  # fmt: skip
 
 
-MIN_BLOCKS = 5  # batch means below which a comparison is not made (z = 0: undecided)
+MIN_BLOCKS = 5  # blocks below which a comparison is not made (z = 0: undecided)
 BLOCK_LENGTHS = 5.0  # a block spans this many correlation lengths of the loss difference
 
 
-def compare_predictions(r_with: np.ndarray, r_without: np.ndarray) -> PredictiveComparison:
-    """Equal predictive accuracy of two models on the same held-out samples: the
-    Diebold–Mariano test (Diebold & Mariano 1995) of the squared-error difference
-    d = r_without² − r_with², its mean's standard error from non-overlapping batch means
-    (blocks of ``BLOCK_LENGTHS`` correlation lengths of d, :func:`correlation_length`):
-    z = mean(d̄_b) / (sd(d̄_b)/√B). A model residual is correlated over hundreds of
-    samples, so counting samples as independent would make any difference significant;
-    the batch means make z ≈ N(0, 1) when the two predict equally well
-    (``tests/test_trace_verdicts.py``). With fewer than ``MIN_BLOCKS`` blocks z is 0
-    (undecided). Residuals [nm]; raises ValueError on unequal or non-finite inputs."""
+def _blocks(n: int, block: int, units: np.ndarray | None) -> list[np.ndarray]:
+    """Sample index ranges of the blocks: each run of equal ``units`` (a segment)
+    split into pieces of at least ``block`` samples (a segment shorter than that is one
+    block); without units, the whole record is one run."""
+    if units is None:
+        bounds = np.array([0, n])
+    else:
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(units)) + 1, [n]])
+    out = []
+    for s, e in itertools.pairwise(bounds):
+        out += np.array_split(np.arange(s, e), max(1, (e - s) // block))
+    return out
+
+
+def compare_predictions(
+    r_with: np.ndarray, r_without: np.ndarray, units: np.ndarray | None = None
+) -> PredictiveComparison:
+    """Equal predictive accuracy of two models on the same held-out samples: Wilcoxon's
+    signed-rank test of the squared-error difference d = r_without² − r_with² over
+    blocks, one of the tests of Diebold & Mariano (1995, §3.2) for loss differentials
+    that are not normal. The blocks are the segments the samples belong to (``units``:
+    the anchored residual is re-read at each segment, :class:`Anchoring`), a segment
+    longer than ``BLOCK_LENGTHS`` correlation lengths of d (:func:`correlation_length`)
+    split into pieces that long, so the block means are nearly independent; z is the
+    signed rank sum's normal approximation (scipy.stats.wilcoxon; blocks where the two
+    agree exactly are dropped), positive when ``r_with`` is the smaller error. A model
+    residual is correlated over hundreds of samples, so counting samples as independent
+    would make any difference significant; the blocks keep z ≈ N(0, 1) when the two
+    predict equally well (``tests/test_trace_verdicts.py``). Ranks, not the block means
+    themselves: an effect's error is concentrated in a few segments (a worn contact's
+    shrinking steps: the t statistic of its block means stayed at 1.9 for a held-out
+    error cut from 51 to 2.9 nm, held down by its largest block). With fewer than
+    ``MIN_BLOCKS`` blocks that differ, z is 0 (undecided); B blocks bound |z| by
+    √(3B(B+1)/(2B+1)). Residuals [nm]; raises ValueError on unequal or non-finite
+    inputs."""
     a = np.asarray(r_with, float).ravel()
     b = np.asarray(r_without, float).ravel()
     if a.shape != b.shape:
         raise ValueError(f"residuals: {a.size} samples against {b.size}")
+    if units is not None and np.shape(units) != a.shape:
+        raise ValueError(f"units: {np.size(units)} labels for {a.size} samples")
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise ValueError("residuals: not finite")
     if a.size == 0:
@@ -412,15 +443,13 @@ def compare_predictions(r_with: np.ndarray, r_without: np.ndarray) -> Predictive
     gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
     d = b**2 - a**2
     block = max(1, math.ceil(BLOCK_LENGTHS * correlation_length(d)))
-    n_blocks = d.size // block
+    means = np.array([d[i].mean() for i in _blocks(d.size, block, units)])
+    means = means[means != 0.0]
     z = 0.0
-    if n_blocks >= MIN_BLOCKS:
-        means = d[: n_blocks * block].reshape(n_blocks, block).mean(axis=1)
-        sd = float(np.std(means, ddof=1))
-        mean = float(np.mean(means))
-        if sd > 0:
-            z = mean / (sd / math.sqrt(n_blocks))
-        elif mean != 0:  # every block moved by the same amount
-            z = math.copysign(math.inf, mean)
-    return PredictiveComparison(rms_a, rms_b, gain, float(z), int(n_blocks), int(block))
-
+    if means.size >= MIN_BLOCKS:
+        test = scipy.stats.wilcoxon(means, zero_method="wilcox", correction=False,
+                                    method="approx")  # fmt: skip
+        ranks = scipy.stats.rankdata(np.abs(means))
+        lead = float(ranks[means > 0].sum() - ranks[means < 0].sum())
+        z = math.copysign(abs(float(test.zstatistic)), lead) if lead != 0 else 0.0
+    return PredictiveComparison(rms_a, rms_b, gain, float(z), int(means.size), int(block))

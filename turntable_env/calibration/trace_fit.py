@@ -149,7 +149,7 @@ FLOOR_REACHED = 1.05  # held-out RMS over the floor at which no effect is search
 # anchor's mean adds ~2.5 % to white noise); between this and STRUCTURED_FACTOR an effect
 # is still searched — a small drift hides there — and must pass the acceptance rules
 ERROR_UNIT = "nm"
-# the held-out trace's verdict on an effect: the Diebold–Mariano z of its prediction
+# the held-out trace's verdict on an effect: the signed-rank z of its prediction
 # against the model without it (residual.compare_predictions; ≈ N(0, 1) for equal
 # predictions). A signature's name stands unless the trace contradicts it at −Z_TRACE;
 # the held-out trace error names an effect the signatures did not only at +Z_HELDOUT
@@ -378,6 +378,19 @@ class TraceProblem:
         for td, chans in zip(self.traces, self.errors(x, effects), strict=True):
             mask = td.anchoring.fit if portion == "fit" else td.anchoring.heldout
             parts += [c[mask] for c in chans]
+        return np.concatenate(parts)
+
+    def units(self, portion: str) -> np.ndarray:
+        """Per sample of :meth:`residual` on ``portion``: the segment it belongs to,
+        numbered apart for every trace and channel (the blocks of
+        :func:`~.residual.compare_predictions`)."""
+        parts, offset = [], 0
+        for td in self.traces:
+            mask = td.anchoring.fit if portion == "fit" else td.anchoring.heldout
+            u = td.anchoring.unit[mask]
+            for _chan in range(2 if td.has_y and td.m.detector_y_v is not None else 1):
+                parts.append(u + offset)
+                offset += len(td.segments) + 1
         return np.concatenate(parts)
 
     def rms(self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]], portion: str) -> float:
@@ -828,11 +841,13 @@ def _in_sigmas(d: float, s: float) -> float:
 def trace_comparison(
     problem: TraceProblem, with_: LocalFit, without: LocalFit
 ) -> PredictiveComparison:
-    """Two fits' predictions of the held-out samples compared
-    (:func:`~.residual.compare_predictions`: the Diebold–Mariano z, positive when
+    """Two fits' predictions of the held-out samples compared, blocked by segment
+    (:func:`~.residual.compare_predictions`: the signed-rank z of Diebold & Mariano's
+    tests over segment blocks, positive when
     ``with_`` predicts better)."""
     return compare_predictions(problem.residual(with_.x, with_.effects, "heldout"),
-                               problem.residual(without.x, without.effects, "heldout"))  # fmt: skip
+                               problem.residual(without.x, without.effects, "heldout"),
+                               problem.units("heldout"))  # fmt: skip
 
 
 def _from_neutral(fit: LocalFit, name: str) -> str:
@@ -1137,11 +1152,12 @@ def _accept_one(
     """The first of the best screened candidates, refitted jointly with the nominal model,
     that beats the nominal model refitted with the same budget by ``min_improvement`` on
     held-out data, with a held-out prediction better at z ≥ :data:`Z_HELDOUT`
-    (:func:`trace_comparison`, the Diebold–Mariano test), agrees between portions and has
-    its main parameter inside its range (:func:`~.identify.main_at_bound`); None if none
-    does. The fits' finite differences run over ``pool`` when given; each candidate's
-    verdict on every rule is appended to ``verdicts`` (the report's record of why it was
-    or was not named; its parameters' distance from neutral is reported, not judged)."""
+    (:func:`trace_comparison`, a signed-rank test over segment blocks), agrees between
+    portions and has its main parameter inside its range
+    (:func:`~.identify.main_at_bound`); None if none does. The fits' finite differences
+    run over ``pool`` when given; each candidate's verdict on every rule is appended to
+    ``verdicts`` (the report's record of why it was or was not named; its parameters'
+    distance from neutral is reported, not judged)."""
     refit_nom = local_fit(problem, current.x, current.effects,
                           free_effects=selected, max_nfev=6, pool=pool)  # fmt: skip
     without = refit_nom if refit_nom.heldout_rms < current.heldout_rms else current
@@ -1203,7 +1219,7 @@ def _by_signature(
     nominal model on the trace, the better of that and the signature fit on held-out
     data kept — unless its main parameter stays at a bound (:func:`~.identify.main_at_bound`), or
     that fit predicts the held-out trace worse than the model without it beyond the
-    residual's scatter (Diebold–Mariano z ≤ −:data:`Z_TRACE`, :func:`trace_comparison`:
+    residual's scatter (signed-rank z ≤ −:data:`Z_TRACE`, :func:`trace_comparison`:
     the trace contradicts the features; issue 31: "test each candidate on the features it
     must explain as well as on the trace"), when nothing is named; a tie leaves the
     features' decision standing. Unless the trace backs the effect against the current
@@ -1272,7 +1288,7 @@ def _by_signature(
         return None, None, rnd, fits, current
     # the trace must not contradict the signature: an effect whose best fit predicts the
     # held-out trace worse than the model without it, beyond what the residual's own
-    # scatter allows (the Diebold–Mariano z ≤ −Z_TRACE over batch means), is not what the
+    # scatter allows (the signed-rank z ≤ −Z_TRACE over segment blocks), is not what the
     # features show; a tie leaves the features' decision standing (the second plant's
     # creep: 1241.7 nats on its holds, 13.4 against 13.1 nm held out — the trace, its
     # error dominated by the fast transients, cannot see a slow effect). The parameters'
