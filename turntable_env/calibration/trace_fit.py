@@ -842,9 +842,8 @@ def trace_comparison(
     problem: TraceProblem, with_: LocalFit, without: LocalFit
 ) -> PredictiveComparison:
     """Two fits' predictions of the held-out samples compared, blocked by segment
-    (:func:`~.residual.compare_predictions`: the signed-rank z of Diebold & Mariano's
-    tests over segment blocks, positive when
-    ``with_`` predicts better)."""
+    (:func:`~.residual.compare_predictions`: the signed-rank z, one of Diebold &
+    Mariano's tests, positive when ``with_`` predicts better)."""
     return compare_predictions(problem.residual(with_.x, with_.effects, "heldout"),
                                problem.residual(without.x, without.effects, "heldout"),
                                problem.units("heldout"))  # fmt: skip
