@@ -1231,7 +1231,7 @@ def _by_signature(
     features without that effect predicting the trace any better (the independent plants'
     creep, a spectrum of time constants, left a scan loop that hysteresis took at 22–57
     nats with the held-out error unchanged, and on the second plant at 11.7 → 9.96 nm,
-    z +1.2). With ``plan.hops`` > 0 the joint refit is moved
+    z +1.6 by signed ranks). With ``plan.hops`` > 0 the joint refit is moved
     on by basin hopping (:func:`_basin_hops`, the effects named so far and this one
     fitted), and so is the current model's refit it must beat: the joint objective is as
     terraced as the nominal one (the first independent plant's Bouc–Wen hysteresis: the
@@ -1332,7 +1332,7 @@ def _by_signature(
     if selected:  # a further effect earns its place on the trace as well
         # by min_improvement, and beyond the residual's scatter (z ≥ Z_TRACE): the second
         # plant's creep, once named, left a scan loop that hysteresis took by its
-        # signature at 11.7 → 9.96 nm held out, z +1.2 over 9 blocks (stop 58)
+        # signature at 11.7 → 9.96 nm held out, z +1.6 (stop 58, signed ranks)
         gain = 1.0 - fit.heldout_rms / baseline
         if gain < min_improvement or test.z < Z_TRACE:
             rnd["decision"]["rejected"] = (
