@@ -389,13 +389,16 @@ def test_an_effect_the_trace_contradicts_is_not_named_by_its_signature(
         (3.5, 3.20, -2.5, "friction_asymmetry"),
     ],
 )
+@pytest.mark.parametrize("kept", [1, 0])
 def test_the_first_round_compares_with_the_model_hopped_as_often(
-    monkeypatch, z_current, rehopped, z_refit, named
+    monkeypatch, z_current, rehopped, z_refit, named, kept
 ):
     """The veto's comparison has the same budget on both sides: in the first round, too,
     an effect the trace does not back against the current model (z < 2) is compared with
     the model without it refitted with at least as many basin hops as the effect's joint
-    refit ran; when that refit lowers the cost, the round goes on from it."""
+    refit ran; when that refit lowers the cost, the round goes on from it. Where the
+    joint refit's hops kept nothing, its search was a local fit from the current model,
+    which hopped in its own stage: the comparison is even without the refit."""
     from dataclasses import replace
     from types import SimpleNamespace
 
@@ -416,9 +419,9 @@ def test_the_first_round_compares_with_the_model_hopped_as_often(
     def basin_hops(_problem, best, _workers, _seed, _say, _hops, free_effects=(),
                    min_hops=0):  # fmt: skip
         calls.append((tuple(free_effects), min_hops))
-        if "friction_asymmetry" in free_effects:
-            return joint, [{}] * 3  # three hops run
-        return hopped, [{}] * max(min_hops, 2)
+        if "friction_asymmetry" in free_effects:  # three hops run, ``kept`` of them kept
+            return joint, [{"accepted": k < kept} for k in range(3)]
+        return hopped, [{"accepted": False}] * max(min_hops, 2)
 
     monkeypatch.setattr(trace_fit, "local_fit", local_fit)
     monkeypatch.setattr(trace_fit, "_basin_hops", basin_hops)
@@ -432,13 +435,15 @@ def test_the_first_round_compares_with_the_model_hopped_as_often(
         SimpleNamespace(), pool, current, ["friction_asymmetry", "piezo_creep"], [],
         lambda _m: None, plan=HopPlan(6, 0),
     )  # fmt: skip
-    assert n == named
     assert rnd["on_trace"] == "alpha 0.9 σ from neutral"  # reported (report.md's round line)
-    if z_current >= 2.0:  # backed: only the joint refit hopped
+    if z_current >= 2.0 or not kept:  # backed, or no hop kept: only the joint refit hopped
         assert calls == [(("friction_asymmetry",), 0)] and cur is current
         assert "current_refit" not in rnd["heldout_error"]
+        assert rnd["trace_test"]["rms_without"] == pytest.approx(3.54)  # the current model
+        assert n == ("friction_asymmetry" if z_current > -2.0 else None)
         return
     # the model without it hopped at least as often as the joint refit (3 hops)
+    assert n == named
     assert calls == [(("friction_asymmetry",), 0), ((), 3)]
     assert cur is hopped  # its cost is lower: the round goes on from it
     assert rnd["heldout_error"]["current_refit"] == pytest.approx(min(3.54, rehopped))

@@ -1224,7 +1224,9 @@ def _by_signature(
     features' decision standing. Unless the trace backs the effect against the current
     model (z ≥ :data:`Z_TRACE`), "the model without it" is the current model refitted with
     the same budget, hopped at least as often as the joint refit, in the first round as in
-    later ones (the better of it and the current model). A further
+    later ones (the better of it and the current model) — when the joint refit's hops kept
+    one: otherwise its search was a local fit from the current model, itself hopped, and
+    the comparison is even without the refit. A further
     effect (after the first round) must also beat the current model refitted with the
     same budget by ``min_improvement`` on held-out data, at z ≥ :data:`Z_TRACE`: once the
     dominant effect is in, what its imperfect form leaves can show in another effect's
@@ -1297,7 +1299,13 @@ def _by_signature(
     rnd["heldout_error"]["current"] = current.heldout_rms
     rnd["on_trace"] = _from_neutral(fit, n)  # the parameters' standard errors, reported
     test = trace_comparison(problem, fit, current)
-    if selected or test.z < Z_TRACE:
+    # the refit below gives the model without it the search the joint refit had; where the
+    # joint refit's hops kept nothing, that search was a local fit from the current model,
+    # itself a hopped fit, and the comparison already favours the model without it (the
+    # second plant's clean axis C: asymmetry's two hops kept none; the refit that matched
+    # them cost 5 local fits, about a quarter of the trace's calibration)
+    searched = plan.hops == 0 or any(h["accepted"] for h in rnd["hops"]["joint_refit"])
+    if searched and (selected or test.z < Z_TRACE):
         # not backed by the trace against the current model: compared with the model
         # without it refitted with the same budget, hopped at least as often as the joint
         # refit — an effect must beat the current model's best search, not one that
