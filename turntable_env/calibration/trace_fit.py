@@ -1303,7 +1303,7 @@ def _by_signature(
     # joint refit's hops kept nothing, that search was a local fit from the current model,
     # itself a hopped fit, and the comparison already favours the model without it (the
     # second plant's clean axis C: asymmetry's two hops kept none; the refit that matched
-    # them cost 5 local fits, about a quarter of the trace's calibration)
+    # them, one local fit and three hops, took the calibration from 286.5 to 329.0 s)
     searched = plan.hops == 0 or any(h["accepted"] for h in rnd["hops"]["joint_refit"])
     if searched and (selected or test.z < Z_TRACE):
         # not backed by the trace against the current model: compared with the model
