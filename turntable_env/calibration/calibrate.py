@@ -142,6 +142,7 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
             for k, f in enumerate(d["starts"]["fits"])
         ],
         *_md_hops(d["starts"].get("hops"), "the best start", u),
+        *_md_second(d["starts"].get("second"), u),
         "",
         "## Parameters",
         "",
@@ -179,6 +180,27 @@ def _md_hops(rows: list[dict[str, Any]] | None, start: str, u: str) -> list[str]
           f"{', '.join(f'{c:.5g}' for c in h['costs'])} | "
           f"{'yes' if h['accepted'] else 'no'} | {h['heldout_rms']:.3g} |"
           for k, h in enumerate(rows)],
+    ]  # fmt: skip
+
+
+def _md_second(row: dict[str, Any] | None, u: str) -> list[str]:
+    """report.md lines of the second global stage (:func:`~.trace_fit._second_stage`);
+    none when the nominal fit met its target without it."""
+    if not row:
+        return []
+    head = (f"Second global stage (the nominal fit, {row['heldout_before']:.3g} {u}, stayed "
+            f"above the target): the design doubled to {row['points']} Sobol points over "
+            f"±{row['box_sigma']:g} prior σ, {row['new_starts']} of its best starts "
+            "new")  # fmt: skip
+    if not row["new_starts"]:
+        return ["", f"{head}: the search would repeat the first stage's, not run."]
+    costs = ", ".join(f"{c:.5g}" for c in row["costs"])
+    return [
+        "", f"{head}; its starts (the prior first) reached costs {costs}, hopped to "
+        f"{row['cost_after']:.5g} against the first stage's {row['cost_before']:.5g} under "
+        f"the same data weight; {'kept' if row['kept'] else 'not kept'} (held-out "
+        f"{row['heldout_rms']:.3g} {u}).",
+        *_md_hops(row.get("hops"), "the second stage's best start", u),
     ]  # fmt: skip
 
 

@@ -717,12 +717,16 @@ def _safe_objective(
 
 
 def global_stage(
-    problem: TraceProblem, n_points: int, workers: int, seed: int, bar: Callable | None
-) -> tuple[np.ndarray, np.ndarray]:
-    """(points, objectives) of a scrambled Sobol design over ±GLOBAL_BOX prior σ."""
+    problem: TraceProblem, n_points: int, workers: int, seed: int, bar: Callable | None,
+    first: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """(points, objectives) of a scrambled Sobol design over ±GLOBAL_BOX prior σ (clipped
+    to the factors' bounds), its points ``first`` to ``n_points``: a Sobol sequence's
+    first 2^m points are the same for every longer draw with the same ``seed``, so the
+    second half of a doubled design completes the first."""
     mdl = problem.model
     sob = scipy.stats.qmc.Sobol(len(mdl), scramble=True, seed=seed)
-    u = sob.random_base2(max(0, math.ceil(math.log2(n_points))))[:n_points]
+    u = sob.random_base2(max(0, math.ceil(math.log2(n_points))))[first:n_points]
     pts = np.clip((2.0 * u - 1.0) * GLOBAL_BOX * mdl.sigma, mdl.low, mdl.high)
     return pts, _objectives(problem, pts, workers, bar)
 
@@ -957,10 +961,8 @@ def calibrate_traces(
                                         for td in traces]) ** 2))
     )  # fmt: skip
     ident = identifiable_effects(traces)
-    say(
-        f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
-        f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})"
-    )
+    say(f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
+        f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})")  # fmt: skip
     x_prior = np.zeros(len(model))
     before = problem.rms(x_prior, {}, "heldout")
     r0 = problem.residual(x_prior, {}, "fit")
@@ -969,8 +971,9 @@ def calibrate_traces(
     )
     say(f"prior model: held-out error {before:.3g} {ERROR_UNIT}")
 
-    nominal, spread = _fit_nominal(problem, x_prior, floor, global_points, starts, n_workers,
-                                   seed, bar, say, hops)  # fmt: skip
+    target = max(3.0 * floor, 0.02 * motion)  # the acceptance's bar (module docstring)
+    nominal, spread = _fit_nominal(problem, x_prior, (floor, target), global_points, starts,
+                                   n_workers, seed, bar, say, hops)  # fmt: skip
     for n in names:
         if ident.get(n):
             warnings.append(f"{n}: not identifiable from this protocol ({ident[n]})")
@@ -993,7 +996,7 @@ def calibrate_traces(
             selected, history = _amplifier_named(selected, history, nominal.heldout_rms)
     diag.update(
         noise_floor=floor, noise_floor_source=traces[0].floor_source, rms_motion=motion,
-        target=max(3.0 * floor, 0.02 * motion), starts=spread, n_simulations=problem.n_sims,
+        target=target, starts=spread, n_simulations=problem.n_sims,
         identifiability={k: (v or "identifiable") for k, v in ident.items()},
         error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
         drive_recording=[td.reading.recording for td in traces],
@@ -1028,8 +1031,9 @@ def calibrate_traces(
 
 
 def _fit_nominal(
-    problem: TraceProblem, x_prior: np.ndarray, floor: float, global_points: int, starts: int,
-    n_workers: int, seed: int, bar: Any, say: Callable[[str], None], hops: int = HOPS,
+    problem: TraceProblem, x_prior: np.ndarray, bars: tuple[float, float], global_points: int,
+    starts: int, n_workers: int, seed: int, bar: Any, say: Callable[[str], None],
+    hops: int = HOPS,
 ) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
     """The nominal model: the global stage's best points and the prior, each refined by
     least squares (``FIRST_NFEV`` iterations, the starts over ``n_workers`` processes);
@@ -1039,23 +1043,23 @@ def _fit_nominal(
     starts' optima. Every start is continued, not only the leader: under the prior
     residual's weight the priors dominate, and a start that trails after the first pass
     may end in a better basin (the first plant's stepping-only trace: 72 → 30 nm). The
-    best is then moved on by basin hopping (:func:`_basin_hops`) before the re-weighting
-    and polish."""
-    starts_x = [x_prior]
+    best is then moved on by basin hopping (:func:`_basin_hops`); where it stays above
+    the target, the search is run again on the design doubled (:func:`_second_stage`),
+    before the re-weighting and polish. ``bars``: (noise floor, target) [nm]."""
+    floor, target = bars
+    w_prior = problem.weight
+    pts, vals = np.zeros((0, len(x_prior))), np.zeros(0)
     if global_points > 0:
         say(f"global stage: {global_points} Sobol points on {n_workers} process(es)")
         pts, vals = global_stage(problem, global_points, n_workers, seed, bar)
-        for i in np.argsort(vals)[:starts]:
-            if np.isfinite(vals[i]):
-                starts_x.append(pts[i])
-    fits = _local_fits(problem, starts_x, n_workers, FIRST_NFEV)
-    _reweight(problem, min(fits, key=lambda f: f.cost), floor)
-    fits = _local_fits(problem, [f.x for f in fits], n_workers, START_NFEV)
-    for k, f1 in enumerate(fits):
-        say(f"  start {k}: held-out {f1.heldout_rms:.3g} {ERROR_UNIT} (cost {f1.cost:.4g}, "
-            f"{f1.nfev} iterations)")  # fmt: skip
-    best, hop_rows = _basin_hops(problem, min(fits, key=lambda f: f.cost), n_workers, seed,
-                                 say, hops)  # fmt: skip
+    design = _Design(x_prior, w_prior, pts, vals, starts)
+    fits, best, hop_rows = _search_design(problem, design, floor, n_workers, seed, say, hops)
+    second = None
+    if global_points > 0 and best.heldout_rms > target:
+        found, second = _second_stage(problem, best, design, (floor, target), n_workers,
+                                      (seed, hops), bar, say)  # fmt: skip
+        if second["kept"]:
+            fits, best, hop_rows = found
     _reweight(problem, best, floor)
     if n_workers > 1:  # the polish's finite differences over the workers
         with ProcessPoolExecutor(n_workers, initializer=_init_worker, initargs=(problem,)) as ex:
@@ -1064,9 +1068,95 @@ def _fit_nominal(
         nominal = local_fit(problem, best.x, {}, max_nfev=10)
     if nominal.heldout_rms > best.heldout_rms:
         nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
-    spread = {**_start_spread(fits, nominal), "hops": hop_rows}
+    spread = {**_start_spread(fits, nominal), "hops": hop_rows, "second": second}
     say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
     return nominal, spread
+
+
+_Search = tuple[list[LocalFit], LocalFit, list[dict[str, Any]]]  # starts' fits, best, hops
+
+
+class _Design(NamedTuple):
+    """A global design's points [ln-factors] and objectives, with the prior point, the
+    data weight in force before any fit, and the number of starts taken from it."""
+
+    x_prior: np.ndarray
+    w_prior: float
+    pts: np.ndarray
+    vals: np.ndarray
+    starts: int
+
+
+def _search_design(
+    problem: TraceProblem, design: _Design, floor: float, n_workers: int, seed: int,
+    say: Callable[[str], None], hops: int,
+) -> _Search:  # fmt: skip
+    """:func:`_fit_nominal`'s search on one design: the prior and the design's best
+    ``starts`` points, least squares under the prior residual's weight (``FIRST_NFEV``),
+    the data re-weighted at the best, every start continued (``START_NFEV``), basin
+    hopping from the best. Leaves the problem's weight at that re-weighting. (the starts'
+    fits, the best, the hop rows)."""
+    problem.weight = design.w_prior
+    starts_x = [design.x_prior] + [design.pts[i] for i in np.argsort(design.vals)[:design.starts]
+                                   if np.isfinite(design.vals[i])]  # fmt: skip
+    fits = _local_fits(problem, starts_x, n_workers, FIRST_NFEV)
+    _reweight(problem, min(fits, key=lambda f: f.cost), floor)
+    fits = _local_fits(problem, [f.x for f in fits], n_workers, START_NFEV)
+    for k, f1 in enumerate(fits):
+        say(f"  start {k}: held-out {f1.heldout_rms:.3g} {ERROR_UNIT} (cost {f1.cost:.4g}, "
+            f"{f1.nfev} iterations)")  # fmt: skip
+    best, hop_rows = _basin_hops(problem, min(fits, key=lambda f: f.cost), n_workers, seed,
+                                 say, hops)  # fmt: skip
+    return fits, best, hop_rows
+
+
+def _second_stage(
+    problem: TraceProblem, best: LocalFit, first: _Design, bars: tuple[float, float],
+    n_workers: int, plan: tuple[int, int], bar: Any, say: Callable[[str], None],
+) -> tuple[_Search | None, dict[str, Any]]:
+    """A second global stage for a nominal fit that stays above its target [nm]: the
+    first design doubled (the same Sobol sequence and box, only its new half evaluated)
+    evaluated under the prior residual's weight as the first half was, and the search run
+    again on it (:func:`_search_design`: its best starts and the
+    prior, the first pass, the re-weighting, every start continued, basin hopping). Kept
+    where its optimum's cost is lower by :data:`HOP_TOL` than the first stage's best under
+    the same weight (the second's re-weighting, the first's best evaluated again). Twelve
+    factors leave 64 points thin: on the first independent plant's 12-bit sampled drive
+    the 64-point design ends at 40.1 nm held out against a target of 25.7 nm, the
+    128-point design at 21.8 nm (docs/calibration.md, stop 60). Where the doubled design's
+    best starts are the first's, the search would repeat itself and is not run. A fit
+    within its target does not run it: the cost falls on the traces the nominal model
+    does not yet explain. ``bars``: (noise floor, target) [nm]; ``plan``: (seed, hops).
+    ((the starts' fits, the best, the hop rows) or None, the report's row)."""
+    floor, target = bars
+    seed, hops = plan
+    n_first = len(first.pts)
+    say(f"nominal fit {best.heldout_rms:.3g} {ERROR_UNIT} above the target {target:.3g} "
+        f"{ERROR_UNIT}: the global stage doubled, points {n_first + 1}–{2 * n_first}")  # fmt: skip
+    w_data, problem.weight = problem.weight, first.w_prior  # the first's values' weight
+    pts, vals = global_stage(problem, 2 * n_first, n_workers, seed, bar, first=n_first)
+    problem.weight = w_data
+    design = first._replace(pts=np.vstack([first.pts, pts]), vals=np.r_[first.vals, vals])
+    new = [int(i) for i in np.argsort(design.vals)[:design.starts] if i >= n_first]
+    row: dict[str, Any] = {"points": 2 * n_first, "box_sigma": GLOBAL_BOX, "new_starts": len(new),
+                           "costs": [], "hops": [], "kept": False,
+                           "cost_before": best.cost, "heldout_before": best.heldout_rms,
+                           "heldout_rms": best.heldout_rms}  # fmt: skip
+    if not new:
+        say("  second stage: the doubled design's best starts are the first's")
+        return None, row
+    found = _search_design(problem, design, floor, n_workers, seed, say, hops)
+    fits, cand, row["hops"] = found
+    row["costs"] = [f.cost for f in fits]
+    row["cost_after"] = cand.cost
+    row["cost_before"] = problem.objective(best.x)  # under the second's weight
+    row["kept"] = bool(cand.cost < (1.0 - HOP_TOL) * row["cost_before"])
+    kept = cand if row["kept"] else best
+    row["heldout_rms"] = kept.heldout_rms
+    say(f"  second stage: cost {cand.cost:.4g} against the first stage's "
+        f"{row['cost_before']:.4g}; held-out {kept.heldout_rms:.3g} {ERROR_UNIT}"
+        f"{' — kept' if row['kept'] else ''}")  # fmt: skip
+    return found, row
 
 
 def _basin_hops(
