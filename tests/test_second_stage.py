@@ -127,11 +127,17 @@ def test_the_two_stages_together_are_the_doubled_design(seed):
     assert np.all(np.abs(full) <= GLOBAL_BOX + 1e-12)
 
 
-def test_the_first_design_misses_the_basin(landscape):
+def test_the_first_stages_search_misses_the_basin(landscape):
+    """The landscape's premise, and the first stage's whole search on it: no point of the
+    first design lies in the basin, and its starts, passes and hops (±1 σ at most) all end
+    on the plateau, so only another design can find the basin."""
     problem, basin, _seen, seed = landscape
     first = _first(problem, seed)
     assert not any(basin.inside(x) for x in first.pts)
     assert np.all(first.vals >= PLATEAU)  # every point on the plateau: no start descends
+    fits, best, hops = trace_fit._search_design(problem, first, 0.01, 1, seed, _quiet, HOPS)
+    assert len(fits) == 1 + first.starts and not basin.inside(best.x)
+    assert best.cost == pytest.approx(PLATEAU) and not any(h["accepted"] for h in hops)
 
 
 def test_the_second_stage_reaches_the_basin_and_keeps_it(landscape):
