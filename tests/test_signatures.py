@@ -90,6 +90,53 @@ def test_step_per_period_and_direction_read_the_steps(proto):
     np.testing.assert_allclose(_group(f, "direction"), [6.0 / 54.0] * 2, atol=1e-12)
 
 
+def _stick_slip_pair(steady_nm, first_nm, f_hz=1300.0, periods=12, fs=FS, excursion=80.0):
+    """A forward and a backward burst of stick–slip steps with a hold around each, by hand:
+    in every period the table follows the ramp by ``excursion`` nm, then slips back to a
+    net step; the first period's step (``first_nm``, per burst) differs from the steady
+    one (``steady_nm``), as the contacts' state in the hold before sets it. The stepping
+    frequency is no divisor of the sample rate, so a period holds 15 or 16 samples."""
+    tp = 1.0 / f_hz
+    t_b = (0.05, 0.05 + periods * tp + 0.04)
+    segs = [Segment(0.0, 0.05, "hold")]
+    for t0, d in zip(t_b, (1, -1), strict=True):
+        segs.append(Segment(t0, t0 + periods * tp, "steps", d, 2.0, f_hz, "jump", periods))
+        segs.append(Segment(t0 + periods * tp, t0 + periods * tp + 0.04, "hold"))
+    t = np.arange(0.0, segs[-1].end, 1.0 / fs)
+    x = np.zeros_like(t)
+    level = 0.0
+    for (t0, d), s, s1 in zip(zip(t_b, (1, -1), strict=True), steady_nm, first_nm, strict=True):
+        inside = (t >= t0) & (t < t0 + periods * tp)
+        k = np.floor((t - t0) / tp)
+        done = np.where(k >= 1, s1 + (k - 1) * s, 0.0)  # net steps of the finished periods
+        phase = (t - t0) / tp - k
+        x = np.where(inside, level + done + d * excursion * phase, x)
+        level += s1 + (periods - 1) * s
+        x = np.where(t >= t0 + periods * tp, level, x)
+    return t, np.zeros_like(t), segs, x
+
+
+@pytest.mark.parametrize(
+    ("steady", "first", "ratio"),
+    [
+        ((30.0, -30.0), (30.0, -30.0), 0.0),
+        ((30.0, -30.0), (70.0, -5.0), 0.0),  # only the first periods differ: symmetric
+        ((30.0, -24.0), (30.0, -24.0), 6.0 / 54.0),
+        ((30.0, -24.0), (-10.0, -60.0), 6.0 / 54.0),
+    ],
+)
+def test_direction_reads_the_steady_steps_not_the_first_period(steady, first, ratio):
+    """Friction asymmetry acts on every period alike; a first period set by the history
+    does not. The direction feature is the steady steps' asymmetry whatever the first
+    periods do and however the samples fall in the periods; the net steps (the steps
+    group) keep the first period."""
+    t, u, segs, x = _stick_slip_pair(steady, first)
+    f = SignatureLayout(t, u, segs, SIGMA).measure(x)
+    np.testing.assert_allclose(_group(f, "direction"), [ratio], atol=1e-3)
+    net = [(first[i] + 11 * steady[i]) / 12 for i in (0, 1)]
+    np.testing.assert_allclose(_group(f, "steps"), net, rtol=0.02)
+
+
 @pytest.mark.parametrize("creep", [0.02, 0.05])
 def test_relaxation_follows_the_move_before_the_hold(proto, creep):
     """Creep: each hold after a burst relaxes by creep × its move (within the windows'

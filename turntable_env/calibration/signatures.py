@@ -17,9 +17,9 @@ group       feature (one per ...)                           effects whose signat
 steps       burst: net step per period, (level early in     (nominal: stroke, friction);
             the next hold − level before) / periods         friction_wear, amplifier_*
 direction   pair of opposite bursts of one setting:         friction_asymmetry (constant per
-            (|s₊| − |s₋|) / (|s₊| + |s₋|)                   setting); friction_wear (the
-                                                            pair's later burst, shrinking
-                                                            with the travel before it)
+            (|s₊| − |s₋|) / (|s₊| + |s₋|) of the steady     setting); friction_wear (the
+            steps: time averages over two blocks of whole   pair's later burst, shrinking
+            periods after the first (net step if < 3)      with the travel before it)
 relaxation  hold ≥ ``MIN_HOLD_S``: late − early level (2    piezo_creep (∝ the move before,
             ms windows, the first after ``SETTLE_S``)       decaying), sensor_drift (∝ time)
 scan        scan: gain over the normalised drive            (nominal: stroke, detector gain)
@@ -34,6 +34,14 @@ line        sine and cosine of the strongest spectral line  vibration
             curvature removed)
 y           slope of the y channel on the x channel         axis_misalignment
 ==========  ==============================================  ==================================
+
+The direction feature reads the steady step, not the net one: the first period of a burst
+starts from the contacts' state in the hold before (after the scan's last direction, or
+after the opposite burst), which differs between the pair's two bursts and which a model
+of another friction law reproduces differently. On the second independent plant's clean
+traces, whose steady steps agree by direction to 0.2 %, the net steps differ by up to
+7.6 % (2 V at 2 kHz); the friction asymmetry the same plant is given shows in the steady
+steps at every setting and in the net steps with the wrong sign at 2 kHz.
 
 The loop is one group with the scan's shape: a group needs more features than a candidate
 has parameters to estimate its own misfit variance (:func:`group_scores`), and one loop
@@ -119,6 +127,15 @@ class Features(NamedTuple):
                         self.value[k], self.noise[k])  # fmt: skip
 
 
+class _Span(NamedTuple):
+    """A time interval [a, b) [s] and the samples inside it (i0 ≤ i < i1)."""
+
+    a: float
+    b: float
+    i0: int
+    i1: int
+
+
 @dataclass(frozen=True, eq=False)
 class _Burst:
     pre: tuple[int, int]  # sample range of the level before
@@ -127,6 +144,11 @@ class _Burst:
     label: str
     direction: int
     setting: tuple[float, float, str]  # amplitude [V], frequency [Hz], flyback
+    # the steady step: two blocks of whole periods after the first, their centres
+    # ``spacing`` periods apart (None: fewer than 3 periods)
+    early: _Span | None = None
+    late: _Span | None = None
+    spacing: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,6 +174,27 @@ def _window(t: np.ndarray, t0: float, t1: float) -> tuple[int, int]:
 
 def _mean(v: np.ndarray, w: tuple[int, int]) -> float:
     return float(np.mean(v[w[0] : w[1]]))
+
+
+def _span(t: np.ndarray, a: float, b: float) -> _Span | None:
+    """The interval [a, b) [s] with its samples; None where fewer than 3 lie inside or it
+    reaches past the record."""
+    i0, i1 = _window(t, a, b)
+    if i1 - i0 < 3 or i0 == 0 or i1 >= t.size:
+        return None
+    return _Span(a, b, i0, i1)
+
+
+def _span_mean(t: np.ndarray, v: np.ndarray, s: _Span) -> float:
+    """Time average of the samples' linear interpolant over exactly [a, b): a window of
+    whole periods then averages the periodic part of stick–slip motion out, whatever the
+    sample rate and phase."""
+    i0, i1 = s.i0, s.i1
+    va = v[i0 - 1] + (v[i0] - v[i0 - 1]) * (s.a - t[i0 - 1]) / (t[i0] - t[i0 - 1])
+    vb = v[i1 - 1] + (v[i1] - v[i1 - 1]) * (s.b - t[i1 - 1]) / (t[i1] - t[i1 - 1])
+    tt = np.concatenate(([s.a], t[i0:i1], [s.b]))
+    vv = np.concatenate(([va], v[i0:i1], [vb]))
+    return float(np.sum(0.5 * (vv[1:] + vv[:-1]) * np.diff(tt)) / (s.b - s.a))
 
 
 class SignatureLayout:
@@ -209,9 +252,21 @@ class SignatureLayout:
                 periods = sum(s.periods for s in run)
                 if pre[1] - pre[0] < 3 or post[1] - post[0] < 3 or periods < 1:
                     continue
+                # the steady step per period: the first period (how the contacts start
+                # from the hold before, which depends on the history) left out, the rest
+                # split into two blocks of L whole periods
+                n_blk = (periods - 1) // 2
+                early = late = None
+                if n_blk >= 1 and s0.frequency > 0.0:
+                    tp = 1.0 / s0.frequency
+                    early = _span(t, s0.start + tp, s0.start + (1 + n_blk) * tp)
+                    late = _span(t, s0.start + (periods - n_blk) * tp, s0.start + periods * tp)
+                    if early is None or late is None:
+                        early = late = None
                 self.bursts.append(
                     _Burst(pre, post, periods, f"{s0.condition} at {s0.start:.3f} s",
-                           s0.direction, (round(s0.amplitude, 1), round(s0.frequency), s0.flyback))
+                           s0.direction, (round(s0.amplitude, 1), round(s0.frequency), s0.flyback),
+                           early, late, periods - 1 - n_blk)
                 )  # fmt: skip
             elif s0.kind == "scan":
                 w = _window(t, s0.start, s1.end)
@@ -331,16 +386,27 @@ class SignatureLayout:
             noise.append(max(sd, 1e-12))
 
         steps, steps_sd = [], []
+        steady, steady_sd = [], []
         for b in self.bursts:
             n1, n2 = b.pre[1] - b.pre[0], b.post[1] - b.post[0]
             steps.append((_mean(v, b.post) - _mean(v, b.pre)) / b.periods)
             steps_sd.append(sig * math.sqrt(1.0 / n1 + 1.0 / n2) / b.periods)
             add(f"step per period, {b.label}", "steps", steps[-1], steps_sd[-1])
-        for i, j in self.pairs:  # (forward, backward): (|s+| − |s−|)/(|s+| + |s−|)
-            sp, sm = steps[i], steps[j]
+            if b.early is None or b.late is None:
+                steady.append(steps[-1])
+                steady_sd.append(steps_sd[-1])
+            else:
+                m1, m2 = b.early.i1 - b.early.i0, b.late.i1 - b.late.i0
+                steady.append((_span_mean(self.time, v, b.late)
+                               - _span_mean(self.time, v, b.early)) / b.spacing)  # fmt: skip
+                steady_sd.append(sig * math.sqrt(1.0 / m1 + 1.0 / m2) / b.spacing)
+        # (forward, backward): (|s+| − |s−|)/(|s+| + |s−|) of the steady steps: asymmetry
+        # acts on every period alike, a first period set by the history does not
+        for i, j in self.pairs:
+            sp, sm = steady[i], steady[j]
             tot = sp - sm
             ratio = (sp + sm) / tot if abs(tot) > 1e-12 else 0.0
-            sd = math.hypot(steps_sd[i], steps_sd[j]) / max(abs(tot), 1e-12)
+            sd = math.hypot(steady_sd[i], steady_sd[j]) / max(abs(tot), 1e-12)
             add(f"direction asymmetry, {self.bursts[i].label} / {self.bursts[j].label}",
                 "direction", ratio, sd)  # fmt: skip
         for h in self.holds:
