@@ -30,7 +30,8 @@ verdict against issue 31's acceptance and the wall time:
 
 The last line counts the rows that pass. ``results.json`` in ``--out`` holds the same
 (rewritten after every row when the traces run one after another), and each file's report
-directory.
+directory; a run into an ``--out`` that already holds a ``results.json`` keeps that file's
+rows of the traces it does not calibrate (a table run in parts, row by row).
 """
 
 from __future__ import annotations
@@ -167,11 +168,19 @@ def main(argv: list[str] | None = None) -> int:
         for name in names
     ]  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
+    try:
+        kept = _other_rows(out / "results.json", set(names))
+    except ValueError as e:
+        ap.error(str(e))
+
+    def save(rows: list[dict]) -> None:  # this run's rows and the other traces' earlier ones
+        write_atomic(out / "results.json", json.dumps(kept + rows, indent=2))
+
     if args.backend is None:  # results.json after every row: an interrupted run keeps its rows
         rows = []
         for job in jobs:
             rows.append(print_row(_calibrate_one(job)))
-            write_atomic(out / "results.json", json.dumps(rows, indent=2))
+            save(rows)
     else:  # the sweep as Ray tasks (or processes), one calibration each, one core each
         for job in jobs:
             job["workers"] = 1
@@ -180,8 +189,23 @@ def main(argv: list[str] | None = None) -> int:
     n_pass = sum(r["pass"] for r in rows)
     print(f"\n{n_pass} of {len(rows)} rows pass ({100.0 * n_pass / max(len(rows), 1):.0f} %); "
           f"wall {sum(r['wall_s'] for r in rows):.0f} s in all")  # fmt: skip
-    write_atomic(out / "results.json", json.dumps(rows, indent=2))
+    save(rows)
     return 0
+
+
+def _other_rows(path: Path, names: set[str]) -> list[dict]:
+    """The rows of ``path`` (an earlier run's results.json in the same ``--out``) for traces
+    this run does not calibrate: a table run in parts keeps every part's rows. ValueError
+    naming the file where it is not a list of rows."""
+    if not path.exists():
+        return []
+    try:
+        rows = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: line {e.lineno} column {e.colno}: {e.msg}") from None
+    if not isinstance(rows, list) or not all(isinstance(r, dict) and "trace" in r for r in rows):
+        raise ValueError(f"{path}: not a list of table rows (each with its 'trace')")
+    return [r for r in rows if r["trace"] not in names]
 
 
 if __name__ == "__main__":
