@@ -39,9 +39,10 @@ The direction feature reads the steady step, not the net one: the first period o
 starts from the contacts' state in the hold before (after the scan's last direction, or
 after the opposite burst), which differs between the pair's two bursts and which a model
 of another friction law reproduces differently. On the second independent plant's clean
-traces, whose steady steps agree by direction to 0.2 %, the net steps differ by up to
+traces, whose steady steps agree by direction to 0.11 %, the net steps differ by up to
 7.6 % (2 V at 2 kHz); the friction asymmetry the same plant is given shows in the steady
-steps at every setting and in the net steps with the wrong sign at 2 kHz.
+steps at every setting and in the net steps with the wrong sign at 2 kHz
+(``python experiments/direction_steps.py``).
 
 The loop is one group with the scan's shape: a group needs more features than a candidate
 has parameters to estimate its own misfit variance (:func:`group_scores`), and one loop
