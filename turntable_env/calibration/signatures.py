@@ -145,11 +145,15 @@ class _Burst:
     label: str
     direction: int
     setting: tuple[float, float, str]  # amplitude [V], frequency [Hz], flyback
-    # the steady step: two blocks of whole periods after the first, their centres
-    # ``spacing`` periods apart (None: fewer than 3 periods)
+    # the steady step: two blocks of whole periods after the first (None: fewer than 3
+    # periods, or a block outside the record)
     early: _Span | None = None
     late: _Span | None = None
-    spacing: int = 0
+
+    @property
+    def spacing(self) -> int:
+        """Periods between the two blocks' centres: P − 1 − ⌊(P − 1)/2⌋."""
+        return self.periods - 1 - (self.periods - 1) // 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -267,7 +271,7 @@ class SignatureLayout:
                 self.bursts.append(
                     _Burst(pre, post, periods, f"{s0.condition} at {s0.start:.3f} s",
                            s0.direction, (round(s0.amplitude, 1), round(s0.frequency), s0.flyback),
-                           early, late, periods - 1 - n_blk)
+                           early, late)
                 )  # fmt: skip
             elif s0.kind == "scan":
                 w = _window(t, s0.start, s1.end)
