@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from turntable_env.calibration.identify import (
     SIGNIFICANT_NATS,
@@ -21,7 +23,12 @@ from turntable_env.calibration.identify import (
     supports,
 )
 from turntable_env.calibration.segments import Segment
-from turntable_env.calibration.signatures import Features, SignatureLayout, group_scores
+from turntable_env.calibration.signatures import (
+    Features,
+    SignatureLayout,
+    group_scores,
+    misfit_variance,
+)
 
 FS = 20e3  # Hz
 SIGMA = 2.0  # nm of white detector noise
@@ -218,6 +225,73 @@ def test_group_scores_is_an_f_test():
     s = group_scores(data, off, half)["steps"]
     assert s["scale"] == pytest.approx(5 * 2.25 / 4)
     assert s["delta"] == pytest.approx((45.0 - 11.25) / (11.25 / 4))
+
+
+@pytest.mark.parametrize(
+    ("alpha", "rests"),
+    [
+        (-0.040, False),  # one asymmetry explains every pair alike
+        (-0.0201, True),  # fitted to the quietest pair only
+    ],
+)
+def test_direction_pairs_weigh_alike(alpha, rests):
+    """Five direction pairs leaning one way (−2.0 … −6.2 %), the first with a tenth of the
+    others' noise (the most periods averaged). A model of another structure misses each
+    setting by a similar amount whatever its noise, so the misfit is a variance common to
+    the pairs (Paule–Mandel τ²), not a factor on each pair's noise: a constant asymmetry
+    that explains all five alike is significant, also with any one pair left out, and one
+    that explains only the quiet pair is not. With a factor it was the other way round
+    (0.4 nats against 29.1, resting on the quiet pair): the second independent plant's
+    30 % friction asymmetry at stop 61, 6.0 nats and 3.6 without its strongest pair."""
+    names = tuple(f"pair {k}" for k in range(5))
+    groups = ("direction",) * 5
+    sd = np.array([1e-4, 1e-3, 1e-3, 1e-3, 1e-3])
+    data = Features(names, groups, np.array([-0.020, -0.030, -0.040, -0.050, -0.062]), sd)
+    current = data._replace(value=np.zeros(5))
+    cand = data._replace(value=np.full(5, alpha))
+    s = group_scores(data, current, cand)["direction"]
+    # the estimator's equation: the richer model's residuals are χ² with n − 1 dof
+    assert s["misfit_sd"] > 0 and s["rss_b"] == pytest.approx(4.0)
+    loo, _ = leave_one_out(data, current, cand, ("direction",))
+    if rests:
+        assert min(s["nats"], loo) < SIGNIFICANT_NATS
+    else:
+        assert s["nats"] > SIGNIFICANT_NATS and loo > SIGNIFICANT_NATS
+
+
+@pytest.mark.parametrize(
+    ("residual", "noise", "dof", "tau2"),
+    [
+        ([0.5, -1.0, 0.8], [1.0, 1.0, 1.0], 2, 0.0),  # the noise explains them
+        ([3.0, -4.0, 5.0], [1.0, 1.0, 1.0], 2, 50.0 / 2 - 1.0),  # equal noise: Σr²/dof − σ²
+        ([3.0, -4.0, 5.0, 1.0], [2.0, 2.0, 2.0, 2.0], 3, 51.0 / 3 - 4.0),
+    ],
+)
+def test_misfit_variance_closed_forms(residual, noise, dof, tau2):
+    assert misfit_variance(np.array(residual), np.array(noise), dof) == pytest.approx(tau2)
+
+
+def test_misfit_variance_needs_a_degree_of_freedom():
+    with pytest.raises(ValueError, match="dof must be ≥ 1, got 0"):
+        misfit_variance(np.ones(2), np.ones(2), 0)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(st.floats(-1e3, 1e3), min_size=2, max_size=12),
+    st.floats(1e-3, 10.0),
+    st.integers(1, 3),
+)
+def test_misfit_variance_solves_its_equation(residual, noise_scale, drop):
+    r = np.array(residual)
+    sd = noise_scale * (1.0 + np.arange(r.size) % 3)
+    dof = max(1, r.size - drop)
+    tau2 = misfit_variance(r, sd, dof)
+    q = float(np.sum(r**2 / (sd**2 + tau2)))
+    if tau2 > 0:
+        assert q == pytest.approx(dof, rel=1e-8)
+    else:
+        assert q <= dof * (1 + 1e-12)
 
 
 @pytest.mark.parametrize(

@@ -47,7 +47,15 @@ import numpy as np
 import scipy.optimize
 
 from ..effects import CATALOGUE
-from .signatures import EFFECT_GROUPS, SIGNATURE_GROUPS, Features, SignatureLayout, group_scores
+from .signatures import (
+    EFFECT_GROUPS,
+    REPEATED_GROUPS,
+    SIGNATURE_GROUPS,
+    Features,
+    SignatureLayout,
+    group_scores,
+    misfit_variance,
+)
 
 __all__ = [
     "JACKKNIFE_GROUPS",
@@ -79,7 +87,7 @@ JACKKNIFE_MIN = 3  # features a group needs for its leave-one-out check
 # changes every setting's ratio). Not the scan shapes (a detector's cubic shows in the
 # widest scan), the holds (creep follows the move before each) or the steps (an amplifier
 # effect shows in the fastest bursts).
-JACKKNIFE_GROUPS = ("direction",)
+JACKKNIFE_GROUPS = REPEATED_GROUPS
 # the parameter profiled (else an effect's first)
 MAIN_PARAMETER = {"sensor_drift": "rate", "vibration": "amplitude"}
 # held at their start: the line's frequency (found by the line search), the drift's offset
@@ -316,14 +324,7 @@ class SignatureSearch:
         base = self.features(x, effects) if model is None else model
         d = self.data
         declared = EFFECT_GROUPS.get(name, ())
-        weights = {}
-        for g in set(d.groups):
-            mk = d.group(g)
-            z = (d.value[mk] - base.value[mk]) / d.noise[mk]
-            weights[g] = max(1.0, float(z @ z) / max(int(mk.sum()), 1))
-        # the objective: the declared groups only (a candidate is fitted to its signature;
-        # what it does elsewhere is reported, and the joint trace refit settles the rest)
-        w = np.array([weights[g] if g in declared else np.inf for g in d.groups])
+        w = self._weights(base, declared)
 
         def objective(vals: Mapping[str, float]) -> float:
             try:
@@ -387,6 +388,27 @@ class SignatureSearch:
             bool(ok and min(gain, loo) >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
             "; ".join(notes), float(size), float(loo), weakest,
         )  # fmt: skip
+
+    def _weights(self, base: Features, declared: Sequence[str]) -> np.ndarray:
+        """Per feature the factor on its noise variance in a candidate's objective: the
+        current model's misfit per feature of its group (at least 1), so no group
+        dominates by its count; in a group of :data:`~.signatures.REPEATED_GROUPS` with
+        :data:`JACKKNIFE_MIN` features, (σ² + τ²)/σ² with τ² the current model's common
+        misfit variance (:func:`~.signatures.misfit_variance`), so the settings weigh alike
+        as in :func:`~.signatures.group_scores`; inf outside the ``declared`` groups (a
+        candidate is fitted to its signature; what it does elsewhere is reported, and the
+        joint trace refit settles the rest)."""
+        d = self.data
+        w = np.full(len(d.groups), np.inf)
+        for g in set(d.groups) & set(declared):
+            mk = d.group(g)
+            n = int(mk.sum())
+            r, sd = d.value[mk] - base.value[mk], d.noise[mk]
+            if g in REPEATED_GROUPS and n >= JACKKNIFE_MIN:
+                w[mk] = 1.0 + misfit_variance(r, sd, n) / sd**2
+            else:
+                w[mk] = max(1.0, float(np.sum((r / sd) ** 2)) / n)
+        return w
 
     def _effect_size(self, x: np.ndarray, without: Effects, with_: Effects) -> float:
         """How much a candidate changes the predicted detector channels: the largest RMS

@@ -57,7 +57,13 @@ them is compensated by the joint refit; decisions are scored on the others
 :func:`group_scores` compares two models' features as a nested-model test per group:
 the whitened residuals' sum of squares, with the variance inflated to the richer model's
 misfit per degree of freedom where the group has enough features (an F-test: an effect
-must explain a share of the misfit beyond what any free parameter would).
+must explain a share of the misfit beyond what any free parameter would). In a group of
+one quantity repeated over the protocol's settings (:data:`REPEATED_GROUPS`: the direction
+pairs) the misfit is a common variance τ² added to each feature's noise variance
+(:func:`misfit_variance`, the Paule–Mandel random-effects estimator of meta-analysis), not
+a factor on it: the misfit of a model of another structure is of one size at every setting,
+where the detector noise of a steady step falls with the samples averaged, so a factor
+would weigh the pair with most samples many times the others and a gain would rest on it.
 """
 
 from __future__ import annotations
@@ -67,6 +73,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import scipy.optimize
 
 from .segments import Segment
 
@@ -74,10 +81,12 @@ __all__ = [
     "EFFECT_GROUPS",
     "GROUPS",
     "NOMINAL_GROUPS",
+    "REPEATED_GROUPS",
     "SIGNATURE_GROUPS",
     "Features",
     "SignatureLayout",
     "group_scores",
+    "misfit_variance",
 ]
 
 SETTLE_S = 2e-3  # s skipped at a hold's start (the ring after a flyback)
@@ -87,6 +96,9 @@ LINE_FMIN_HZ = 5.0  # Hz, lowest line searched (below: trends)
 LINE_FMAX_HZ = 1000.0  # Hz, highest (the catalogue's vibration range)
 LINE_MIN_PERIODS = 0.2  # periods of the lowest line searched in the median hold
 GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "line", "y")
+# the groups of one quantity repeated over the protocol's settings (one unit, one misfit
+# size): a model's misfit there is a variance common to every feature (:func:`group_scores`)
+REPEATED_GROUPS = ("direction",)
 # the groups no effect is needed for: the nominal model's own (stroke, friction, gain)
 NOMINAL_GROUPS = ("steps", "scan")
 # the groups an effect's signature lies in: decisions are scored on these
@@ -459,6 +471,24 @@ class SignatureLayout:
         return Features(tuple(names), tuple(groups), np.array(vals), np.array(noise))
 
 
+def misfit_variance(residual: np.ndarray, noise: np.ndarray, dof: int) -> float:
+    """The common misfit variance τ² ≥ 0 [feature unit²] of residuals with noise standard
+    deviations ``noise``: the root of Σ r²/(σ² + τ²) = ``dof`` (the Paule–Mandel
+    random-effects estimator; DerSimonian & Kacker 2007), 0 when the noise alone explains
+    them (Σ r²/σ² ≤ dof). ValueError for dof < 1."""
+    if dof < 1:
+        raise ValueError(f"misfit_variance: dof must be ≥ 1, got {dof}")
+    r2, s2 = np.asarray(residual, float) ** 2, np.asarray(noise, float) ** 2
+    if not float(np.sum(r2 / s2)) > dof:
+        return 0.0
+    hi = float(np.sum(r2)) / dof  # Σ r²/(σ² + hi) < Σ r²/hi = dof: the root is below
+
+    def excess(tau2: float) -> float:
+        return float(np.sum(r2 / (s2 + tau2))) - dof
+
+    return float(scipy.optimize.brentq(excess, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12))
+
+
 def group_scores(
     data: Features, model_a: Features, model_b: Features, n_free: int = 1
 ) -> dict[str, dict[str, float]]:
@@ -467,19 +497,28 @@ def group_scores(
     Whitened residuals z = (data − model)/noise; RSS_a, RSS_b; the variance scale
     s² = max(1, RSS_b/(n − n_free)) when the group has at least
     ``n_free`` + 3 features, else 1 (an F-test's variance from the richer model: a group
-    both models miss by far is judged by that misfit, not by the detector noise); ``delta`` =
-    (RSS_a − RSS_b)/s² (χ² with ``n_free`` degrees of freedom under "b adds nothing") and
-    ``nats`` = delta/2."""
+    both models miss by far is judged by that misfit, not by the detector noise); in a
+    group of :data:`REPEATED_GROUPS` with that many features the residuals are whitened
+    by √(noise² + τ²) instead, τ² the richer model's common misfit variance
+    (:func:`misfit_variance` with n − n_free degrees of freedom; ``misfit_sd`` = τ), and
+    s² = 1; ``delta`` = (RSS_a − RSS_b)/s² (χ² with ``n_free`` degrees of freedom under
+    "b adds nothing") and ``nats`` = delta/2."""
     out = {}
     for g in GROUPS:
         m = data.group(g)
         n = int(m.sum())
         if n == 0:
             continue
-        za = (data.value[m] - model_a.value[m]) / data.noise[m]
-        zb = (data.value[m] - model_b.value[m]) / data.noise[m]
+        enough = n >= n_free + 3
+        sd = data.noise[m]
+        tau2 = 0.0
+        if enough and g in REPEATED_GROUPS:
+            tau2 = misfit_variance(data.value[m] - model_b.value[m], sd, n - n_free)
+            sd = np.sqrt(sd**2 + tau2)
+        za = (data.value[m] - model_a.value[m]) / sd
+        zb = (data.value[m] - model_b.value[m]) / sd
         ra, rb = float(za @ za), float(zb @ zb)
-        s2 = max(1.0, rb / (n - n_free)) if n >= n_free + 3 else 1.0
-        out[g] = {"n": n, "rss_a": ra, "rss_b": rb, "scale": s2,
+        s2 = max(1.0, rb / (n - n_free)) if enough and g not in REPEATED_GROUPS else 1.0
+        out[g] = {"n": n, "rss_a": ra, "rss_b": rb, "scale": s2, "misfit_sd": math.sqrt(tau2),
                   "delta": (ra - rb) / s2, "nats": 0.5 * (ra - rb) / s2}  # fmt: skip
     return out
