@@ -9,7 +9,9 @@ effects already named):
 2. **A profile** of its main parameter over its whole range (its neutral value and
    1 %…100 % of the way to each end, :func:`_profile_grid`), the objective being the
    features' misfit Σ_g RSS_g / w_g (whitened by the detector noise, each group weighted
-   by the current model's misfit per feature, so no group dominates by its count).
+   by the current model's misfit per feature, so no group dominates by its count; the
+   direction pairs by the noise plus the current model's common misfit variance, so the
+   settings weigh alike, as in :func:`~.signatures.group_scores`).
 3. **A bounded Powell search** (:func:`scipy.optimize.minimize`) over all its parameters
    from the profile's best point, in range-normalised coordinates.
 4. **Scores**: :func:`~.signatures.group_scores` against the current model per feature
