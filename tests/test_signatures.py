@@ -241,7 +241,8 @@ def test_direction_pairs_weigh_alike(alpha, rests):
     the pairs (Paule–Mandel τ²), not a factor on each pair's noise: a constant asymmetry
     that explains all five alike is significant, also with any one pair left out, and one
     that explains only the quiet pair is not. With a factor it was the other way round
-    (0.4 nats against 29.1, resting on the quiet pair): the second independent plant's
+    (0.4 nats against 29.1, resting on the quiet pair; ``python experiments/
+    direction_weights.py``): the second independent plant's
     30 % friction asymmetry at stop 61, 6.0 nats and 3.6 without its strongest pair."""
     names = tuple(f"pair {k}" for k in range(5))
     groups = ("direction",) * 5
