@@ -138,3 +138,22 @@ def test_the_nominal_stages_finding_leads_the_selected_effects_and_the_history()
     assert out[2]["decided_by"] == "signature" and history[1]["effects"] == ["piezo_creep"]
     # one decided_by per selected effect, as the tables read them
     assert len([h for h in out[1:] if "decided_by" in h]) == len(selected)
+
+
+def test_the_start_spread_names_the_fitted_parameters_not_the_full_list():
+    """A fit that frees fewer parameters than TRACE_NOMINAL (the amplifier profile's
+    points) reports each start's factors under its own model's names: until stop 63 the
+    report zipped them with TRACE_NOMINAL and every profile point ended in a ValueError."""
+    from turntable_env.calibration.trace_fit import _start_spread
+
+    names = tuple(n for n in TRACE_NOMINAL if n not in AMPLIFIER_SCALES)
+    fits = [LocalFit(x=np.full(len(names), math.log(f)), effects={},
+                     std_x=np.full(len(names), 0.1), std_effects={}, cost=c,
+                     heldout_rms=1.0, fit_rms=1.0, nfev=0, corr=np.zeros((0, 0)))
+            for f, c in ((1.0, 2.0), (1.5, 1.0))]  # fmt: skip
+    spread = _start_spread(names, fits, fits[1])
+    assert [set(r["factors"]) for r in spread["fits"]] == [set(names)] * 2
+    assert spread["fits"][0]["factors"]["stroke"] == pytest.approx(1.0)
+    # ln 1.5 over σ 0.1 on every parameter: 4.05 σ apart, and costs 2 against 1
+    assert spread["fits"][0]["max_distance_sigma"] == pytest.approx(math.log(1.5) / 0.1)
+    assert spread["agreeing"] == 1 and spread["total"] == 2

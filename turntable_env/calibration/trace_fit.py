@@ -1068,7 +1068,8 @@ def _fit_nominal(
         nominal = local_fit(problem, best.x, {}, max_nfev=10)
     if nominal.heldout_rms > best.heldout_rms:
         nominal = replace(best, std_x=nominal.std_x, corr=nominal.corr)
-    spread = {**_start_spread(fits, nominal), "hops": hop_rows, "second": second}
+    spread = {**_start_spread(problem.model.names, fits, nominal), "hops": hop_rows,
+              "second": second}
     say(f"nominal model: held-out error {nominal.heldout_rms:.3g} {ERROR_UNIT}")
     return nominal, spread
 
@@ -1630,9 +1631,12 @@ def _at_bounds_effect(fit: LocalFit, name: str) -> list[str]:
     return out
 
 
-def _start_spread(fits: list[LocalFit], final: LocalFit) -> dict[str, Any]:
+def _start_spread(
+    names: Sequence[str], fits: list[LocalFit], final: LocalFit
+) -> dict[str, Any]:
     """The local fits' optima side by side: cost, held-out error, and whether they reach
-    the same optimum (within 2 standard errors on every parameter, or the same cost)."""
+    the same optimum (within 2 standard errors on every parameter, or the same cost);
+    ``names``: the fitted model's parameters, the order of each fit's x."""
     rows = []
     for f in fits:
         dz = np.abs(f.x - final.x) / np.maximum(final.std_x, 1e-6)
@@ -1641,7 +1645,7 @@ def _start_spread(fits: list[LocalFit], final: LocalFit) -> dict[str, Any]:
                 "cost": f.cost,
                 "heldout_rms": f.heldout_rms,
                 "max_distance_sigma": float(np.max(dz)),
-                "factors": {k: float(v) for k, v in zip(TRACE_NOMINAL, np.exp(f.x), strict=True)},
+                "factors": {k: float(v) for k, v in zip(names, np.exp(f.x), strict=True)},
             }
         )
     best = min(r["cost"] for r in rows)
