@@ -33,6 +33,7 @@ class _Model:
     """A nominal model stand-in: prior σ 1 and bounds ±5 on every ln-factor."""
 
     sigma, low, high = np.ones(N), np.full(N, -5.0), np.full(N, 5.0)
+    names = tuple(f"x{k}" for k in range(N))
 
     def __len__(self) -> int:
         return N
