@@ -2,13 +2,22 @@
 the signature decisions, what a stricter significance level would have named, and whose
 mode a ring after the flybacks is.
 
-    python experiments/table_reports.py DIR [DIR ...] [--rows | --compare OLD_DIR ...]
+    python experiments/table_reports.py DIR [DIR ...] [--rows | --margins | --compare OLD_DIR ...]
 
 ``--rows`` prints the table's rows instead, one per trace, from every DIR's
 ``results.json`` (a later DIR's row replaces an earlier one's for the same trace: a
 table run in parts, or rows re-run), with the count of rows that pass.
 ``--compare OLD_DIR ...`` prints the rows the DIRs and the earlier runs share side by
 side: nominal and final held-out error, the effects named and the verdict, old → new.
+
+``--margins`` prints, per round of every trace, how far each rule of the signature route
+was from deciding otherwise (a decision has a margin): for the effect a round names, its
+margin on every rule it passed; for a round that names nothing, the nearest candidate's
+shortfall on the rules that kept it out (:func:`margins`). A margin is *thin* within
+:data:`THIN`'s reach of its bar (3 nats, a factor 2 on the trace-size ratio, one unit of
+z, 10 % of the error target: the first two are the largest shifts two changes of the
+nominal fit have moved the same rows' margins by); the last lines count the passing
+traces whose verdict rests on a thin margin and list the failing ones.
 
 Each DIR is an ``--out`` directory of ``experiments/independent_calibration.py`` (its
 ``results.json`` and one report directory per trace). For every round of every trace it
@@ -46,7 +55,8 @@ from pathlib import Path
 
 from scipy.stats import chi2
 
-from turntable_env.calibration.identify import SIGNIFICANT_NATS, free_parameters
+from turntable_env.calibration.identify import SIGNIFICANT_NATS, TIE_NATS, free_parameters
+from turntable_env.calibration.trace_fit import Z_TRACE
 
 P_3SIGMA = 0.0027  # two-sided 3σ
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
@@ -84,6 +94,121 @@ def rounds(report: dict) -> list[dict]:
             "rejected": dec.get("rejected", ""),
         })  # fmt: skip
     return out
+
+
+# how near its bar a margin is thin: nats, a factor on the trace-size ratio, z units,
+# share of the error target. The nats and the factor are the largest shifts two changes
+# of the nominal fit moved the same rows' margins by (stop 63's split by direction and
+# stop 64's anchor, second plant): the friction asymmetry's leave-one-out gain 5.5 → 2.6
+# nats, contact wear's 6.6 → 3.8, the clean trace's hysteresis 0.65 → 1.12× the floor
+THIN = {"nats": 3.0, "size": 2.0, "z": 1.0, "error": 0.10}
+RULE_NATS = ("own", "loo", "all")  # the significance rules, each ≥ SIGNIFICANT_NATS
+
+
+def _rule_margins(c: dict) -> dict[str, float]:
+    """A candidate's margin on each signature rule (identify.CandidateFit): own groups,
+    leave-one-out (only where a direction pair was left out), all signature groups [nats
+    above SIGNIFICANT_NATS], and the trace-size ratio's excess over 1 [-]."""
+    own, tot = c["declared_nats"], c["total_nats"]
+    loo = c.get("declared_nats_leave_one_out", own)
+    out = {"own": own - SIGNIFICANT_NATS, "all": tot - SIGNIFICANT_NATS,
+           "size": c.get("size_over_floor", math.nan) - 1.0}  # fmt: skip
+    if loo is not None and not math.isnan(loo) and loo != own:
+        out["loo"] = loo - SIGNIFICANT_NATS
+    return out
+
+
+def _thin(m: dict[str, float], role: str) -> list[str]:
+    """The rules the round's verdict rests on whose margin lies within THIN of its bar: a
+    named effect's passed rules; a rejected one's trace verdict (z); for the nearest
+    unnamed candidate the rules it failed, only when it failed every one of them within
+    THIN (a candidate far below one bar is out whatever the others say)."""
+    unit = {"z": "z", "lead": "nats", **{r: "nats" for r in RULE_NATS}}
+    near = {r: abs(v) < THIN[unit[r]] for r, v in m.items() if r in unit}
+    if "size" in m and m["size"] > -1.0:  # the ratio within a factor THIN["size"] of 1
+        near["size"] = abs(math.log(m["size"] + 1.0)) < math.log(THIN["size"])
+    if role == "named":
+        return [r for r in near if near[r]]
+    if role == "rejected":
+        return ["z"] if near.get("z") else []
+    failed = [r for r, v in m.items() if r in near and v < 0.0]
+    return failed if failed and all(near[r] for r in failed) else []
+
+
+def margins(report: dict) -> list[dict]:
+    """Per round of the signature route: the candidate the round turns on and its margin on
+    each rule — the named effect's on the rules it passed (and the trace's verdict, z
+    against −Z_TRACE in the first round, +Z_TRACE after), or, where nothing is named, the
+    nearest candidate (most rules passed, then the largest least nat margin; not one whose
+    best fit is its neutral value) with its shortfall on the rules that kept it out."""
+    out = []
+    for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
+        k = rnd.get("round", len(out) + 1)
+        cands = [c for c in rnd["candidates"] if c.get("total_nats") is not None
+                 and not c.get("at_neutral") and not math.isnan(c.get("objective", math.nan))]
+        if not cands:
+            continue
+        dec = rnd["decision"]
+        named = dec.get("named")
+        if named:
+            c = next(c for c in cands if c["effect"] == named)
+            m = _rule_margins(c)
+            if math.isfinite(dec.get("margin_nats", math.inf)):
+                m["lead"] = dec["margin_nats"] - TIE_NATS
+            test = rnd.get("trace_test")
+            if test:
+                m["z"] = test["z"] - (-Z_TRACE if k == 1 else Z_TRACE)
+            role = "rejected" if dec.get("rejected") else "named"
+        else:
+            def closeness(c: dict) -> tuple[int, float]:
+                rm = _rule_margins(c)
+                return (sum(v >= 0 for v in rm.values()),
+                        min(v for r, v in rm.items() if r in RULE_NATS))  # fmt: skip
+            c = max(cands, key=closeness)
+            m, role = _rule_margins(c), "nearest"
+        out.append({"round": k, "effect": c["effect"], "role": role, "margins": m,
+                    "thin": _thin(m, role)})  # fmt: skip
+    return out
+
+
+def _fmt(m: dict[str, float], r: str) -> str:
+    if r not in m:
+        return "—"
+    return f"{m[r] + 1.0:.2f}×" if r == "size" else f"{m[r]:+.2f}"
+
+
+def _margins(dirs: list[Path]) -> int:
+    print("| trace | round | candidate | role | own | leave-one-out | all | size/floor | "
+          "lead | trace z | thin |")  # fmt: skip
+    print("|---|---:|---|---|---:|---:|---:|---:|---:|---:|---|")
+    thin_rows, n, failing = [], 0, []
+    for label, row, rep in _reports(dirs):
+        if not row["pass"]:
+            failing.append(f"{label} (after/target {row['after_nm'] / row['target_nm']:.2f})")
+        n += bool(row["pass"])
+        err = row["after_nm"] / row["target_nm"] - 1.0  # < 0: within the target
+        rows = margins(rep)
+        thin = sorted({f"round {r['round']} {t}" for r in rows for t in r["thin"]})
+        if abs(err) < THIN["error"]:
+            thin.append("error")
+        if thin and row["pass"]:
+            thin_rows.append(label)
+        for r in rows:
+            m = r["margins"]
+            cells = " | ".join(_fmt(m, x) for x in ("own", "loo", "all", "size", "lead", "z"))
+            print(f"| {label} | {r['round']} | {r['effect']} | {r['role']} | {cells} | "
+                  f"{', '.join(r['thin']) or '—'} |")  # fmt: skip
+        print(f"| {label} | error | after/target {row['after_nm'] / row['target_nm']:.2f} | "
+              f"{'passes' if row['pass'] else 'fails'} | | | | | | | "
+              f"{'error' if abs(err) < THIN['error'] else '—'} |")  # fmt: skip
+    print(f"\nnats above {SIGNIFICANT_NATS} (own, leave-one-out, all), the trace-size ratio, "
+          f"the lead above {TIE_NATS} nats, z beyond the trace's bar; thin: within "
+          f"{THIN['nats']:g} nats, a factor {THIN['size']:g} of the size floor, "
+          f"{THIN['z']:g} z, {THIN['error']:.0%} of the target")  # fmt: skip
+    print(f"{len(thin_rows)} of {n} passing traces rest on a thin margin: "
+          f"{', '.join(thin_rows) or 'none'}")  # fmt: skip
+    print(f"failing: {', '.join(failing) or 'none'}")
+    return 0
 
 
 def passes(r: dict, level: float) -> bool:
@@ -182,6 +307,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rows", action="store_true", help="print the merged table's rows")
     ap.add_argument("--compare", nargs="+", type=Path, default=None, metavar="OLD_DIR",
                     help="print the DIRs' rows beside these earlier runs' (merged alike)")
+    ap.add_argument("--margins", action="store_true",
+                    help="per round, each rule's margin: the named effect's, or the nearest "
+                    "unnamed candidate's shortfall")
     ap.add_argument("--unseen", action="store_true",
                     help="per trace, the candidates without their signature's backing that "
                     "the trace error may still name (they leave at most half the structure)")
@@ -193,6 +321,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     if args.unseen:
         return _unseen(args.dirs)
+    if args.margins:
+        return _margins(args.dirs)
     if args.compare:
         return _compare(args.compare, args.dirs)
     if args.rows:

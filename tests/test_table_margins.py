@@ -1,0 +1,89 @@
+"""experiments/table_reports.py --margins: how far each signature rule was from deciding a
+round otherwise (a decision has a margin). The rules are identify's: ≥ SIGNIFICANT_NATS on
+a candidate's own groups, with its strongest direction pair left out and over all
+signature groups, a trace change of at least the noise floor, a lead of TIE_NATS over the
+runner-up, and the trace's verdict (z > −Z_TRACE in the first round, z ≥ Z_TRACE after)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from conftest import experiment
+
+from turntable_env.calibration.identify import SIGNIFICANT_NATS, TIE_NATS
+from turntable_env.calibration.trace_fit import Z_TRACE
+
+
+def _cand(effect, own, total, size, loo=None, at_neutral=False):
+    return {"effect": effect, "declared_nats": own, "total_nats": total,
+            "declared_nats_leave_one_out": own if loo is None else loo,
+            "size_over_floor": size, "at_neutral": at_neutral, "objective": 1.0}  # fmt: skip
+
+
+def _report(*rounds):
+    return {"diagnosis": {"signatures": {"rounds": list(rounds)}}}
+
+
+@pytest.fixture(scope="module")
+def tr():
+    return experiment("table_reports")
+
+
+def test_a_named_effect_carries_its_margin_on_every_rule_it_passed(tr):
+    named = _cand("friction_asymmetry", 9.24, 9.3, 111.0, loo=5.52)
+    rnd = {"round": 1, "candidates": [named, _cand("friction_wear", 1.0, 1.0, 3.0)],
+           "decision": {"named": "friction_asymmetry", "margin_nats": 8.0},
+           "trace_test": {"z": 3.76}}  # fmt: skip
+    (r,) = tr.margins(_report(rnd))
+    m = r["margins"]
+    assert r["role"] == "named" and r["effect"] == "friction_asymmetry"
+    assert m["own"] == pytest.approx(9.24 - SIGNIFICANT_NATS)
+    assert m["loo"] == pytest.approx(5.52 - SIGNIFICANT_NATS)
+    assert m["lead"] == pytest.approx(8.0 - TIE_NATS)
+    assert m["z"] == pytest.approx(3.76 + Z_TRACE)  # against −Z_TRACE in the first round
+    # 1.02 nats above the leave-one-out bar is within THIN of it: the verdict is thin there
+    assert r["thin"] == ["loo"]
+
+
+def test_a_later_round_is_judged_against_the_positive_trace_bar(tr):
+    rnd = {"round": 2, "candidates": [_cand("piezo_hysteresis", 24.1, 17.7, 53.0)],
+           "decision": {"named": "piezo_hysteresis", "margin_nats": math.inf,
+                        "rejected": "needs 5% and z ≥ 2"},
+           "trace_test": {"z": 0.33}}  # fmt: skip
+    (r,) = tr.margins(_report(rnd))
+    assert r["role"] == "rejected"
+    assert r["margins"]["z"] == pytest.approx(0.33 - Z_TRACE)
+    assert "lead" not in r["margins"]  # no runner-up: no lead to report
+    assert r["thin"] == []  # rejected 1.67 z below its bar: not thin
+
+
+@pytest.mark.parametrize(
+    ("size", "own", "thin"),
+    [
+        (0.65, 6.0, ["size"]),  # kept out by the trace-size rule alone, within a factor 2
+        (0.3, 6.0, []),  # … far below it
+        (2.0, 3.0, ["own", "all"]),  # short of significance by 1.5 nats on every rule
+        (2.0, 0.2, []),  # 4.3 nats short: out whatever the other rules say
+    ],
+)
+def test_the_nearest_unnamed_candidate_is_thin_only_where_every_failed_rule_was_close(
+    tr, size, own, thin
+):
+    rnd = {"round": 1, "decision": {"named": None, "margin_nats": 0.0},
+           "candidates": [_cand("piezo_hysteresis", own, own, size),
+                          _cand("friction_wear", -1.0, -1.0, 5.0),
+                          _cand("sensor_drift", 50.0, 50.0, 9.0, at_neutral=True)]}  # fmt: skip
+    (r,) = tr.margins(_report(rnd))
+    # the candidate best at its neutral value is never the one a round turns on
+    assert r["role"] == "nearest" and r["effect"] == "piezo_hysteresis"
+    assert r["thin"] == thin
+
+
+def test_a_rejection_by_the_trace_near_its_bar_is_thin(tr):
+    rnd = {"round": 1, "candidates": [_cand("piezo_hysteresis", 44.1, 43.2, 120.0)],
+           "decision": {"named": "piezo_hysteresis", "margin_nats": math.inf,
+                        "rejected": "the trace contradicts its signature"},
+           "trace_test": {"z": -2.59}}  # fmt: skip
+    (r,) = tr.margins(_report(rnd))
+    assert r["margins"]["z"] == pytest.approx(-2.59 + Z_TRACE) and r["thin"] == ["z"]
