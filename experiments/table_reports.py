@@ -26,8 +26,9 @@ freedom (the parameters its search moves, :func:`~turntable_env.calibration.iden
 free_parameters`), its gain over the signature groups and on its own groups [nats], its
 lead over the runner-up, the candidates searched in the round, and whether it would pass:
 
-* ``now``: the rule in force, ≥ ``SIGNIFICANT_NATS`` on both (χ² 9, 3σ for one degree
-  of freedom);
+* ``now``: the rule the report applied: ≥ its ``significance_nats`` on both (since stop 64
+  the 3σ level of its own degrees of freedom, as ``k``; before, ``SIGNIFICANT_NATS``, χ² 9,
+  3σ for one degree of freedom, for every candidate);
 * ``k``: the χ² quantile of its own degrees of freedom at the 3σ level (p = 0.0027);
 * ``k, m``: the same with Bonferroni's correction over the m candidates searched in the
   round (p = 0.0027/m) — the family-wise level of a round that picks the best of m.
@@ -55,16 +56,20 @@ from pathlib import Path
 
 from scipy.stats import chi2
 
-from turntable_env.calibration.identify import SIGNIFICANT_NATS, TIE_NATS, free_parameters
+from turntable_env.calibration.identify import (
+    P_SIGNIFICANT,
+    SIGNIFICANT_NATS,
+    TIE_NATS,
+    free_parameters,
+)
 from turntable_env.calibration.trace_fit import Z_TRACE
 
-P_3SIGMA = 0.0027  # two-sided 3σ
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
 
 
 def level_nats(k: int, m: int = 1) -> float:
-    """Half the χ²_k quantile at p = 0.0027/m [nats]."""
-    return 0.5 * float(chi2.ppf(1.0 - P_3SIGMA / m, k))
+    """Half the χ²_k quantile at p = P_SIGNIFICANT/m [nats] (m = 1: ``significance_nats``)."""
+    return 0.5 * float(chi2.isf(P_SIGNIFICANT / m, k))
 
 
 def rounds(report: dict) -> list[dict]:
@@ -88,6 +93,7 @@ def rounds(report: dict) -> list[dict]:
             "declared": lead["declared_nats"],
             "size": lead.get("size_over_floor", math.nan),
             "significant": lead["significant"],
+            "level": lead.get("significance_nats", SIGNIFICANT_NATS),
             "lead": lead["total_nats"] - max(others) if others else math.inf,
             "m": len(searched),
             "named": dec.get("named"),
@@ -102,19 +108,21 @@ def rounds(report: dict) -> list[dict]:
 # stop 64's anchor, second plant): the friction asymmetry's leave-one-out gain 5.5 → 2.6
 # nats, contact wear's 6.6 → 3.8, the clean trace's hysteresis 0.65 → 1.12× the floor
 THIN = {"nats": 3.0, "size": 2.0, "z": 1.0, "error": 0.10}
-RULE_NATS = ("own", "loo", "all")  # the significance rules, each ≥ SIGNIFICANT_NATS
+RULE_NATS = ("own", "loo", "all")  # the significance rules, each ≥ the candidate's level
 
 
 def _rule_margins(c: dict) -> dict[str, float]:
     """A candidate's margin on each signature rule (identify.CandidateFit): own groups,
     leave-one-out (only where a direction pair was left out), all signature groups [nats
-    above SIGNIFICANT_NATS], and the trace-size ratio's excess over 1 [-]."""
+    above the level its report applied: ``significance_nats``, SIGNIFICANT_NATS in a report
+    made before stop 64], and the trace-size ratio's excess over 1 [-]."""
     own, tot = c["declared_nats"], c["total_nats"]
     loo = c.get("declared_nats_leave_one_out", own)
-    out = {"own": own - SIGNIFICANT_NATS, "all": tot - SIGNIFICANT_NATS,
+    level = c.get("significance_nats", SIGNIFICANT_NATS)
+    out = {"own": own - level, "all": tot - level,
            "size": c.get("size_over_floor", math.nan) - 1.0}  # fmt: skip
     if loo is not None and not math.isnan(loo) and loo != own:
-        out["loo"] = loo - SIGNIFICANT_NATS
+        out["loo"] = loo - level
     return out
 
 
@@ -201,7 +209,8 @@ def _margins(dirs: list[Path]) -> int:
         print(f"| {label} | error | after/target {row['after_nm'] / row['target_nm']:.2f} | "
               f"{'passes' if row['pass'] else 'fails'} | | | | | | | "
               f"{'error' if abs(err) < THIN['error'] else '—'} |")  # fmt: skip
-    print(f"\nnats above {SIGNIFICANT_NATS} (own, leave-one-out, all), the trace-size ratio, "
+    print("\nnats above the candidate's significance level (own, leave-one-out, all), the "
+          "trace-size ratio, "
           f"the lead above {TIE_NATS} nats, z beyond the trace's bar; thin: within "
           f"{THIN['nats']:g} nats, a factor {THIN['size']:g} of the size floor, "
           f"{THIN['z']:g} z, {THIN['error']:.0%} of the target")  # fmt: skip
@@ -329,14 +338,14 @@ def main(argv: list[str] | None = None) -> int:
         return _rows(args.dirs)
     reports = _reports(args.dirs)
     print("| trace | round | leader | k | m | gain all / own [nats] | lead [nats] | named | "
-          "truth | now (4.5) | k | k, m |")  # fmt: skip
+          "truth | now | k | k, m |")  # fmt: skip
     print("|---|---:|---|---:|---:|---:|---:|---|---|---|---|---|")
     tally = {lv: {"true": 0, "false": 0} for lv in ("now", "k", "k, m")}
     for label, row, rep in reports:
         truth = set(row["expected"]) - {"none", "outside"}
         for r in rounds(rep):
             is_true = r["effect"] in truth or r["effect"] in AMPLIFIER
-            levels = {"now": SIGNIFICANT_NATS, "k": level_nats(r["k"]),
+            levels = {"now": r["level"], "k": level_nats(r["k"]),
                       "k, m": level_nats(r["k"], r["m"])}  # fmt: skip
             verdicts = {lv: passes(r, x) for lv, x in levels.items()}
             cells = " | ".join(

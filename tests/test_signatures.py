@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from turntable_env.calibration.identify import (
+    P_SIGNIFICANT,
     SIGNIFICANT_NATS,
     SUPPORT_NATS,
     TIE_NATS,
@@ -20,6 +21,7 @@ from turntable_env.calibration.identify import (
     _profile_grid,
     decide,
     leave_one_out,
+    significance_nats,
     supports,
 )
 from turntable_env.calibration.segments import Segment
@@ -329,6 +331,41 @@ def test_leave_one_out_finds_a_gain_that_rests_on_one_feature(model, rests):
         a, b = a._replace(groups=feats.groups), b._replace(groups=feats.groups)
         whole_g = group_scores(feats, a, b)[group]["nats"]
         assert leave_one_out(feats, a, b, (group,)) == (pytest.approx(whole_g), "")
+
+
+@pytest.mark.parametrize(("k", "closed_form"), [(1, 4.5), (2, -math.log(P_SIGNIFICANT))])
+def test_the_significance_level_is_three_sigma_for_its_degrees_of_freedom(k, closed_form):
+    """½χ²_k at the two-sided 3σ p: 3²/2 for one parameter (a normal deviate squared),
+    −ln p for two (χ²₂'s survival is e^{−x/2})."""
+    assert significance_nats(k) == pytest.approx(closed_form, rel=1e-9)
+    assert significance_nats(1) == pytest.approx(SIGNIFICANT_NATS)
+
+
+def test_a_two_parameter_candidate_that_adds_nothing_is_named_at_the_three_sigma_rate():
+    """Wilks: a candidate that moves k parameters fitted to the noise alone gains χ²_k/2
+    nats in :func:`group_scores` (its F-test scale ≥ 1 only lowers it). At
+    ``significance_nats(2)`` such a candidate is significant at most at the 3σ rate; at
+    the one-parameter level it was significant 4× as often (e^{−4.5} = 1.1 %): the
+    hysteresis and vibration candidates move two parameters."""
+    rng = np.random.default_rng(7)
+    n, k, draws = 12, 2, 20000
+    names, groups, sd = tuple(f"f{i}" for i in range(n)), ("scan_shape",) * n, np.ones(n)
+    x = rng.normal(size=(n, k))  # the candidate's two directions in feature space
+    proj = x @ np.linalg.pinv(x)  # its best fit to the data: the least-squares projection
+    current = Features(names, groups, np.zeros(n), sd)
+    gains = np.empty(draws)
+    for i, noise in enumerate(rng.normal(size=(draws, n))):
+        data = current._replace(value=noise)
+        cand = current._replace(value=proj @ noise)
+        gains[i] = group_scores(data, current, cand, n_free=k)["scan_shape"]["nats"]
+    assert np.mean(gains >= significance_nats(k)) <= 1.5 * P_SIGNIFICANT
+    assert np.mean(gains >= SIGNIFICANT_NATS) > 2.5 * P_SIGNIFICANT
+
+
+@pytest.mark.parametrize("k", [0, -1, 1.5])
+def test_the_significance_level_needs_a_positive_whole_number_of_parameters(k):
+    with pytest.raises(ValueError, match=f"k={k!r}"):
+        significance_nats(k)
 
 
 def _cand(name, nats, sig=True):

@@ -15,7 +15,8 @@ effects already named):
 3. **A bounded Powell search** (:func:`scipy.optimize.minimize`) over all its parameters
    from the profile's best point, in range-normalised coordinates.
 4. **Scores**: :func:`~.signatures.group_scores` against the current model per feature
-   group, in nats. A candidate is *significant* when it gains ≥ ``SIGNIFICANT_NATS``
+   group, in nats. A candidate is *significant* when it gains ≥ :func:`significance_nats`
+   of its number of free parameters (4.5 for one, 5.91 for two: the same 3σ level)
    in the groups it declares (:data:`~.signatures.EFFECT_GROUPS`) — also with any one
    feature of a declared group of ``JACKKNIFE_GROUPS`` left out (one quantity repeated
    over the settings, the direction pairs: a gain that rests on one pair is that
@@ -47,6 +48,7 @@ from typing import Any
 
 import numpy as np
 import scipy.optimize
+import scipy.stats
 
 from ..effects import CATALOGUE
 from .signatures import (
@@ -63,6 +65,7 @@ __all__ = [
     "JACKKNIFE_GROUPS",
     "JACKKNIFE_MIN",
     "LINE_P_VALUE",
+    "P_SIGNIFICANT",
     "SIGNIFICANT_NATS",
     "SUPPORT_NATS",
     "TIE_NATS",
@@ -73,10 +76,27 @@ __all__ = [
     "free_parameters",
     "leave_one_out",
     "main_at_bound",
+    "significance_nats",
     "supports",
 ]
 
-SIGNIFICANT_NATS = 4.5  # χ² of 9 (3σ for one parameter) on its groups and over all
+P_SIGNIFICANT = 2.0 * float(scipy.stats.norm.sf(3.0))  # two-sided 3σ: 0.0027
+
+
+def significance_nats(k: int) -> float:
+    """The gain [nats] a candidate that moves k parameters needs on its groups and over
+    all: half the χ²_k quantile at 1 − :data:`P_SIGNIFICANT` (Wilks: the gain's χ² =
+    2·nats has k degrees of freedom when the candidate adds nothing,
+    :func:`~.signatures.group_scores`). 4.5 for one parameter (3², the 3σ of one normal
+    deviate), −ln P = 5.91 for two; until stop 64 every candidate was held to 4.5, a
+    false-alarm rate of 1.1 % for a two-parameter one (hysteresis, vibration, the
+    amplifier's fast path) instead of 0.27 %."""
+    if not (isinstance(k, int | np.integer) and k >= 1):
+        raise ValueError(f"k={k!r}: the number of free parameters must be an integer ≥ 1")
+    return 0.5 * float(scipy.stats.chi2.isf(P_SIGNIFICANT, int(k)))
+
+
+SIGNIFICANT_NATS = significance_nats(1)  # 4.5: χ² of 9, 3σ for one parameter
 TIE_NATS = 2.0  # a lead under this over the runner-up is a tie (likelihood ratio e² ≈ 7)
 # the least a signature must favour an effect the held-out trace error names (with any one
 # direction pair left out): the likelihood ratio of a tie's margin, e² ≈ 7, not significance
@@ -137,6 +157,7 @@ class CandidateFit:
             "total_nats": self.total_nats,
             "group_nats": {g: s["nats"] for g, s in self.scores.items()},
             "significant": self.significant,
+            "significance_nats": significance_nats(len(free_parameters(self.name))),
             "declared_nats_leave_one_out": self.declared_nats_loo,
             "rests_on": self.weakest_feature,
             "size_over_floor": self.size,
@@ -379,7 +400,8 @@ class SignatureSearch:
                          "refit decides)")  # fmt: skip
         if size < 1.0:
             notes.append(f"changes the trace by {size:.2f}× the noise floor only")
-        if gain >= SIGNIFICANT_NATS > loo:
+        level = significance_nats(len(free))
+        if gain >= level > loo:
             notes.append(f"its gain rests on one feature: {loo:.1f} nats without {weakest}")
         # at a bound is reported, not disqualifying: with the nominal model held at its fit
         # (itself a compromise without the effect) a true effect can ask for more
@@ -387,7 +409,7 @@ class SignatureSearch:
         return CandidateFit(
             name, best, profile, j_best, j_neutral, bool(at_neutral), scores, float(gain),
             float(total),
-            bool(ok and min(gain, loo) >= SIGNIFICANT_NATS and total >= SIGNIFICANT_NATS),
+            bool(ok and min(gain, loo) >= level and total >= level),
             "; ".join(notes), float(size), float(loo), weakest,
         )  # fmt: skip
 

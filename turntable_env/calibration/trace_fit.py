@@ -36,7 +36,8 @@
    loop, a spectral line in the holds, the y channel), measured on the data and on the
    model unanchored, so slow effects stay visible; every candidate is profiled over its
    main parameter and searched (bounded Powell) on its features; one is named when it
-   gains ≥ 4.5 nats there and leads the runner-up by 2 nats (else the round is
+   gains the 3σ level of its free parameters there (4.5 nats for one, 5.91 for two,
+   :func:`~.identify.significance_nats`) and leads the runner-up by 2 nats (else the round is
    undecided), then refitted jointly with the nominal model on the trace. When the
    signatures name nothing, the held-out trace error decides as before: each candidate
    screened on top of the fitted nominal model, the best two refitted jointly with it,
