@@ -10,14 +10,15 @@ table run in parts, or rows re-run), with the count of rows that pass.
 ``--compare OLD_DIR ...`` prints the rows the DIRs and the earlier runs share side by
 side: nominal and final held-out error, the effects named and the verdict, old → new.
 
-``--margins`` prints, per round of every trace, how far each rule of the signature route
-was from deciding otherwise (a decision has a margin): for the effect a round names, its
-margin on every rule it passed; for a round that names nothing, the nearest candidate's
-shortfall on the rules that kept it out (:func:`margins`). A margin is *thin* within
-:data:`THIN`'s reach of its bar (3 nats, a factor 2 on the trace-size ratio, one unit of
-z, 10 % of the error target: the first two are the largest shifts two changes of the
-nominal fit have moved the same rows' margins by); the last lines count the passing
-traces whose verdict rests on a thin margin and list the failing ones.
+``--margins`` prints, per round of every trace (merged as ``--rows`` merges), how far
+each rule of the signature route was from deciding otherwise (a decision has a margin):
+for the effect a round names, its margin on every rule it passed; for a round that names
+nothing, the nearest candidate's shortfall on the rules that kept it out (:func:`margins`).
+A margin is *thin* within :data:`THIN`'s reach of its bar (3 nats, a factor 2 on the
+trace-size ratio, one unit of z, 10 % of the error target: the first two are the largest
+shifts two changes of the nominal fit have moved the same rows' margins by); the last
+lines count the passing traces whose verdict rests on a thin margin and list the failing
+ones.
 
 Each DIR is an ``--out`` directory of ``experiments/independent_calibration.py`` (its
 ``results.json`` and one report directory per trace). For every round of every trace it
@@ -61,6 +62,7 @@ from turntable_env.calibration.identify import (
     SIGNIFICANT_NATS,
     TIE_NATS,
     free_parameters,
+    significance_nats,
 )
 from turntable_env.calibration.trace_fit import Z_TRACE
 
@@ -93,7 +95,7 @@ def rounds(report: dict) -> list[dict]:
             "declared": lead["declared_nats"],
             "size": lead.get("size_over_floor", math.nan),
             "significant": lead["significant"],
-            "level": lead.get("significance_nats", SIGNIFICANT_NATS),
+            "level": lead.get("significance_nats", SIGNIFICANT_NATS),  # the report's rule
             "lead": lead["total_nats"] - max(others) if others else math.inf,
             "m": len(searched),
             "named": dec.get("named"),
@@ -114,11 +116,12 @@ RULE_NATS = ("own", "loo", "all")  # the significance rules, each ≥ the candid
 def _rule_margins(c: dict) -> dict[str, float]:
     """A candidate's margin on each signature rule (identify.CandidateFit): own groups,
     leave-one-out (only where a direction pair was left out), all signature groups [nats
-    above the level its report applied: ``significance_nats``, SIGNIFICANT_NATS in a report
-    made before stop 64], and the trace-size ratio's excess over 1 [-]."""
+    above the candidate's significance level: the report's ``significance_nats``, or for a
+    report made before stop 64 (which held every candidate to 4.5) the rule in force], and
+    the trace-size ratio's excess over 1 [-]."""
     own, tot = c["declared_nats"], c["total_nats"]
     loo = c.get("declared_nats_leave_one_out", own)
-    level = c.get("significance_nats", SIGNIFICANT_NATS)
+    level = c.get("significance_nats") or significance_nats(len(free_parameters(c["effect"])))
     out = {"own": own - level, "all": tot - level,
            "size": c.get("size_over_floor", math.nan) - 1.0}  # fmt: skip
     if loo is not None and not math.isnan(loo) and loo != own:
@@ -126,29 +129,45 @@ def _rule_margins(c: dict) -> dict[str, float]:
     return out
 
 
+def _shortfall(m: dict[str, float]) -> dict[str, float]:
+    """Per rule, how far the margin lies from its bar in units of :data:`THIN` (a factor
+    THIN["size"] on the size ratio is one unit): < 1 is thin."""
+    unit = {"z": "z", "lead": "nats", **{r: "nats" for r in RULE_NATS}}
+    out = {r: abs(v) / THIN[unit[r]] for r, v in m.items() if r in unit}
+    if "size" in m and m["size"] > -1.0:
+        out["size"] = abs(math.log(m["size"] + 1.0)) / math.log(THIN["size"])
+    elif "size" in m:
+        out["size"] = math.inf
+    return out
+
+
+def _distance(m: dict[str, float]) -> float:
+    """How far a candidate lies from being significant: its largest shortfall on the rules it
+    failed, in units of THIN (0 when it passed them all)."""
+    units = _shortfall(m)
+    return max((units[r] for r, v in m.items() if r in units and v < 0.0), default=0.0)
+
+
 def _thin(m: dict[str, float], role: str) -> list[str]:
     """The rules the round's verdict rests on whose margin lies within THIN of its bar: a
     named effect's passed rules; a rejected one's trace verdict (z); for the nearest
     unnamed candidate the rules it failed, only when it failed every one of them within
     THIN (a candidate far below one bar is out whatever the others say)."""
-    unit = {"z": "z", "lead": "nats", **{r: "nats" for r in RULE_NATS}}
-    near = {r: abs(v) < THIN[unit[r]] for r, v in m.items() if r in unit}
-    if "size" in m and m["size"] > -1.0:  # the ratio within a factor THIN["size"] of 1
-        near["size"] = abs(math.log(m["size"] + 1.0)) < math.log(THIN["size"])
+    units = _shortfall(m)
     if role == "named":
-        return [r for r in near if near[r]]
+        return [r for r in units if units[r] < 1.0]
     if role == "rejected":
-        return ["z"] if near.get("z") else []
-    failed = [r for r, v in m.items() if r in near and v < 0.0]
-    return failed if failed and all(near[r] for r in failed) else []
+        return ["z"] if units.get("z", math.inf) < 1.0 else []
+    failed = [r for r, v in m.items() if r in units and v < 0.0]
+    return failed if failed and _distance(m) < 1.0 else []
 
 
 def margins(report: dict) -> list[dict]:
     """Per round of the signature route: the candidate the round turns on and its margin on
     each rule — the named effect's on the rules it passed (and the trace's verdict, z
     against −Z_TRACE in the first round, +Z_TRACE after), or, where nothing is named, the
-    nearest candidate (most rules passed, then the largest least nat margin; not one whose
-    best fit is its neutral value) with its shortfall on the rules that kept it out."""
+    nearest candidate (the least largest shortfall in units of THIN; not one whose best fit
+    is its neutral value) with its shortfall on the rules that kept it out."""
     out = []
     for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
         k = rnd.get("round", len(out) + 1)
@@ -167,12 +186,8 @@ def margins(report: dict) -> list[dict]:
             if test:
                 m["z"] = test["z"] - (-Z_TRACE if k == 1 else Z_TRACE)
             role = "rejected" if dec.get("rejected") else "named"
-        else:
-            def closeness(c: dict) -> tuple[int, float]:
-                rm = _rule_margins(c)
-                return (sum(v >= 0 for v in rm.values()),
-                        min(v for r, v in rm.items() if r in RULE_NATS))  # fmt: skip
-            c = max(cands, key=closeness)
+        else:  # the candidate nearest to significance (its largest shortfall, THIN units)
+            c = min(cands, key=lambda c: _distance(_rule_margins(c)))
             m, role = _rule_margins(c), "nearest"
         out.append({"round": k, "effect": c["effect"], "role": role, "margins": m,
                     "thin": _thin(m, role)})  # fmt: skip
@@ -190,7 +205,8 @@ def _margins(dirs: list[Path]) -> int:
           "lead | trace z | thin |")  # fmt: skip
     print("|---|---:|---|---|---:|---:|---:|---:|---:|---:|---|")
     thin_rows, n, failing = [], 0, []
-    for label, row, rep in _reports(dirs):
+    merged = {row["trace"]: (label, row, rep) for label, row, rep in _reports(dirs)}
+    for label, row, rep in merged.values():  # a later DIR's trace replaces an earlier one's
         if not row["pass"]:
             failing.append(f"{label} (after/target {row['after_nm'] / row['target_nm']:.2f})")
         n += bool(row["pass"])

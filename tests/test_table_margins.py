@@ -18,7 +18,8 @@ from turntable_env.calibration.trace_fit import Z_TRACE
 def _cand(effect, own, total, size, loo=None, at_neutral=False):
     return {"effect": effect, "declared_nats": own, "total_nats": total,
             "declared_nats_leave_one_out": own if loo is None else loo,
-            "size_over_floor": size, "at_neutral": at_neutral, "objective": 1.0}  # fmt: skip
+            "size_over_floor": size, "at_neutral": at_neutral, "objective": 1.0,
+            "significance_nats": SIGNIFICANT_NATS}  # fmt: skip
 
 
 def _report(*rounds):
