@@ -55,10 +55,7 @@ import math
 import sys
 from pathlib import Path
 
-from scipy.stats import chi2
-
 from turntable_env.calibration.identify import (
-    P_SIGNIFICANT,
     SIGNIFICANT_NATS,
     TIE_NATS,
     free_parameters,
@@ -67,11 +64,6 @@ from turntable_env.calibration.identify import (
 from turntable_env.calibration.trace_fit import Z_TRACE
 
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
-
-
-def level_nats(k: int, m: int = 1) -> float:
-    """Half the χ²_k quantile at p = P_SIGNIFICANT/m [nats] (m = 1: ``significance_nats``)."""
-    return 0.5 * float(chi2.isf(P_SIGNIFICANT / m, k))
 
 
 def rounds(report: dict) -> list[dict]:
@@ -361,8 +353,8 @@ def main(argv: list[str] | None = None) -> int:
         truth = set(row["expected"]) - {"none", "outside"}
         for r in rounds(rep):
             is_true = r["effect"] in truth or r["effect"] in AMPLIFIER
-            levels = {"now": r["level"], "k": level_nats(r["k"]),
-                      "k, m": level_nats(r["k"], r["m"])}  # fmt: skip
+            levels = {"now": r["level"], "k": significance_nats(r["k"]),
+                      "k, m": significance_nats(r["k"], r["m"])}  # fmt: skip
             verdicts = {lv: passes(r, x) for lv, x in levels.items()}
             cells = " | ".join(
                 f"{'yes' if verdicts[lv] else 'no'} ({levels[lv]:.1f})" for lv in levels

@@ -362,10 +362,16 @@ def test_a_two_parameter_candidate_that_adds_nothing_is_named_at_the_three_sigma
     assert np.mean(gains >= SIGNIFICANT_NATS) > 2.5 * P_SIGNIFICANT
 
 
-@pytest.mark.parametrize("k", [0, -1, 1.5])
-def test_the_significance_level_needs_a_positive_whole_number_of_parameters(k):
-    with pytest.raises(ValueError, match=f"k={k!r}"):
-        significance_nats(k)
+@pytest.mark.parametrize(("k", "m", "field"), [(0, 1, "k=0"), (-1, 1, "k=-1"), (1.5, 1, "k=1.5"),
+                                              (1, 0, "m=0")])
+def test_the_significance_level_needs_positive_whole_numbers(k, m, field):
+    with pytest.raises(ValueError, match=field):
+        significance_nats(k, m)
+
+
+def test_bonferronis_level_over_m_candidates_is_the_level_at_p_over_m():
+    """χ²₂'s survival e^{−x/2}: the level at P/m is −ln(P/m) nats."""
+    assert significance_nats(2, 8) == pytest.approx(-math.log(P_SIGNIFICANT / 8), rel=1e-9)
 
 
 def _cand(name, nats, sig=True):

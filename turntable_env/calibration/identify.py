@@ -83,17 +83,19 @@ __all__ = [
 P_SIGNIFICANT = 2.0 * float(scipy.stats.norm.sf(3.0))  # two-sided 3σ: 0.0027
 
 
-def significance_nats(k: int) -> float:
+def significance_nats(k: int, m: int = 1) -> float:
     """The gain [nats] a candidate that moves k parameters needs on its groups and over
     all: half the χ²_k quantile at 1 − :data:`P_SIGNIFICANT` (Wilks: the gain's χ² =
     2·nats has k degrees of freedom when the candidate adds nothing,
     :func:`~.signatures.group_scores`). 4.5 for one parameter (3², the 3σ of one normal
     deviate), −ln P = 5.91 for two; until stop 64 every candidate was held to 4.5, a
-    false-alarm rate of 1.1 % for a two-parameter one (hysteresis, vibration, the
-    amplifier's fast path) instead of 0.27 %."""
-    if not (isinstance(k, int | np.integer) and k >= 1):
-        raise ValueError(f"k={k!r}: the number of free parameters must be an integer ≥ 1")
-    return 0.5 * float(scipy.stats.chi2.isf(P_SIGNIFICANT, int(k)))
+    false-alarm rate of e^−4.5 = 1.1 % for a two-parameter one (hysteresis, vibration, the
+    amplifier's fast path) instead of 0.27 %. ``m`` > 1: the level at P/m, Bonferroni's
+    over m candidates (reported by ``experiments/table_reports.py``, not applied)."""
+    for name, v in (("k", k), ("m", m)):
+        if not (isinstance(v, int | np.integer) and v >= 1):
+            raise ValueError(f"{name}={v!r}: must be an integer ≥ 1")
+    return 0.5 * float(scipy.stats.chi2.isf(P_SIGNIFICANT / m, int(k)))
 
 
 SIGNIFICANT_NATS = significance_nats(1)  # 4.5: χ² of 9, 3σ for one parameter
