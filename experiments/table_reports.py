@@ -66,12 +66,17 @@ from turntable_env.calibration.trace_fit import Z_TRACE
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
 
 
+def _searched(rnd: dict) -> list[dict]:
+    """A round's candidates whose signature search ran (scored, with an objective)."""
+    return [c for c in rnd["candidates"] if c.get("total_nats") is not None
+            and not math.isnan(c.get("objective", math.nan))]  # fmt: skip
+
+
 def rounds(report: dict) -> list[dict]:
     """Per round: the leader's name, k, gains, lead, the number searched, the decision."""
     out = []
     for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
-        cands = [c for c in rnd["candidates"] if c.get("total_nats") is not None]
-        searched = [c for c in cands if not math.isnan(c.get("objective", math.nan))]
+        searched = _searched(rnd)
         if not searched:
             continue
         sig = sorted((c for c in searched if c["significant"]), key=lambda c: -c["total_nats"])
@@ -163,8 +168,7 @@ def margins(report: dict) -> list[dict]:
     out = []
     for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
         k = rnd.get("round", len(out) + 1)
-        cands = [c for c in rnd["candidates"] if c.get("total_nats") is not None
-                 and not c.get("at_neutral") and not math.isnan(c.get("objective", math.nan))]
+        cands = [c for c in _searched(rnd) if not c.get("at_neutral")]
         if not cands:
             continue
         dec = rnd["decision"]
@@ -199,13 +203,14 @@ def _margins(dirs: list[Path]) -> int:
     thin_rows, n, failing = [], 0, []
     merged = {row["trace"]: (label, row, rep) for label, row, rep in _reports(dirs)}
     for label, row, rep in merged.values():  # a later DIR's trace replaces an earlier one's
+        ratio = row["after_nm"] / row["target_nm"]  # held-out error over its target
+        near = abs(ratio - 1.0) < THIN["error"]
         if not row["pass"]:
-            failing.append(f"{label} (after/target {row['after_nm'] / row['target_nm']:.2f})")
+            failing.append(f"{label} (after/target {ratio:.2f})")
         n += bool(row["pass"])
-        err = row["after_nm"] / row["target_nm"] - 1.0  # < 0: within the target
         rows = margins(rep)
         thin = sorted({f"round {r['round']} {t}" for r in rows for t in r["thin"]})
-        if abs(err) < THIN["error"]:
+        if near:
             thin.append("error")
         if thin and row["pass"]:
             thin_rows.append(label)
@@ -214,9 +219,9 @@ def _margins(dirs: list[Path]) -> int:
             cells = " | ".join(_fmt(m, x) for x in ("own", "loo", "all", "size", "lead", "z"))
             print(f"| {label} | {r['round']} | {r['effect']} | {r['role']} | {cells} | "
                   f"{', '.join(r['thin']) or '—'} |")  # fmt: skip
-        print(f"| {label} | error | after/target {row['after_nm'] / row['target_nm']:.2f} | "
+        print(f"| {label} | error | after/target {ratio:.2f} | "
               f"{'passes' if row['pass'] else 'fails'} | | | | | | | "
-              f"{'error' if abs(err) < THIN['error'] else '—'} |")  # fmt: skip
+              f"{'error' if near else '—'} |")  # fmt: skip
     print("\nnats above the candidate's significance level (own, leave-one-out, all), the "
           "trace-size ratio, "
           f"the lead above {TIE_NATS} nats, z beyond the trace's bar; thin: within "
