@@ -63,7 +63,7 @@ EXPECTED = {
     "mains_pickup": "outside",
     "mirror_play": "outside",
 }
-AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
+AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path", "amplifier_lag"}
 PLANTS = {  # plant → (its traces' default directory, the script that writes them)
     "first": ("experiments/results/independent_traces", "experiments/independent_traces.py"),
     "second": ("experiments/results/second_plant_traces", "experiments/second_plant_traces.py"),

@@ -63,7 +63,7 @@ from turntable_env.calibration.identify import (
 )
 from turntable_env.calibration.trace_fit import Z_TRACE
 
-AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path"}
+AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path", "amplifier_lag"}
 
 
 def _searched(rnd: dict) -> list[dict]:

@@ -87,6 +87,9 @@ def test_ideal_amplifier_and_input_clipping():
         (lambda: AMP.simulate(np.array([0.0, 1.0]), np.zeros(3)), "input_voltage"),
         (lambda: AMP.simulate(np.array([0.0, 1.0]), np.zeros(2), -1.0), "load_capacitance"),
         (lambda: AMP.adapted_hold_time(2.0, 0.0, 6.0), "k"),
+        (lambda: Amplifier(lag_ratio=-0.1), "lag_ratio"),
+        (lambda: Amplifier(lag_ratio=1.5), "lag_ratio"),
+        (lambda: Amplifier(lag_ratio=float("nan")), "lag_ratio"),
         (
             lambda: measure_slew_rate(np.array([0.0, 1.0]), np.array([0.0, 0.1]), 0.0, 1.0),
             "reaches",
@@ -96,3 +99,47 @@ def test_ideal_amplifier_and_input_clipping():
 def test_amplifier_rejects_bad_input(call, field):
     with pytest.raises(ValueError, match=field):
         call()
+
+
+# --- the output lag (amplifier_lag): a second pole ----------------------------------------
+@pytest.mark.parametrize("r", [0.25, 0.5, 1.0])
+def test_output_lag_keeps_the_measured_slew_and_starts_the_step_flat(r):
+    """τ is re-derived so the 1 V step's 10–90 % slew stays §4.1.2's 0.9 V/µs; the second
+    pole makes the step start with zero slope (an S shape), where the first-order stage
+    starts at its steepest."""
+    lag = Amplifier(lag_ratio=r)
+    r_lag = lag.step_response(0.0, 1.0, duration=400e-6, dt=1e-8)
+    r_one = AMP.step_response(0.0, 1.0, duration=400e-6, dt=1e-8)
+    assert measure_slew_rate(r_lag.time, r_lag.output, 0.0, 45.0) == pytest.approx(0.9e6, rel=2e-3)
+    assert lag.output_lag == pytest.approx(r * lag.tau, rel=1e-12) and lag.tau < AMP.tau
+    s_lag, s_one = np.diff(r_lag.output) / 1e-8, np.diff(r_one.output) / 1e-8
+    assert s_lag[0] < 0.01 * s_lag.max() and s_one[0] == pytest.approx(s_one.max(), rel=1e-6)
+
+
+@pytest.mark.parametrize("r", [0.3, 1.0])
+def test_output_lag_is_the_two_pole_step_response(r):
+    """Inside the rate limit the amplifier is H(s) = G/((1 + sτ)(1 + sτ_o)): its small step
+    follows G·(1 − (τe^{−t/τ} − τ_o e^{−t/τ_o})/(τ − τ_o)), and for τ_o = τ the double pole's
+    G·(1 − (1 + t/τ)e^{−t/τ}). The lag stage is exact for a ramping input, so the error is
+    the slow stage's zero-order hold of a moving target, O(dt)."""
+    lag = Amplifier(lag_ratio=r)
+    tau, to = lag.tau, lag.output_lag
+    resp = lag.step_response(0.0, 0.1, duration=300e-6, dt=1e-9)  # 4.5 V: linear
+    t = resp.time
+    if r == 1.0:
+        exact = 4.5 * (1.0 - (1.0 + t / tau) * np.exp(-t / tau))
+    else:
+        exact = 4.5 * (1.0 - (tau * np.exp(-t / tau) - to * np.exp(-t / to)) / (tau - to))
+    assert np.max(np.abs(resp.output - exact)) < 1e-3 * 4.5
+
+
+@pytest.mark.parametrize("r", [0.5, 1.0])
+def test_adapted_hold_time_with_an_output_lag_lands_on_end_value(r):
+    """The Fig. 4.3 hold, integrated numerically with the lag, ends where the output reaches
+    the end value; the lag's S-shaped start makes it longer than the first-order hold."""
+    lag = Amplifier(lag_ratio=r)
+    hold = lag.adapted_hold_time(2.0, 0.0, 1.0, C2)
+    t = np.linspace(0.0, hold, 40001)
+    out = lag.simulate(t, np.full(t.size, -2.0), C2, initial_output=90.0).output
+    assert out[-1] == pytest.approx(0.0, abs=0.02)  # V of a 90 V swing
+    assert hold > AMP.adapted_hold_time(2.0, 0.0, 1.0, C2)

@@ -35,6 +35,18 @@ def test_only_the_amplifier_is_scaled(script, slew, current):
     assert replace(ps, amplifier=ref.amplifier) == ref
 
 
+def test_the_lag_keeps_the_amplifier_speed(script):
+    """``--lag R``: the base amplifier gets the output lag τ_o = R·τ, its 1 V step's 10–90 %
+    slew still the scaled one (τ re-derived), nothing else changed."""
+    from turntable_env.amplifier import measure_slew_rate
+
+    plain = script.base_with_amplifier(0.3, 0.1).params.amplifier
+    amp = script.base_with_amplifier(0.3, 0.1, 1.0).params.amplifier
+    assert amp.lag_ratio == 1.0 and replace(amp, lag_ratio=0.0) == plain
+    r = amp.step_response(0.0, 1.0, duration=600e-6, dt=2e-8)
+    assert measure_slew_rate(r.time, r.output, 0.0, 45.0) == pytest.approx(0.3 * 0.9e6, rel=3e-3)
+
+
 @pytest.mark.parametrize(
     ("argv", "names"),
     [
@@ -44,6 +56,8 @@ def test_only_the_amplifier_is_scaled(script, slew, current):
         (["{csv}", "--slew", "0"], "--slew"),
         (["{csv}", "--current", "0.5,0.2"], "--current"),
         (["{csv}", "--workers", "0"], "--workers"),
+        (["{csv}", "--lag", "1.5"], "--lag"),
+        (["{csv}", "--lag", "-0.1"], "--lag"),
     ],
 )
 def test_bad_input_exits_2_before_any_fit(script, tmp_path, capsys, argv, names):

@@ -81,3 +81,23 @@ def test_bad_sweep_arguments_raise():
         sine_sweep(frequencies=np.array([10.0]), amplitude=-1.0)
     with pytest.raises(ValueError, match="control_interval"):
         scan_plant(stick_plant(), 0.0)
+
+
+def test_output_lag_is_a_second_pole_in_series():
+    """With an output lag the amplifier is G/((τs + 1)(τ_o s + 1)), τ re-derived: the plant's
+    response over the lag-free one's is (τ₁s + 1)/((τs + 1)(τ_o s + 1)) at every frequency
+    (τ₁ the first-order stage's), and the DC gain is unchanged."""
+    from dataclasses import replace
+
+    from turntable_env.params import real_parameters
+
+    ps = real_parameters()
+    lagged = replace(ps, amplifier=replace(ps.amplifier, lag_ratio=0.7))
+    p0, p1 = stick_plant(ps, "B"), stick_plant(lagged, "B")
+    assert p1.nstates == p0.nstates + 1 and p1.state_labels[0] == "V_stage"
+    w = np.array([1e2, 1e4, 3e4, 1e5])  # rad/s
+    h0, h1 = p0(1j * w)[0, 0], p1(1j * w)[0, 0]
+    t1, t, to = ps.amplifier.tau, lagged.amplifier.tau, lagged.amplifier.output_lag
+    expected = (1j * w * t1 + 1) / ((1j * w * t + 1) * (1j * w * to + 1))
+    np.testing.assert_allclose(h1 / h0, expected, rtol=1e-8)
+    assert float(ct.dcgain(p1[0, 0])) == pytest.approx(float(ct.dcgain(p0[0, 0])), rel=1e-9)

@@ -33,6 +33,18 @@ the output's rate limit, gives all four: the output follows
 
 with τ derived so that the 1 V step's 10–90 % slew rate stays the measured 0.9 V/µs
 (unloaded, R = 12 V/µs). a = 0 is exactly the first-order model above.
+
+**Output lag** (``lag_ratio`` r > 0): a second pole after the stage — an output stage that
+follows the stage above through its own first-order lag, τ_o = r·τ, under the same rate
+limit:
+
+    dV/dt = clip((V_s + V_f − V)/τ_o, −R, +R).
+
+An amplifier driving a capacitive load through its output resistance, or any feedback
+amplifier with a second pole, has such a response: its step starts with zero slope (an S
+shape) where a first-order stage starts at its steepest. τ is again derived so that the
+1 V step's 10–90 % slew rate stays the measured one, so r changes the response's shape,
+not its speed. r = 0 is exactly the model without it.
 """
 
 from __future__ import annotations
@@ -66,6 +78,8 @@ __all__ = [
 ]
 
 LN9 = math.log(9.0)
+LAG_RATIO_MAX = 1.0  # largest output lag τ_o/τ [-]: the linear response is symmetric in
+# the two poles (r and 1/r give the same τ and τ_o swapped), so r ≤ 1 covers every pair
 
 
 @njit(cache=CACHE)
@@ -105,6 +119,16 @@ def _ramp_step(v0, u0, u1, h, gain, tau, rate, e_tau):
 
 
 @njit(cache=CACHE)
+def _lagged(v0, w0, w1, h, to, rate):
+    """Output [V] after h [s] of the lag stage dV/dt = (w − V)/τ_o (τ_o = ``to`` [s]) whose
+    input w ramps w0 → w1 [V] over the step (exact), its change capped at ``rate``·h."""
+    slope = (w1 - w0) / h
+    v1 = w1 - slope * to - (w0 - slope * to - v0) * math.exp(-h / to)
+    lim = rate * h
+    return min(v0 + lim, max(v0 - lim, v1))
+
+
+@njit(cache=CACHE)
 def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
     """(output, slow path, fast path) [V] after h [s] of an input ramping u0 → u1 [V] for the
     amplifier ``row`` (:meth:`Amplifier.kernel_row`; module docstring). Without a fast path
@@ -119,44 +143,54 @@ def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
 def amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, row, e_tau, e_tf):
     """:func:`amplifier_step` with the step's decays given: e_tau = exp(−h/τ) of the slow
     path and e_tf = exp(−h/τ_f) of the fast one (a ladder of steps tabulates them once)."""
-    gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
+    gain, tau, rate, a, tf, to = row[0], row[1], row[4], row[5], row[6], row[7]
     if a == 0.0:
-        v1 = _ramp_step(v0, u0, u1, h, gain, tau, rate, e_tau)
-        return v1, v1, 0.0
+        vs1 = _ramp_step(vs0, u0, u1, h, gain, tau, rate, e_tau)
+        if to == 0.0:
+            return vs1, vs1, 0.0
+        return _lagged(v0, vs0, vs1, h, to, rate), vs1, 0.0
     vs1 = _ramp_step(vs0, u0, u1, h, (1.0 - a) * gain, tau, rate, e_tau)
     slope = a * gain * (u1 - u0) / h
     vf1 = a * gain * u1 - slope * tf + (vf0 - a * gain * u0 + slope * tf) * e_tf
+    if to != 0.0:
+        return _lagged(v0, vs0 + vf0, vs1 + vf1, h, to, rate), vs1, vf1
     lim = rate * h
     return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
 
 
 @njit(cache=CACHE)
-def amplifier_hold_step(v0, vs0, vf0, u, dt, gain, tau, rate, a, tf):
+def amplifier_hold_step(v0, vs0, vf0, u, dt, gain, tau, rate, a, tf, to=0.0):
     """The amplifier after dt [s] under a constant input u [V] (zero-order hold): the
-    compiled 3-D integrator's and :meth:`Amplifier.simulate`'s update."""
+    compiled 3-D integrator's and :meth:`Amplifier.simulate`'s update; ``to`` [s] is the
+    output lag τ_o (0: none; module docstring)."""
     if a == 0.0:
-        v1 = slew_step(v0, gain * u, dt, tau, rate)
-        return v1, v1, 0.0
+        vs1 = slew_step(vs0, gain * u, dt, tau, rate)
+        if to == 0.0:
+            return vs1, vs1, 0.0
+        return _lagged(v0, vs0, vs1, dt, to, rate), vs1, 0.0
     vs1 = slew_step(vs0, (1.0 - a) * gain * u, dt, tau, rate)
     vf1 = a * gain * u + (vf0 - a * gain * u) * math.exp(-dt / tf)
+    if to != 0.0:
+        return _lagged(v0, vs0 + vf0, vs1 + vf1, dt, to, rate), vs1, vf1
     lim = rate * dt
     return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
 
 
 @njit(cache=CACHE)
-def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0):
+def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0, to=0.0):
     """Time [s] the Fig. 4.3 adapted input stays past the end value (see
     :meth:`Amplifier.adapted_hold_time`, which validates the arguments): the output of the
     slew-limited first-order stage (gain G, τ [s], rate limit [V/s]) covers G·|v_start −
     v_end| [V] from an error G·|v_start − u_over|, u_over = v_end − k(v_start − v_end);
-    with a fast path (a > 0) the output is integrated in steps of min(τ, τ_f)/200."""
+    with a fast path (a > 0) or an output lag (τ_o = ``to`` > 0 [s]) the output is
+    integrated in steps of min(τ, τ_f, τ_o)/200."""
     if ideal or v_start == v_end:
         return 0.0
     if k == 0.0:
         return math.inf
     u_over = v_end - k * (v_start - v_end)
-    if a > 0.0:
-        return _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf)
+    if a > 0.0 or to > 0.0:
+        return _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf, to)
     dist = gain * abs(v_start - v_end)  # output travel to the end value [V]
     e0 = gain * abs(v_start - u_over)  # initial error [V]
     if e0 > rate * tau:
@@ -168,7 +202,7 @@ def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0):
 
 
 @njit(cache=CACHE)
-def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf):
+def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf, to=0.0):
     """Time [s] until the output, settled at G·v_start, reaches G·v_end under the constant
     input u_over (linear interpolation at the crossing; inf if it never does)."""
     target = gain * v_end
@@ -176,10 +210,10 @@ def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf):
     vs = (1.0 - a) * v
     vf = a * v
     sgn = 1.0 if target > v else -1.0
-    dt = min(tf, tau) / 200.0
+    dt = min(tf if a > 0.0 else tau, tau, to if to > 0.0 else tau) / 200.0
     t = 0.0
-    while t < 20.0 * (tau + tf):
-        v1, vs, vf = amplifier_hold_step(v, vs, vf, u_over, dt, gain, tau, rate, a, tf)
+    while t < 20.0 * (tau + tf + to):
+        v1, vs, vf = amplifier_hold_step(v, vs, vf, u_over, dt, gain, tau, rate, a, tf, to)
         if (v1 - target) * sgn >= 0.0:
             return t + dt * (target - v) / (v1 - v)
         v = v1
@@ -193,13 +227,15 @@ def _first_order_slew(t, u, v0, row):
     output v0 [V] (exact for the first-order stage; :func:`amplifier_hold_step`)."""
     n = t.shape[0]
     out = np.empty(n)
-    gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
+    gain, tau, rate, a, tf, to = row[0], row[1], row[4], row[5], row[6], row[7]
     v = v0
     vs = (1.0 - a) * v0
     vf = a * v0
     out[0] = v
     for i in range(n - 1):
-        v, vs, vf = amplifier_hold_step(v, vs, vf, u[i], t[i + 1] - t[i], gain, tau, rate, a, tf)
+        v, vs, vf = amplifier_hold_step(
+            v, vs, vf, u[i], t[i + 1] - t[i], gain, tau, rate, a, tf, to
+        )
         out[i + 1] = v
     return out
 
@@ -252,6 +288,8 @@ class Amplifier:
         fast_fraction: a, the share of a step the fast path covers (module docstring) [-];
             0: the first-order model.
         fast_time: τ_f of the fast path [s].
+        lag_ratio: r, the output lag's time constant over the stage's, τ_o/τ [-] (module
+            docstring); 0: no output lag.
     """
 
     gain: float = 45.0
@@ -262,6 +300,7 @@ class Amplifier:
     ideal: bool = False
     fast_fraction: float = 0.0
     fast_time: float = 1e-6
+    lag_ratio: float = 0.0
 
     def __post_init__(self) -> None:
         check_positive("gain", self.gain)
@@ -274,17 +313,24 @@ class Amplifier:
         if not 0.0 <= check_nonnegative("fast_fraction", self.fast_fraction) < 1.0:
             raise ValueError(f"fast_fraction={self.fast_fraction!r}: must be in [0, 1)")
         check_positive("fast_time", self.fast_time)
+        if not 0.0 <= check_nonnegative("lag_ratio", self.lag_ratio) <= LAG_RATIO_MAX:
+            raise ValueError(f"lag_ratio={self.lag_ratio!r}: must be in [0, {LAG_RATIO_MAX:g}]")
 
     @property
     def tau(self) -> float:
         """Time constant τ [s] of the slow (first-order) stage: 0.8·G/(SR₁V·ln 9) = 18.2 µs
-        without a fast path; with one, the τ that keeps the 1 V step's 10–90 % slew rate at
-        ``slew_per_input_volt`` (unloaded), found numerically."""
+        without a fast path or an output lag; with either, the τ that keeps the 1 V step's
+        10–90 % slew rate at ``slew_per_input_volt`` (unloaded), found numerically."""
         tau0 = 0.8 * self.gain / (self.slew_per_input_volt * LN9)
-        if self.fast_fraction == 0.0:
+        if self.fast_fraction == 0.0 and self.lag_ratio == 0.0:
             return tau0
         return _slow_tau(self.gain, self.slew_per_input_volt, self.slew_rate_max,
-                         self.fast_fraction, self.fast_time, tau0)  # fmt: skip
+                         self.fast_fraction, self.fast_time, tau0, self.lag_ratio)  # fmt: skip
+
+    @property
+    def output_lag(self) -> float:
+        """τ_o = r·τ [s], the output lag's time constant (0 without one)."""
+        return self.lag_ratio * self.tau if self.lag_ratio > 0.0 else 0.0
 
     def rate_limit(self, load_capacitance: float) -> float:
         """R = min(SR_max, I_max/C_load) [V/s]; C_load = 0 means unloaded."""
@@ -366,7 +412,7 @@ class Amplifier:
             )
         return adapted_hold_core(
             a, b, kk, self.gain, self.tau, self.rate_limit(load_capacitance), self.ideal,
-            self.fast_fraction, self.fast_time,
+            self.fast_fraction, self.fast_time, self.output_lag,
         )  # fmt: skip
 
     def scaled(self, slew: float = 1.0, current: float = 1.0) -> Amplifier:
@@ -381,7 +427,7 @@ class Amplifier:
     def kernel_row(self, load_capacitance: float) -> np.ndarray:
         """The amplifier as the compiled kernels read it: (gain G, τ [s], ideal (1/0),
         input limit [V], rate limit R [V/s] on ``load_capacitance`` [F], fast fraction a,
-        τ_f [s])."""
+        τ_f [s], output lag τ_o [s])."""
         return np.array(
             [
                 self.gain,
@@ -391,6 +437,7 @@ class Amplifier:
                 self.rate_limit(load_capacitance),
                 self.fast_fraction,
                 self.fast_time,
+                self.output_lag,
             ]
         )
 
@@ -421,24 +468,32 @@ class Amplifier:
                 "share of a step the fast path covers (0: first order)",
             ),
             Quantity(f"{prefix}.fast_time", self.fast_time, "s", g, "fast path tau_f"),
+            Quantity(
+                f"{prefix}.lag_ratio", self.lag_ratio, "-", g, "output lag tau_o/tau (0: none)"
+            ),
+            Quantity(f"{prefix}.output_lag", self.output_lag, "s", d, "lag_ratio*tau"),
         ]
 
 
 @functools.lru_cache(maxsize=256)
-def _slow_tau(gain: float, sr_1v: float, rate: float, a: float, tf: float, tau0: float) -> float:
+def _slow_tau(
+    gain: float, sr_1v: float, rate: float, a: float, tf: float, tau0: float, r: float = 0.0
+) -> float:
     """τ [s] at which the 1 V step's 10–90 % slew rate equals ``sr_1v`` (brentq over the
-    compiled step response, sampled at τ_f/20)."""
+    compiled step response, sampled at τ_f/20 with a fast path, else at τ0/40), with the
+    output lag τ_o = r·τ."""
     import scipy.optimize
 
-    dt = tf / 20.0
+    dt = tf / 20.0 if a > 0.0 else tau0 / 40.0
 
     def slew(tau: float) -> float:
-        t = np.arange(0.0, 12.0 * tau + 10.0 * tf, dt)
-        row = np.array([gain, tau, 0.0, 10.0, rate, a, tf])
+        t = np.arange(0.0, 12.0 * tau * (1.0 + r) + 10.0 * tf, dt)
+        row = np.array([gain, tau, 0.0, 10.0, rate, a, tf, r * tau])
         out = _first_order_slew(t, np.ones(t.size), 0.0, row)
         return measure_slew_rate(t, out, 0.0, gain) - sr_1v
 
-    return float(scipy.optimize.brentq(slew, 0.5 * tau0, 5.0 * tau0, xtol=1e-4 * tau0))
+    low = 0.5 * tau0 if r == 0.0 else 0.05 * tau0  # a lag shortens τ
+    return float(scipy.optimize.brentq(slew, low, 5.0 * tau0, xtol=1e-4 * tau0))
 
 
 def measure_slew_rate(

@@ -110,7 +110,7 @@ def adapted_hold(amp, amplitude, frequency, a, k):
         return k, 0.0
     k = min(k, amp[3] / abs(amplitude))
     hold = adapted_hold_core(
-        abs(amplitude), 0.0, k, amp[0], amp[1], amp[4], amp[2] > 0.5, amp[5], amp[6]
+        abs(amplitude), 0.0, k, amp[0], amp[1], amp[4], amp[2] > 0.5, amp[5], amp[6], amp[7]
     )
     return k, min(hold, (1.0 - a) / frequency)
 
@@ -311,7 +311,7 @@ def generate_interval(n0, interval, grid, gen, pending, offset1, amp, c_load, dr
             adapted flybacks (:func:`adapted_hold`);
         offset1: scan level at the interval's end [V input] (ramped linearly from
             ``gen.offset``; the caller stores it as the next start);
-        amp: (N, 7) amplifier rows (:meth:`~turntable_env.amplifier.Amplifier.kernel_row`);
+        amp: (N, 8) amplifier rows (:meth:`~turntable_env.amplifier.Amplifier.kernel_row`);
         c_load: capacitance of the driven channel [F].
     Outputs: drive: :class:`~turntable_env.kernel_types.DriveArrays`, the amplifier input as
     grid breakpoints (grid units, V, count); flybacks: steps started; energy: C∫|V dV| of

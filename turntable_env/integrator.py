@@ -49,7 +49,7 @@ STATUS_NAMES = {0: "ok", 1: "non-finite", 2: "diverging", 3: "rim"}
 # layout of the packed scalar arrays (documented here, filled by turntable_env.model)
 # table_p: [m, g, P, R_table, R_ball, r_nom, k_c, e, d_c, w_ball, w_table, bound_u, bound_delta]
 # gms_p:   [C, mu_s, mu_c, v_s, delta, sigma2, beta_t, alpha, axis_x, axis_y, axis_z]
-# amp_p:   [gain, tau, ideal, input_limit, fast_fraction, fast_time]
+# amp_p:   [gain, tau, ideal, input_limit, fast_fraction, fast_time, output_lag]
 # energy accumulators acc: [W_elec, W_interface, D_tube, D_contact, gross |W_elec|]
 
 
@@ -473,15 +473,15 @@ def _first_bad(pc_disp, vc, lam, xi, xid, gf, vch, table_p, cinfo, rot, c_body, 
 @njit(cache=CACHE)
 def _is_quiet(
     t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst, gnu, gk, fn,
-    cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load,
+    cinfo, table_p, gms_p, vch, vslow, vfast, wt, wv, wn, widx, amp_p, quiet_acc, quiet_load,
     quiet_volt, dt_coarse, scr,
 ):  # fmt: skip
     """True if a coarse step is safe now: every GMS element sticks with a margin to its static
     capacity ν_i μ_s F_N that lasts ``quiet_load`` coarse steps at its present loading rate
     k_i|v|, no body accelerates faster than ``quiet_acc`` [m/s²]
     (table rotation and tube-top rotation times their levers), and no amplifier channel
-    would move more than ``quiet_volt`` [V] in a coarse step, nor its fast path still be
-    settling by more than that."""
+    would move more than ``quiet_volt`` [V] in a coarse step, nor its fast path or output
+    lag still be settling by more than that."""
     mu_s = gms_p[1] * (1.0 - abs(gms_p[7]))  # the asymmetry's weaker direction
     kn_tangent = table_p[6] * table_p[7]  # × δ^(e−1) below: normal stiffness [N/m]
     for k in range(3):
@@ -542,6 +542,8 @@ def _is_quiet(
             return False
         if not ideal and abs(amp_p[4] * gain * u - vfast[c]) > quiet_volt:
             return False
+        if not ideal and amp_p[6] > 0.0 and abs(vslow[c] + vfast[c] - vch[c]) > quiet_volt:
+            return False  # the output lag's transient
     return True
 
 
@@ -620,6 +622,7 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
     ulim = amp_p[3]
     a_fast = amp_p[4]
     t_fast = amp_p[5]
+    t_lag = amp_p[6]
     d_rim = d_nom  # the rim check uses the nominal contact directions
     dt_fine = step_p[0]
     dt_coarse = step_p[1]
@@ -710,7 +713,7 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
         if quiet:
             quiet = _is_quiet(
                 t, f_table, tau_com, w_tube, minv, jinv, rot, m, lever_t, lever_b, gf, gst,
-                gnu, gk, fn, cinfo, table_p, gms_p, vch, vfast, wt, wv, wn, widx, amp_p,
+                gnu, gk, fn, cinfo, table_p, gms_p, vch, vslow, vfast, wt, wv, wn, widx, amp_p,
                 quiet_acc, quiet_load, quiet_volt, dt_coarse, scr,
             )  # fmt: skip
             if not quiet:
@@ -841,7 +844,8 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
                 vch[c] = gain * u
             else:
                 vch[c], vslow[c], vfast[c] = amplifier_hold_step(
-                    vch[c], vslow[c], vfast[c], u, dt, gain, tau_amp, amp_rate[c], a_fast, t_fast
+                    vch[c], vslow[c], vfast[c], u, dt, gain, tau_amp, amp_rate[c], a_fast, t_fast,
+                    t_lag,
                 )
         quadrant_voltages(vch, qchan, qsign, vq_new)
         _charges(xi, vq_new, bcoup, cs, qch_new)

@@ -166,8 +166,8 @@ class FullArrays(NamedTuple):
     ``table_p`` [m, g, P, R_table, R_ball, r_nom, k_c, e, d_c, w_ball, w_table, bound_u,
     bound_δ]; ``gms_p`` [C, μ_s, μ_c, v_s, δ, σ2, β_t, α, axis (3)] (α, axis: the sliding-direction
     asymmetry, :meth:`~turntable_env.model.TurntableModel.run`); ``amp_p`` [gain, τ, ideal, input
-    limit]; ``amp_rate`` (4,) slew limit per channel [V/s]; the rest are the bodies' and
-    tubes' matrices in the world frame.
+    limit, fast fraction, τ_f, output lag τ_o]; ``amp_rate`` (4,) slew limit per channel
+    [V/s]; the rest are the bodies' and tubes' matrices in the world frame.
     """
 
     table_p: np.ndarray

@@ -4,7 +4,8 @@ Chain, amplifier input u [V] → table angle θ [rad] (and detector voltage):
 
 * the HVA 900 amplifier as a first-order stage G/(τs + 1) (§4.1.2; gain G = 45,
   τ from the measured 0.9 V/µs; its slew and current limits do not act on small
-  signals), or the gain G alone for an ideal source;
+  signals), times 1/(τ_o s + 1) where it has an output lag (``amplifier_lag``), or the
+  gain G alone for an ideal source (the fast path's share is not modelled here);
 * the per-axis mechanics with every GMS element stuck
   (:meth:`~turntable_env.reduced.ReducedModel.stick_matrices`): two condensed tube
   bending modes driven by the quadrant voltages (Eq. 2.11, 3.16), the table on the
@@ -45,8 +46,9 @@ def stick_plant(
 ) -> ct.StateSpace:
     """Continuous small-signal plant in stick, amplifier input [V] → angle [rad], detector [V].
 
-    States: amplifier output V_amp [V] (absent for an ideal source), θ [rad], θ̇ [rad/s],
-    contact-point deflections u1, u2 [m] of the two driving tubes and their rates [m/s].
+    States: amplifier output V_amp [V] (absent for an ideal source; with an output lag
+    preceded by its stage's V_stage [V]), θ [rad], θ̇ [rad/s], contact-point deflections
+    u1, u2 [m] of the two driving tubes and their rates [m/s].
     Inputs: ``u_in_V``. Outputs: ``angle_rad``, ``detector_V``. Every number comes from
     the parameter set through the reduced model (see the module docstring).
     """
@@ -70,6 +72,15 @@ def stick_plant(
         b[0, 0] = amp.gain / amp.tau
         c = np.hstack([np.zeros((2, 1)), c_th])
         states = list(STATE_NAMES)
+        if amp.output_lag > 0.0:  # V_stage → V_amp through the lag τ_o
+            a = np.pad(a, ((1, 0), (1, 0)))
+            a[0, 0] = -1.0 / amp.tau
+            a[1, 0] = 1.0 / amp.output_lag
+            a[1, 1] = -1.0 / amp.output_lag
+            b = np.pad(b, ((1, 0), (0, 0)))
+            b[0, 0], b[1, 0] = amp.gain / amp.tau, 0.0
+            c = np.hstack([np.zeros((2, 1)), c])
+            states = ["V_stage", *states]
     return ct.ss(
         a,
         b,

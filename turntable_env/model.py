@@ -397,7 +397,7 @@ class TurntableModel:
         amp = ps.amplifier
         amp_p = np.array(
             [amp.gain, amp.tau, 1.0 if amp.ideal else 0.0, amp.input_limit, amp.fast_fraction,
-             amp.fast_time]
+             amp.fast_time, amp.output_lag]
         )  # fmt: skip
         c_free = tube.quadrant.capacitance
         per_output = (lay.quadrant_sign > 0.0)  # quadrants on each channel's +V output

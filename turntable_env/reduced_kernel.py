@@ -111,9 +111,17 @@ def _amp_linear(v0, vs0, vf0, u0, slope, row, ideal):
     branch with e0 ≈ 0)."""
     if ideal:
         return True
-    gain, tau, rate, a, tf = row[0], row[1], row[4], row[5], row[6]
+    gain, tau, rate, a, tf, to = row[0], row[1], row[4], row[5], row[6], row[7]
     if abs(gain * slope) >= rate:
         return False
+    if to != 0.0:  # an output lag: the stage's paths settled, the output τ_o behind them
+        gs = (1.0 - a) * gain
+        if abs(gs * u0 - vs0) > rate * tau or abs(gs * (u0 - slope * tau) - vs0) > FAST_QUIET:
+            return False
+        if a != 0.0 and abs(a * gain * (u0 - slope * tf) - vf0) > FAST_QUIET:
+            return False
+        w_rate = gain * slope  # the paths' sum ramps at G·u̇ once settled
+        return abs(vs0 + vf0 - w_rate * to - v0) <= FAST_QUIET
     if a == 0.0:
         return (
             abs(gain * u0 - v0) <= rate * tau and abs(gain * (u0 - slope * tau) - v0) <= FAST_QUIET
@@ -409,8 +417,9 @@ def _run_one(b, state, model, drive, h_min, recording):
     r_fast = 0  # largest rung short against the amplifier's fast path (τ_f/8)
     while (1 << (r_fast + 1)) * h_min <= amp[b, 6] / 8.0:
         r_fast += 1
-    r_tau = 0  # largest rung short against the amplifier's lag (τ/8)
-    while (1 << (r_tau + 1)) * h_min <= tau / 8.0:
+    r_tau = 0  # largest rung short against the amplifier's lags (min(τ, τ_o)/8)
+    tau_short = min(tau, amp[b, 7]) if amp[b, 7] > 0.0 else tau
+    while (1 << (r_tau + 1)) * h_min <= tau_short / 8.0:
         r_tau += 1
     quiet_len = ctl[b, 0]
     ql2 = quiet_len * quiet_len  # its square's decision band (see _exceeds; none if tiny)

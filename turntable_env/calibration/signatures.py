@@ -107,6 +107,7 @@ SIGNATURE_GROUPS = tuple(g for g in GROUPS if g not in NOMINAL_GROUPS)
 EFFECT_GROUPS: dict[str, tuple[str, ...]] = {
     "amplifier_dynamics": ("steps",),
     "amplifier_fast_path": ("steps",),
+    "amplifier_lag": ("steps",),
     "piezo_hysteresis": ("scan_shape",),
     "piezo_creep": ("relaxation",),
     "friction_asymmetry": ("direction",),

@@ -122,6 +122,8 @@ TRACE_NOMINAL = (
     "amplifier_slew",
     "amplifier_current",
 )
+# the effects a trace calibration searches unless told (Effect.searched)
+SEARCHED = tuple(n for n, e in CATALOGUE.items() if e.searched)
 # nominal parameter → amplifier_dynamics parameter it is reported as
 AMPLIFIER_SCALES = {"amplifier_slew": "slew_scale", "amplifier_current": "current_scale"}
 AMPLIFIER_SIGMAS = 3.0  # a scale named only this many standard errors from the datasheet …
@@ -880,6 +882,17 @@ def consistent(
 
 
 # --- the calibration -----------------------------------------------------------------------
+def _considered(
+    names: Sequence[str], ident: Mapping[str, str], amp: Any, fits_amplifier: bool
+) -> list[str]:
+    """The candidates a trace calibration searches: the identifiable ones, less an amplifier
+    structure the base amplifier ``amp`` already has (a fast path, an output lag) and
+    ``amplifier_dynamics`` where the nominal stage fits its two scales."""
+    has = {"amplifier_fast_path": amp.fast_fraction > 0, "amplifier_lag": amp.lag_ratio > 0,
+           "amplifier_dynamics": fits_amplifier}  # fmt: skip
+    return [n for n in names if not ident.get(n) and not has.get(n, False)]
+
+
 def calibrate_traces(
     files: Sequence[str | Path | Measurement],
     *,
@@ -902,7 +915,8 @@ def calibrate_traces(
         files: measurement files or loaded :class:`Measurement` objects (fitted together).
         base: the plant the nominal factors scale (a parameter-set name or a Plant;
             ``"calibrated"`` for the thesis rig's calibrated set).
-        candidates: catalogue effects to consider (default: all).
+        candidates: catalogue effects to consider (default: those the catalogue marks
+            ``searched``, all but ``amplifier_lag``).
         max_effects: at most this many effects are added.
         min_improvement: relative held-out gain an effect must bring over the nominal
             model refitted with the same budget.
@@ -929,7 +943,7 @@ def calibrate_traces(
     for n in nominal:
         if n not in known:
             raise ValueError(f"nominal: unknown parameter {n!r} ({', '.join(known)})")
-    names = list(candidates) if candidates is not None else list(CATALOGUE)
+    names = list(candidates) if candidates is not None else list(SEARCHED)
     for n in names:
         if n not in CATALOGUE:
             raise ValueError(f"candidates: unknown effect {n!r} ({', '.join(CATALOGUE)})")
@@ -978,12 +992,8 @@ def calibrate_traces(
     for n in names:
         if ident.get(n):
             warnings.append(f"{n}: not identifiable from this protocol ({ident[n]})")
-    considered = [n for n in names if not ident.get(n)]
-    if base_plant.params.amplifier.fast_fraction > 0 and "amplifier_fast_path" in considered:
-        considered.remove("amplifier_fast_path")  # the base plant has one already
     fits_amplifier = set(AMPLIFIER_SCALES) <= set(model.names)
-    if fits_amplifier and "amplifier_dynamics" in considered:
-        considered.remove("amplifier_dynamics")  # the nominal stage fits its two scales
+    considered = _considered(names, ident, base_plant.params.amplifier, fits_amplifier)
     current, selected, history, candidates_out, signature = _select_effects(
         problem, nominal, considered, floor, max_effects, min_improvement, warnings, say,
         n_workers, HopPlan(hops, seed),

@@ -296,7 +296,7 @@ class PlantStepper:
         # per-plant constants
         self._rows = np.stack([p.effect_row for p in plants])
         self._neutral_row = pack_effects({})
-        self._amp = np.empty((n, 7))
+        self._amp = np.empty((n, 8))
         self._c_load = np.empty(n)
         self._radius = np.empty(n)
         self._noise_std = np.empty(n)
