@@ -79,7 +79,8 @@ __all__ = [
 
 LN9 = math.log(9.0)
 LAG_RATIO_MAX = 1.0  # largest output lag τ_o/τ [-]: the linear response is symmetric in
-# the two poles (r and 1/r give the same τ and τ_o swapped), so r ≤ 1 covers every pair
+# the two poles (r and 1/r give the same τ and τ_o swapped), so r ≤ 1 covers every pair of
+# them (under the rate limit, or with a fast path, the two orders differ slightly)
 
 
 @njit(cache=CACHE)
@@ -132,9 +133,11 @@ def _lagged(v0, w0, w1, h, to, rate):
 def amplifier_step(v0, vs0, vf0, u0, u1, h, row):
     """(output, slow path, fast path) [V] after h [s] of an input ramping u0 → u1 [V] for the
     amplifier ``row`` (:meth:`Amplifier.kernel_row`; module docstring). Without a fast path
-    (a = 0) the slow path is the output: :func:`ramp_step`. With one, the fast path is
-    exact for the ramp, the slow path as :func:`ramp_step` with gain (1 − a)G, and the output
-    moves towards their sum by at most R·h."""
+    (a = 0) the slow path is :func:`ramp_step`, and the output unless an output lag trails
+    it. With one, the fast path is exact for the ramp, the slow path as :func:`ramp_step`
+    with gain (1 − a)G, and the output moves towards their sum by at most R·h. An output lag
+    τ_o = ``row[7]`` > 0 follows the paths' sum, taken as a ramp over the step (exact for
+    one), by at most R·h."""
     e_tf = math.exp(-h / row[6]) if row[5] != 0.0 else 0.0
     return amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, row, math.exp(-h / row[1]), e_tf)
 
@@ -183,7 +186,7 @@ def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0, 
     slew-limited first-order stage (gain G, τ [s], rate limit [V/s]) covers G·|v_start −
     v_end| [V] from an error G·|v_start − u_over|, u_over = v_end − k(v_start − v_end);
     with a fast path (a > 0) or an output lag (τ_o = ``to`` > 0 [s]) the output is
-    integrated in steps of min(τ, τ_f, τ_o)/200."""
+    integrated in steps of min(τ, τ_f)/200."""
     if ideal or v_start == v_end:
         return 0.0
     if k == 0.0:
@@ -210,7 +213,7 @@ def _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf, to=0.0):
     vs = (1.0 - a) * v
     vf = a * v
     sgn = 1.0 if target > v else -1.0
-    dt = min(tf if a > 0.0 else tau, tau, to if to > 0.0 else tau) / 200.0
+    dt = min(tf, tau) / 200.0  # the lag's step is exact for a ramp: τ_o need not be resolved
     t = 0.0
     while t < 20.0 * (tau + tf + to):
         v1, vs, vf = amplifier_hold_step(v, vs, vf, u_over, dt, gain, tau, rate, a, tf, to)

@@ -842,6 +842,7 @@ def run_full_model(state, model, drive, t0, t_end, step_p, recording, cancel):
             u = min(ulim, max(-ulim, u))
             if ideal:
                 vch[c] = gain * u
+                vslow[c] = vch[c]  # kept equal: no stale path for a later amplifier
             else:
                 vch[c], vslow[c], vfast[c] = amplifier_hold_step(
                     vch[c], vslow[c], vfast[c], u, dt, gain, tau_amp, amp_rate[c], a_fast, t_fast,

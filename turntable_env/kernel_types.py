@@ -57,7 +57,8 @@ class ReducedState(NamedTuple):
         st: (N, 2, n_e) 1 stick / 0 slip.
         n: (N,) time in grid units.
         vslow, vfast: (N,) the amplifier's slow and fast paths [V]
-            (:mod:`turntable_env.amplifier`; without a fast path vslow = volt, vfast = 0).
+            (:mod:`turntable_env.amplifier`; without a fast path vfast = 0, and vslow = volt
+            unless an output lag trails it).
     """
 
     y: np.ndarray
@@ -75,7 +76,7 @@ class ReducedArrays(NamedTuple):
 
     ``mech`` [J, k_g, ρ1, ρ2, M1, M2, K1, K2, D1, D2, g1, g2, F_N1, F_N2]; ``gms`` [C, μ_s,
     μ_c, v_s, δ, σ2, β_t, α (sliding-direction asymmetry)]; ``amp`` [gain, τ, ideal, input
-    limit, rate, fast fraction, τ_f] (as
+    limit, rate, fast fraction, τ_f, output lag τ_o] (as
     :meth:`~turntable_env.amplifier.Amplifier.kernel_row`); ``ctl`` [quiet length
     [m], largest rung while an element slips]; ``nu``, ``kk`` the GMS elements; ``lvl``,
     ``nlvl`` stick-configuration levels; ``phi_*``, ``gam_*`` exact step matrices per

@@ -417,9 +417,9 @@ def _run_one(b, state, model, drive, h_min, recording):
     r_fast = 0  # largest rung short against the amplifier's fast path (τ_f/8)
     while (1 << (r_fast + 1)) * h_min <= amp[b, 6] / 8.0:
         r_fast += 1
-    r_tau = 0  # largest rung short against the amplifier's lags (min(τ, τ_o)/8)
-    tau_short = min(tau, amp[b, 7]) if amp[b, 7] > 0.0 else tau
-    while (1 << (r_tau + 1)) * h_min <= tau_short / 8.0:
+    r_tau = 0  # largest rung short against the amplifier's lag (τ/8; an output lag's step
+    # is exact for the stage's ramp, so τ_o does not shorten it)
+    while (1 << (r_tau + 1)) * h_min <= tau / 8.0:
         r_tau += 1
     quiet_len = ctl[b, 0]
     ql2 = quiet_len * quiet_len  # its square's decision band (see _exceeds; none if tiny)
@@ -573,6 +573,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                 u_e = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], idx, n + m_step)))
                 if ideal:
                     volt[b] = gain * u_e
+                    vslow[b] = volt[b]  # kept equal: no stale path for a later amplifier
                 else:
                     volt[b], vslow[b], vfast[b] = amplifier_step(
                         v0, vslow[b], vfast[b], u0, u_e, t_e, amp[b]
@@ -677,6 +678,7 @@ def _run_one(b, state, model, drive, h_min, recording):
             u1 = min(ulim, max(-ulim, _input_at(wg[b], wv[b], wn[b], i1, n1)))
             if ideal:
                 v1 = gain * u1
+                vs1 = v1  # kept equal: no stale path for a later amplifier
                 v0e = gain * u0
             else:
                 v1, vs1, vf1 = amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, amp[b],
