@@ -120,11 +120,18 @@ def _ramp_step(v0, u0, u1, h, gain, tau, rate, e_tau):
 
 
 @njit(cache=CACHE)
+def _ramp_follower(v0, w0, w1, slope, tc, decay):
+    """State [V] after a step of dV/dt = (w − V)/t_c from v0 while its target w ramps
+    w0 → w1 [V] at ``slope`` [V/s]: exact, with decay = exp(−step/t_c) (the fast path, the
+    output lag)."""
+    return w1 - slope * tc + (v0 - w0 + slope * tc) * decay
+
+
+@njit(cache=CACHE)
 def _lagged(v0, w0, w1, h, to, rate):
     """Output [V] after h [s] of the lag stage dV/dt = (w − V)/τ_o (τ_o = ``to`` [s]) whose
     input w ramps w0 → w1 [V] over the step (exact), its change capped at ``rate``·h."""
-    slope = (w1 - w0) / h
-    v1 = w1 - slope * to - (w0 - slope * to - v0) * math.exp(-h / to)
+    v1 = _ramp_follower(v0, w0, w1, (w1 - w0) / h, to, math.exp(-h / to))
     lim = rate * h
     return min(v0 + lim, max(v0 - lim, v1))
 
@@ -154,7 +161,7 @@ def amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, row, e_tau, e_tf):
         return _lagged(v0, vs0, vs1, h, to, rate), vs1, 0.0
     vs1 = _ramp_step(vs0, u0, u1, h, (1.0 - a) * gain, tau, rate, e_tau)
     slope = a * gain * (u1 - u0) / h
-    vf1 = a * gain * u1 - slope * tf + (vf0 - a * gain * u0 + slope * tf) * e_tf
+    vf1 = _ramp_follower(vf0, a * gain * u0, a * gain * u1, slope, tf, e_tf)
     if to != 0.0:
         return _lagged(v0, vs0 + vf0, vs1 + vf1, h, to, rate), vs1, vf1
     lim = rate * h
