@@ -128,10 +128,11 @@ def _ramp_follower(v0, w0, w1, slope, tc, decay):
 
 
 @njit(cache=CACHE)
-def _lagged(v0, w0, w1, h, to, rate):
-    """Output [V] after h [s] of the lag stage dV/dt = (w − V)/τ_o (τ_o = ``to`` [s]) whose
-    input w ramps w0 → w1 [V] over the step (exact), its change capped at ``rate``·h."""
-    v1 = _ramp_follower(v0, w0, w1, (w1 - w0) / h, to, math.exp(-h / to))
+def _output_stage(v0, w0, w1, h, to, rate):
+    """Output [V] after h [s] from v0 while its input w (the paths' sum) ramps w0 → w1 [V]:
+    with an output lag τ_o = ``to`` > 0 [s] the lag's exact response, else w1; either way
+    moved by at most ``rate``·h (the slew-limited output stage)."""
+    v1 = _ramp_follower(v0, w0, w1, (w1 - w0) / h, to, math.exp(-h / to)) if to != 0.0 else w1
     lim = rate * h
     return min(v0 + lim, max(v0 - lim, v1))
 
@@ -158,14 +159,11 @@ def amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, row, e_tau, e_tf):
         vs1 = _ramp_step(vs0, u0, u1, h, gain, tau, rate, e_tau)
         if to == 0.0:
             return vs1, vs1, 0.0
-        return _lagged(v0, vs0, vs1, h, to, rate), vs1, 0.0
+        return _output_stage(v0, vs0, vs1, h, to, rate), vs1, 0.0
     vs1 = _ramp_step(vs0, u0, u1, h, (1.0 - a) * gain, tau, rate, e_tau)
     slope = a * gain * (u1 - u0) / h
     vf1 = _ramp_follower(vf0, a * gain * u0, a * gain * u1, slope, tf, e_tf)
-    if to != 0.0:
-        return _lagged(v0, vs0 + vf0, vs1 + vf1, h, to, rate), vs1, vf1
-    lim = rate * h
-    return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
+    return _output_stage(v0, vs0 + vf0, vs1 + vf1, h, to, rate), vs1, vf1
 
 
 @njit(cache=CACHE)
@@ -177,13 +175,10 @@ def amplifier_hold_step(v0, vs0, vf0, u, dt, gain, tau, rate, a, tf, to=0.0):
         vs1 = slew_step(vs0, gain * u, dt, tau, rate)
         if to == 0.0:
             return vs1, vs1, 0.0
-        return _lagged(v0, vs0, vs1, dt, to, rate), vs1, 0.0
+        return _output_stage(v0, vs0, vs1, dt, to, rate), vs1, 0.0
     vs1 = slew_step(vs0, (1.0 - a) * gain * u, dt, tau, rate)
     vf1 = a * gain * u + (vf0 - a * gain * u) * math.exp(-dt / tf)
-    if to != 0.0:
-        return _lagged(v0, vs0 + vf0, vs1 + vf1, dt, to, rate), vs1, vf1
-    lim = rate * dt
-    return min(v0 + lim, max(v0 - lim, vs1 + vf1)), vs1, vf1
+    return _output_stage(v0, vs0 + vf0, vs1 + vf1, dt, to, rate), vs1, vf1
 
 
 @njit(cache=CACHE)
