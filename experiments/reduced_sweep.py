@@ -8,12 +8,15 @@ relative difference (none where the full step is under 1 nm or the adapted flyba
 not fit the period).
 
     python experiments/reduced_sweep.py            # writes experiments/results/reduced_sweep.csv
+    python experiments/reduced_sweep.py --translation   # reduced_sweep_translation.csv: the
+                                                        # reduced model with the translation
 
 Prints the summary (``reduced_vs_full_max`` and its case, median, share within 5 %).
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import sys
 import time
@@ -24,21 +27,27 @@ import numpy as np
 from turntable_env.bench import VS_FULL, reduced_vs_full_sweep, vs_full_summary
 
 OUT = Path(__file__).parent / "results" / "reduced_sweep.csv"
+OUT_TRANSLATION = OUT.with_name("reduced_sweep_translation.csv")
 KEYS = ["amplifier", "amplitude_V", "frequency_Hz", "a", "full_step_nm", "reduced_step_nm",
         "rel_diff", "note"]  # fmt: skip
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--translation", action="store_true",
+                    help="the reduced model with the sphere's translation")  # fmt: skip
+    args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    rows = reduced_vs_full_sweep()
-    OUT.parent.mkdir(exist_ok=True)
-    tmp = OUT.with_suffix(".tmp")
+    rows = reduced_vs_full_sweep(translation=args.translation)
+    out = OUT_TRANSLATION if args.translation else OUT
+    out.parent.mkdir(exist_ok=True)
+    tmp = out.with_suffix(".tmp")
     with tmp.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=KEYS)
         w.writeheader()
         for r in rows:
             w.writerow({k: ("" if r.get(k) is None else r.get(k, "")) for k in KEYS})
-    tmp.replace(OUT)
+    tmp.replace(out)
     s = vs_full_summary(rows)
     wc = s["reduced_vs_full_worst_case"]
     print(f"{len(rows)} cases, {s['reduced_vs_full_cases']} with a full step >= 1 nm: "
@@ -58,9 +67,11 @@ def main() -> int:
             pairs.setdefault(key, {})[r["amplitude_V"] > 0] = r["full_step_nm"]
     asym = [abs(p[True] - p[False]) / (0.5 * (p[True] + p[False])) for p in pairs.values()
             if len(p) == 2 and min(p.values()) >= 1.0]  # fmt: skip
-    print(f"  the 3-D model's direction asymmetry |s+ − s−|/mean: median "
-          f"{100 * np.median(asym):.1f} %, max {100 * max(asym):.1f} %; wall "
-          f"{time.perf_counter() - t0:.0f} s")
+    print(
+        f"  the 3-D model's direction asymmetry |s+ − s−|/mean: median "
+        f"{100 * np.median(asym):.1f} %, max {100 * max(asym):.1f} %; wall "
+        f"{time.perf_counter() - t0:.0f} s"
+    )
     return 0
 
 

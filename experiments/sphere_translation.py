@@ -1,11 +1,13 @@
 """The per-axis model with the sphere's translation and the contacts' normal forces: a
-fixed-step prototype that tests the mechanism issue 32 item 1 needs (not the env's model).
+fixed-step reference for the per-axis kernel's translation (issue 32 item 1).
 
 The per-axis model (:mod:`turntable_env.reduced`) keeps the table's rotation about one axis
 and the two driving tubes' bending, at the static normal force F_N. The 3-D model steps
 asymmetrically (+154 / −225 nm per period at ±90 V, 100 Hz, a = 0.95) where the per-axis
 model steps 202 nm both ways (``python experiments/axial_stroke.py``). Three things the
-per-axis model leaves out are kept here, all derived from the 3-D model, nothing fitted:
+per-axis model leaves out are kept here, all derived from the 3-D model, nothing fitted
+(:class:`~turntable_env.reduced.TranslationParameters`, which ``ReducedModel(translation=
+True)`` integrates exactly between transitions, holding the axis contact stuck):
 
 * the sphere's translation x in the plane normal to the axis n, along the driving tubes'
   axes d_1, d_2 (orthonormal with n: §3.1's orthogonal tubes). Tube 1's friction acts
@@ -24,16 +26,19 @@ per-axis model leaves out are kept here, all derived from the 3-D model, nothing
 The table's inertia couples rotation and translation through the centre of mass, 3R/8
 below the centre (App. C): T = ½J_nθ̇² + m θ̇ (n × c)·ẋ + ½m|ẋ|².
 
-Integration: semi-implicit Euler at a fixed step (default 2.5 ns) with the per-axis
+Integration: semi-implicit Euler at a fixed step (default 5 ns) with the per-axis
 kernel's GMS law (``gms_element_step``, Eq. 2.24–2.25) and transition rules; the channel
 voltage is the per-axis model's own amplifier output, interpolated linearly. With the
-translation frozen (``--frozen``) it is the per-axis model, which checks the prototype.
+translation held (``--variant frozen``) it is the per-axis model, which checks the
+prototype; ``--variant axis_contact_stuck`` holds the axis contact stuck, as the kernel
+does; ``no_stroke`` removes the axial stroke (from the 3-D model too).
 
     python experiments/sphere_translation.py [--variant translation|no_stroke|frozen]
         [--amplitude 20 90 200] [--frequency 100 2000] [--a 0.95] [--dt 5e-9]
 
-prints, for each case both ways, the 3-D model's step, the prototype's and the per-axis
-model's, their differences, and the median and largest |difference| over the cases.
+prints, for each case both ways, the 3-D model's step, the prototype's, the per-axis
+model's and the per-axis kernel's with the translation, their differences, and the median
+and largest |difference| over the cases.
 """
 
 from __future__ import annotations
@@ -69,6 +74,7 @@ class Arrays(NamedTuple):
     dc: float  # its normal damping [N s/m]
     s_ax: float  # the tubes' axial stroke per channel volt, ball along d_k [m/V]
     fn0: float  # static normal force F_N [N]
+    fn_axis: float  # normal force of the contact on the axis [N] (huge: it never slips)
     nu: np.ndarray  # GMS element fractions ν_i [-]
     kk: np.ndarray  # GMS element stiffnesses k_i [N/m]
     gms: np.ndarray  # C [N/s], μ_s, μ_c, v_s [m/s], δ of Eq. 2.13–2.25
@@ -112,8 +118,8 @@ def _run(t_v, v_v, dt, n_steps, arr, frozen, out_every):
                 fn[k] = fn0 + kn * (q[3 + k] - s_ax * volt) + dc * (qd[3 + k] - s_ax * vdot)
                 if fn[k] < 0.0:
                     fn[k] = 0.0
-        fn[2] = fn0
-        fn[3] = fn0
+        fn[2] = arr.fn_axis
+        fn[3] = arr.fn_axis
         if step % out_every == 0:
             rec_t[j] = t
             for a in range(nq):
@@ -178,81 +184,46 @@ def _run(t_v, v_v, dt, n_steps, arr, frozen, out_every):
 
 
 def build(rm: ReducedModel) -> dict:
-    """The prototype's matrices from the 3-D model behind ``rm`` (module docstring): the
-    mass matrix ``mass``, the :class:`Arrays` ``arrays`` (``minv`` that of ``mass``) and
-    the ``derived`` quantities by name (SI units in the names)."""
-    ps, ar, ap = rm.params, rm.full.packed, rm.axis_params
-    c_ax = "ABC".index(rm.axis)
-    n = rm.full.layout.axis_units[c_ax]
-    drv = [k for k in range(3) if k != c_ax]
-    d1, d2 = ar["d_nom"][drv[0]], ar["d_nom"][drv[1]]
-    e = [np.cross(n, ar["d_nom"][k]) / np.linalg.norm(np.cross(n, ar["d_nom"][k])) for k in drv]
-    tp = ar["table_p"]
-    m = float(tp[0])
-    fn0 = float(ps.contact.preload)
-    delta0 = (fn0 / tp[6]) ** (1.0 / tp[7])
-    k_hertz = tp[7] * fn0 / delta0
-    r_ball = ps.tube.outer_radius
-    k = drv[0]
-    r_c = ar["r0"][k] - r_ball * ar["d_nom"][k]
-    ad = np.concatenate([np.cross(r_c, ar["d_nom"][k]), ar["d_nom"][k]])
-    kinv = np.linalg.inv(ar["ktop"][k])
-    k_axial = 1.0 / float(ad @ kinv @ ad)
-    q = (ar["qchan"][k] == c_ax) * ar["qsign"][k]
-    s_ax = float(ad @ kinv @ ar["bcoup"][k] @ q)  # ball along d_k per channel volt [m/V]
-    kn = 1.0 / (1.0 / k_hertz + 1.0 / k_axial)
-    # tube n condensed at its contact point along d_1 (its bending is symmetric)
-    r_cn = ar["r0"][c_ax] - r_ball * ar["d_nom"][c_ax]
-    an = np.concatenate([np.cross(r_cn, d1), d1])
-    kinv_n = np.linalg.inv(ar["ktop"][c_ax]) @ an
-    kb = 1.0 / float(an @ kinv_n)
-    psi = kinv_n * kb
-    mb = float(psi @ ar["mtube"][c_ax] @ psi)
-    beta = ps.tube.damping_coefficient
-    cvec = np.cross(n, ar["c_body"])
-    g = [float(cvec @ d1), float(cvec @ d2)]
-    nq = 7
-    mass = np.zeros((nq, nq))
-    mass[0, 0] = ap.inertia
-    mass[1, 1], mass[2, 2] = ap.tube_mass
-    mass[3, 3] = mass[4, 4] = m
-    mass[0, 3] = mass[3, 0] = m * g[0]
-    mass[0, 4] = mass[4, 0] = m * g[1]
-    mass[5, 5] = mass[6, 6] = mb
-    kq = np.zeros((nq, nq))
-    cq = np.zeros((nq, nq))
-    bq = np.zeros(nq)
-    kq[0, 0] = ap.gravity_stiffness
+    """The prototype's matrices for ``rm``'s axis: the kernel's linear part
+    (:meth:`~turntable_env.reduced.ReducedModel.translation_matrices`, from the 3-D model)
+    less what the prototype integrates itself, the normal springs and the axis contact.
+    Returns the mass matrix ``mass``, the :class:`Arrays` ``arrays`` (``minv`` that of
+    ``mass``), ``fn0`` and the translation's parameters ``translation``."""
+    ps, ap = rm.params, rm.axis_params
+    moved = ReducedModel(ps, rm.axis, model=rm.full, translation=True)
+    tr = moved.translation_params
+    mass, kq, cq, bq, _bvd = moved.translation_matrices()
+    nq = mass.shape[0]
+    # the driving contacts' normal springs act in _run (they also set the Stribeck level),
+    # and the contact on the axis is a GMS contact there (the kernel holds it stuck)
     for i in range(2):
-        kq[1 + i, 1 + i] = ap.tube_stiffness[i]
-        cq[1 + i, 1 + i] = ap.tube_damping[i]
-        bq[1 + i] = ap.tube_stiffness[i] * ap.tube_gain[i]
-        kq[5 + i, 5 + i] = kb
-        cq[5 + i, 5 + i] = beta * kb
-    # the driving contacts' normal springs act in _run (they also set the Stribeck level)
+        kq[3 + i, 3 + i] -= tr.normal_stiffness
+        cq[3 + i, 3 + i] -= tr.normal_damping
+        bq[3 + i] = 0.0
+        sb = np.zeros(nq)
+        sb[5 + i], sb[3 + i] = 1.0, -1.0
+        kq -= tr.axis_contact_stiffness * np.outer(sb, sb)
+        cq -= tr.axis_contact_damping * np.outer(sb, sb)
     slip = np.zeros((4, nq))
     for i in range(2):
         slip[i, 0] = -ap.lever[i]
         slip[i, 1 + i] = 1.0
-        slip[i, 3] = -float(e[i] @ d1)
-        slip[i, 4] = -float(e[i] @ d2)
+        slip[i, 3] = -tr.direction[i][0]
+        slip[i, 4] = -tr.direction[i][1]
         slip[2 + i, 5 + i] = 1.0
         slip[2 + i, 3 + i] = -1.0
     fr = ps.friction
     gms = np.array([fr.C, fr.stribeck.mu_s, fr.stribeck.mu_c, fr.stribeck.v_s,
                     fr.stribeck.delta])  # fmt: skip
-    arrays = Arrays(np.linalg.inv(mass), kq, cq, bq, slip, kn, float(tp[8]), s_ax, fn0,
-                    np.asarray(fr.nu, float), np.asarray(fr.k, float), gms,
+    fn0 = float(ps.contact.preload)
+    arrays = Arrays(np.linalg.inv(mass), kq, cq, bq, slip, tr.normal_stiffness,
+                    tr.normal_damping, tr.stroke, fn0, fn0, np.asarray(fr.nu, float),
+                    np.asarray(fr.k, float), gms,
                     float(ps.contact.tangential_damping))  # fmt: skip
-    return {
-        "mass": mass, "arrays": arrays,
-        "derived": {"k_hertz_N_m": k_hertz, "k_axial_N_m": k_axial, "k_n_N_m": kn,
-                    "stroke_m_V": s_ax, "k_tube_n_N_m": kb, "m_tube_n_kg": mb,
-                    "coupling_m": g, "mass_kg": m},
-    }  # fmt: skip
+    return {"mass": mass, "arrays": arrays, "fn0": fn0, "translation": tr}
 
 
-VARIANTS = ("translation", "no_stroke", "frozen")
+VARIANTS = ("translation", "no_stroke", "frozen", "axis_contact_stuck")
 GRID_V = (20.0, 90.0, 200.0)  # tube volts [V]
 GRID_F = (100.0, 2000.0)  # [Hz]
 
@@ -269,13 +240,17 @@ def run(amplitude: float, frequency: float, a: float, *, variant: str = "transla
                                periods=periods, a=a, amplifier="adapted")  # fmt: skip
     rm = ReducedModel(ps, "B")
     ref = simulate_reduced(ps, drive, model=rm, output_dt=1e-7)
+    kernel = simulate_reduced(ps, drive, model=ReducedModel(ps, "B", translation=True),
+                              output_dt=1e-7)  # fmt: skip
     p = build(rm)
     mass = p["mass"].copy()
     frozen = variant == "frozen"
     if frozen:  # the translation held: the rotation's inertia alone, J_n
         mass[0, 3:5] = mass[3:5, 0] = 0.0
     arr = p["arrays"]._replace(
-        minv=np.linalg.inv(mass), s_ax=0.0 if variant == "no_stroke" else p["arrays"].s_ax
+        minv=np.linalg.inv(mass),
+        s_ax=0.0 if variant == "no_stroke" else p["arrays"].s_ax,
+        fn_axis=1e9 if variant == "axis_contact_stuck" else p["fn0"],
     )
     n_steps = round(drive.duration / dt)
     out_every = max(1, round(1e-6 / dt))
@@ -284,7 +259,8 @@ def run(amplitude: float, frequency: float, a: float, *, variant: str = "transla
     ends = ref.period_starts[1:] - (1.0 - a) / frequency  # ramp ends [s]
     fn_end = [float(np.mean(np.interp(ends, t, fnrec[:, k]))) for k in range(2)]
     return {"prototype_nm": 1e9 * proto.step_size, "per_axis_nm": 1e9 * ref.step_size,
-            "ramp_end_normal_N": fn_end, "derived": p["derived"]}  # fmt: skip
+            "kernel_nm": 1e9 * kernel.step_size,
+            "ramp_end_normal_N": fn_end, "translation": p["translation"]}  # fmt: skip
 
 
 def full_step(amplitude: float, frequency: float, a: float, *, no_stroke: bool = False,
@@ -332,24 +308,27 @@ def main(argv: list[str] | None = None) -> int:
         full = full_step(sign * v, f, args.a, no_stroke=args.variant == "no_stroke")
         rows.append((sign * v, f, r, full))
         if len(rows) == 1:
-            print("derived: " + ", ".join(f"{k} {np.array2string(np.asarray(x), precision=4)}"
-                                          for k, x in r["derived"].items()))  # fmt: skip
+            print(r["translation"])
             print(
                 f"variant {args.variant}, a = {args.a:g}, dt = {args.dt:g} s; "
                 "steps [nm] per period, differences against the 3-D model"
             )
-            print("   V     Hz   3-D  prototype  (diff)  per-axis  (diff)  ramp-end F_N [N]")
+            print("   V     Hz   3-D  prototype  (diff)  per-axis  (diff)    kernel  (diff)"
+                  "  ramp-end F_N [N]")  # fmt: skip
         e_p, e_r = r["prototype_nm"] / full - 1.0, r["per_axis_nm"] / full - 1.0
+        e_k = r["kernel_nm"] / full - 1.0
         fn = r["ramp_end_normal_N"]
         print(
             f"{sign * v:+5.0f} {f:6.0f} {full:6.1f} {r['prototype_nm']:9.1f} {e_p:+7.3f} "
-            f"{r['per_axis_nm']:9.1f} {e_r:+7.3f}  {fn[0]:.3f}, {fn[1]:.3f}",
+            f"{r['per_axis_nm']:9.1f} {e_r:+7.3f} {r['kernel_nm']:9.1f} {e_k:+7.3f}  "
+            f"{fn[0]:.3f}, {fn[1]:.3f}",
             flush=True,
         )
     if not rows:
         print("no case ran")
         return 0
-    for name, key in (("prototype", "prototype_nm"), ("per-axis", "per_axis_nm")):
+    for name, key in (("prototype", "prototype_nm"), ("per-axis", "per_axis_nm"),
+                      ("kernel, translation", "kernel_nm")):  # fmt: skip
         d = np.abs([r[key] / full - 1.0 for _v, _f, r, full in rows])
         print(
             f"{name}: median |diff| {100 * np.median(d):.1f} %, max {100 * d.max():.1f} %, "

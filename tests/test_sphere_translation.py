@@ -4,8 +4,13 @@ against the 3-D model it is derived from."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from conftest import experiment
+
+from turntable_env.drive import Waveform
+from turntable_env.reduced import ReducedModel, TranslationParameters, simulate_batch
+from turntable_env.simulation import stepping_drive
 
 
 @pytest.fixture(scope="module")
@@ -36,21 +41,64 @@ def test_translation_carries_the_direction_asymmetry(script):
         assert all((f < 2.5) if amplitude > 0 else (f > 2.5) for f in fn)
 
 
-def test_the_stroke_is_the_quadrant_drive(script):
+def test_the_stroke_is_the_quadrant_drive():
     """The tubes' axial stroke per channel volt is the 3-D model's (0.656 nm/V, as
-    experiments/axial_stroke.py prints), and the normal stiffness is the Hertz contact's at
-    the preload, 1.5 F_N/δ_0, in series with the tube's axial stiffness."""
-    from turntable_env.reduced import ReducedModel
-    from turntable_env.simulation import stepping_drive
-
-    _drive, ps = stepping_drive("real", amplitude=1.0, frequency=100.0, amplifier="adapted")
-    d = script.build(ReducedModel(ps, "B"))["derived"]
-    assert d["stroke_m_V"] == pytest.approx(0.65625e-9, rel=1e-6)
-    series = 1.0 / (1.0 / d["k_hertz_N_m"] + 1.0 / d["k_axial_N_m"])
-    assert d["k_n_N_m"] == pytest.approx(series)
+    experiments/axial_stroke.py prints), the Hertz stiffness is Eq. 3.21's k_c δ^e
+    differentiated at the preload, e·F_N/δ_0, and the normal stiffness is it in series with
+    the tube's axial stiffness, below both."""
+    tr = TranslationParameters.from_model(ReducedModel("real", "B").full, "B")
+    ps = ReducedModel("real", "B").params
+    assert tr.stroke == pytest.approx(0.65625e-9, rel=1e-6)
     c = ps.contact
     delta0 = (c.preload / c.normal_stiffness) ** (1.0 / c.normal_exponent)
-    assert d["k_hertz_N_m"] == pytest.approx(1.5 * c.preload / delta0)
+    assert tr.hertz_stiffness == pytest.approx(c.normal_exponent * c.preload / delta0)
+    assert tr.normal_stiffness < min(tr.hertz_stiffness, tr.axial_stiffness)
+    # the driving contacts' friction directions are the other contact's normals (§3.1)
+    assert np.abs(tr.direction) == pytest.approx(np.array([[0.0, 1.0], [1.0, 0.0]]), abs=1e-12)
+
+
+@pytest.mark.parametrize(("amplitude", "frequency"), [(90.0, 2000.0), (-90.0, 2000.0),
+                                                      (-20.0, 100.0)])  # fmt: skip
+def test_kernel_translation_agrees_with_the_fixed_step_reference(script, amplitude, frequency):
+    """ReducedModel(translation=True), exact between transitions, steps as the prototype's
+    explicit 5 ns integration (whose axis contact may slip) within 0.5 %."""
+    r = script.run(amplitude, frequency, 0.95)
+    assert r["kernel_nm"] == pytest.approx(r["prototype_nm"], rel=0.005)
+    assert abs(r["kernel_nm"] / r["per_axis_nm"] - 1.0) > 0.05  # and it is not the per-axis
+
+
+def _hold(models, volts):
+    drives = [Waveform(np.array([0.0, 5e-3]), np.full(2, v / 45.0)) for v in volts]
+    return simulate_batch(models, drives, 5e-3, output_dt=1e-4)
+
+
+def test_rest_state_with_translation_is_an_equilibrium():
+    """From rest at 60 V (the stroke has moved the sphere) a held voltage moves nothing."""
+    m = ReducedModel("real", "B", translation=True)
+    st = m.rest_state(0.0, 60.0)
+    assert abs(st["y"][6]) > 1e-9  # x_1 [m]: the stroke, shared by the two springs
+    r = _hold([m], [60.0])[0]
+    assert np.max(np.abs(r.angle_rad)) < 1e-12
+    assert np.max(np.ptp(r.slip, axis=0)) < 1e-12  # the contacts [m] do not move
+    assert np.max(np.ptp(r.tube_displacement, axis=0)) < 1e-12
+
+
+def test_a_batch_mixes_the_two_forms_bit_for_bit():
+    """A batch of a per-axis and a translation model (their arrays padded to one width)
+    gives each what it gives alone."""
+    ma, mb = ReducedModel("real", "B"), ReducedModel("real", "B", translation=True)
+    drive, _ps = stepping_drive("real", amplitude=2.0, frequency=2000.0, periods=2,
+                                amplifier="adapted")  # fmt: skip
+    both = simulate_batch([ma, mb], [drive, drive], drive.duration)
+    for m, r in zip((ma, mb), both, strict=True):
+        alone = simulate_batch([m], [drive], drive.duration)[0]
+        assert np.array_equal(r.angle_rad, alone.angle_rad)
+    assert not np.array_equal(both[0].angle_rad, both[1].angle_rad)
+
+
+def test_translation_has_no_analytic_step():
+    with pytest.raises(ValueError, match="analytic"):
+        ReducedModel("real", "B", analytic=True, translation=True)
 
 
 @pytest.mark.parametrize("argv", [["--a", "1.2"], ["--amplitude", "-5"], ["--dt", "1e-6"]])
@@ -59,3 +107,39 @@ def test_bad_input_exits_2(script, argv, capsys):
         script.main(argv)
     assert exc.value.code == 2
     assert argv[0] in capsys.readouterr().err
+
+
+def test_bench_reports_both_forms_against_the_3d_model():
+    """``turntable bench``'s sweep (quick: ±90 V, 100 Hz, a = 0.95, adapted): the per-axis
+    model is 31 % off the 3-D model's forward step; with the translation it is 14 %."""
+    from turntable_env.bench import reduced_vs_full_sweep, vs_full_summary
+
+    plain = vs_full_summary(reduced_vs_full_sweep(quick=True))
+    moved = vs_full_summary(reduced_vs_full_sweep(quick=True, translation=True),
+                            "reduced_translation")  # fmt: skip
+    assert plain["reduced_vs_full_max"] > 0.25
+    assert moved["reduced_translation_vs_full_max"] < 0.15
+    assert moved["reduced_translation_vs_full_worst_case"]["amplitude_V"] > 0  # forward
+
+
+def test_env_runs_the_translation_fidelity():
+    """``gym.make("PiezoTurntable-v0", fidelity="translation")`` passes Gymnasium's checker,
+    integrates the 14-state model and steps the table otherwise than the per-axis model
+    under the same forward actions (the forward step is the smaller, as the 3-D model's)."""
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+
+    import turntable_env  # noqa: F401  (registers the env)
+
+    angles = {}
+    for fid in ("reduced", "translation"):
+        env = gym.make("PiezoTurntable-v0", params="real", fidelity=fid, axis="B")
+        check_env(env.unwrapped, skip_render_check=True)
+        env.reset(seed=0)
+        lo, hi = env.action_space.low, env.action_space.high
+        for _ in range(5):
+            env.step(lo + 0.8 * (hi - lo))
+        task = env.unwrapped.task
+        assert task.stepper.plants[0].fidelity == fid
+        angles[fid] = float(task.angle[0])
+    assert 0.0 < angles["translation"] < 0.98 * angles["reduced"]  # 0.955 here

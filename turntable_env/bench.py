@@ -17,7 +17,10 @@ implementation of the reduced model — it measures, in one process:
 * the JIT compile (or cache-load) time of the compiled kernels, separately;
 * environment throughput (:func:`env_throughput`): ``PiezoTurntable-v0`` steps per second
   at the default 10 ms control interval, single env and native vector env (N = 64),
-  reduced model, for uniformly random actions and for the nominal drive.
+  reduced model, for uniformly random actions and for the nominal drive;
+* the per-axis model's step against the 3-D model's over a drive sweep
+  (:func:`reduced_vs_full_sweep`), as it is (``reduced_vs_full_*``) and with the sphere's
+  translation (``reduced_translation_vs_full_*``, the ``"translation"`` fidelity).
 """
 
 from __future__ import annotations
@@ -158,12 +161,14 @@ def accuracy_sweep(ps: Any, full: Any, quick: bool = False) -> list[dict[str, An
     return rows
 
 
-def reduced_vs_full_sweep(quick: bool = False) -> list[dict[str, Any]]:
+def reduced_vs_full_sweep(quick: bool = False, translation: bool = False) -> list[dict[str, Any]]:
     """Mean |step| per period [nm] of the reduced and the 3-D model (real parameters, axis
     B, :data:`VS_FULL_PERIODS` periods, the 3-D model's adaptive step) for every case of
     :data:`VS_FULL` (``quick``: :data:`VS_FULL_QUICK`), both directions, and their relative
     difference (reduced/full − 1; None where the full step is under
-    :data:`STEP_FLOOR_NM` or the adapted flyback does not fit the period, with the note)."""
+    :data:`STEP_FLOOR_NM` or the adapted flyback does not fit the period, with the note);
+    ``translation``: the reduced model with the sphere's translation
+    (:class:`~turntable_env.reduced.TranslationParameters`)."""
     grid = VS_FULL_QUICK if quick else VS_FULL
     rows: list[dict[str, Any]] = []
     models: dict[str, ReducedModel] = {}
@@ -174,7 +179,7 @@ def reduced_vs_full_sweep(quick: bool = False) -> list[dict[str, Any]]:
             drive, ps = stepping_drive("real", amplitude=sgn * amp / 45.0, frequency=f,
                                        periods=VS_FULL_PERIODS, a=a, amplifier=mode)  # fmt: skip
             if mode not in models:
-                models[mode] = ReducedModel(ps, "B")
+                models[mode] = ReducedModel(ps, "B", translation=translation)
             rm = models[mode]
             odt = min(1e-5, 0.01 / f)
             s_full = simulate(rm.params, drive, axis="B", model=rm.full,
@@ -191,19 +196,20 @@ def reduced_vs_full_sweep(quick: bool = False) -> list[dict[str, Any]]:
     return rows
 
 
-def vs_full_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+def vs_full_summary(rows: list[dict[str, Any]], prefix: str = "reduced") -> dict[str, Any]:
     """``turntable bench``'s figures of a :func:`reduced_vs_full_sweep`: the worst |relative
-    difference| (``reduced_vs_full_max``) with its case, the median, the share within 5 %."""
+    difference| (``reduced_vs_full_max``) with its case, the median, the share within 5 %
+    (``prefix``: the keys' first word, ``"reduced_translation"`` for the translation's)."""
     ok = [r for r in rows if r["rel_diff"] is not None]
     worst = max(ok, key=lambda r: abs(r["rel_diff"]))
     diffs = np.abs([r["rel_diff"] for r in ok])
     return {
-        "reduced_vs_full_max": float(abs(worst["rel_diff"])),
-        "reduced_vs_full_worst_case": worst,
-        "reduced_vs_full_median": float(np.median(diffs)),
-        "reduced_vs_full_within_5pct": float(np.mean(diffs <= 0.05)),
-        "reduced_vs_full_cases": len(ok),
-        "reduced_vs_full_sweep": rows,
+        f"{prefix}_vs_full_max": float(abs(worst["rel_diff"])),
+        f"{prefix}_vs_full_worst_case": worst,
+        f"{prefix}_vs_full_median": float(np.median(diffs)),
+        f"{prefix}_vs_full_within_5pct": float(np.mean(diffs <= 0.05)),
+        f"{prefix}_vs_full_cases": len(ok),
+        f"{prefix}_vs_full_sweep": rows,
     }
 
 
@@ -288,7 +294,31 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     out["reduced_step_error_analytic"] = abs(fast_an - ref) / ref
     out["reduced_reference"] = {"step_scale": hist[-1][0], "step_um": ref * 1e6}
     out["reduced_vs_full"] = out["reduced_step_um"] / out["full_step_um"] - 1.0
+
+    # --- the reduced model with the sphere's translation (the "translation" fidelity) ----
+    moved = ReducedModel(ps, "B", model=full, translation=True)
+    for name, dt in (("", OUTPUT_DT), ("_no_output", duration)):
+        out[f"reduced_translation_rtf{name}"] = duration / _best(
+            lambda dt=dt: simulate_batch([moved], [drive], duration, output_dt=dt)
+        )
+    out["reduced_translation_step_um"] = (
+        1e6 * simulate_batch([moved], [drive], duration, output_dt=OUTPUT_DT)[0].step_size
+    )
+
+    def moved_step(scale: float) -> float:
+        m = moved if scale == 1.0 else ReducedModel(ps, "B", step_scale=scale, model=full,
+                                                     translation=True)  # fmt: skip
+        return simulate_batch([m], [ref_drive], t_ref, output_dt=OUTPUT_DT)[0].step_size
+
+    fast = moved_step(1.0)
+    ref, hist = converge(moved_step, 1.0)
+    out["reduced_translation_step_error"] = abs(fast - ref) / ref
+    out["reduced_translation_vs_full"] = (
+        out["reduced_translation_step_um"] / out["full_step_um"] - 1.0
+    )
     out.update(vs_full_summary(reduced_vs_full_sweep(quick)))
+    out.update(vs_full_summary(reduced_vs_full_sweep(quick, translation=True),
+                               "reduced_translation"))  # fmt: skip
     sweep = accuracy_sweep(ps, full, quick=quick)
     out["reduced_step_error_sweep"] = sweep
     worst = max(sweep, key=lambda row: row["error"])
@@ -399,6 +429,9 @@ def format_table(res: dict[str, Any]) -> str:
          res["full_vs_scipy"]),
         ("reduced", res["reduced_rtf"], res["reduced_step_error"], res["reduced_peak_MiB"],
          res["reduced_vs_scipy"]),
+        ("reduced with translation", res["reduced_translation_rtf"],
+         res["reduced_translation_step_error"], float("nan"),
+         res["reduced_translation_rtf"] / res["scipy_rtf"]),
         ("reduced, analytic all-stick steps", res["reduced_rtf_analytic"],
          res["reduced_step_error_analytic"], float("nan"),
          res["reduced_rtf_analytic"] / res["scipy_rtf"]),
@@ -433,17 +466,21 @@ def format_table(res: dict[str, Any]) -> str:
     lines.append(
         f"compile/cache load {res['compile_s']:.2f} s; batched per turntable "
         f"{res['batched_rtf_per_turntable']:.3g}; reduced vs full step "
-        f"{100 * res['reduced_vs_full']:+.1f} %"
+        f"{100 * res['reduced_vs_full']:+.1f} %, with translation "
+        f"{100 * res['reduced_translation_vs_full']:+.1f} % (without output: "
+        f"{res['reduced_translation_rtf_no_output']:.3g})"
     )
-    w = res["reduced_vs_full_worst_case"]
-    lines.append(
-        f"reduced vs full over {res['reduced_vs_full_cases']} cases (full step ≥ "
-        f"{STEP_FLOOR_NM:g} nm): median |difference| {100 * res['reduced_vs_full_median']:.1f} %, "
-        f"{100 * res['reduced_vs_full_within_5pct']:.0f} % within 5 %, max "
-        f"{100 * res['reduced_vs_full_max']:.1f} % ({w['amplitude_V']:+.0f} V, "
-        f"{w['frequency_Hz']:g} Hz, a = {w['a']}, {w['amplifier']}: full {w['full_step_nm']:.3g} "
-        f"nm, reduced {w['reduced_step_nm']:.3g} nm)"
-    )
+    for pre, name in (("reduced", "reduced"), ("reduced_translation", "with translation")):
+        w = res[f"{pre}_vs_full_worst_case"]
+        lines.append(
+            f"{name} vs full over {res[f'{pre}_vs_full_cases']} cases (full step ≥ "
+            f"{STEP_FLOOR_NM:g} nm): median |difference| "
+            f"{100 * res[f'{pre}_vs_full_median']:.1f} %, "
+            f"{100 * res[f'{pre}_vs_full_within_5pct']:.0f} % within 5 %, max "
+            f"{100 * res[f'{pre}_vs_full_max']:.1f} % ({w['amplitude_V']:+.0f} V, "
+            f"{w['frequency_Hz']:g} Hz, a = {w['a']}, {w['amplifier']}: full "
+            f"{w['full_step_nm']:.3g} nm, reduced {w['reduced_step_nm']:.3g} nm)"
+        )
     if "env_steps_per_s_random" in res:
         lines.append("\n" + format_env_table(res))
     return "\n".join(lines)

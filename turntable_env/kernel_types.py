@@ -50,8 +50,10 @@ class ReducedState(NamedTuple):
     """State of N reduced turntables (modified in place by the kernel).
 
     Attributes:
-        y: (N, 6) θ [rad], θ̇ [rad/s], u1 [m], u̇1 [m/s], u2 [m], u̇2 [m/s] (table angle and
-            the two driving tubes' contact-point displacements).
+        y: (N, n_y) θ [rad], θ̇ [rad/s], u1 [m], u̇1 [m/s], u2 [m], u̇2 [m/s] (table angle and
+            the two driving tubes' contact-point displacements); n_y = 14 with the sphere's
+            translation: x1, ẋ1, x2, ẋ2 [m, m/s] and the axis tube's contact point b1, ḃ1,
+            b2, ḃ2 after them (:class:`~turntable_env.reduced.TranslationParameters`).
         volt: (N,) amplifier output on the channel [V].
         f: (N, 2, n_e) GMS element forces of the two contacts [N].
         st: (N, 2, n_e) 1 stick / 0 slip.
@@ -84,7 +86,9 @@ class ReducedArrays(NamedTuple):
     the all-stick system; ``q2`` = A⁻¹Q[:, 0], ``modal_v``, ``modal_lam`` its eigenvectors and
     eigenvalues (the analytic all-stick step); ``ring_frac`` the largest step as a fraction
     of the fastest ringing mode's period; ``use_modal`` whether all-stick phases take the
-    analytic step (else the ladder, as a check).
+    analytic step (else the ladder, as a check); ``srow`` (2, 2, n_y) each driving
+    contact's slip and slip rate as rows over the state, ``nrow`` (2, n_y + 2) its normal
+    force less F_N as a row over (y, V, V̇) (zero without the sphere's translation).
     """
 
     mech: np.ndarray
@@ -107,6 +111,8 @@ class ReducedArrays(NamedTuple):
     q2: np.ndarray
     modal_v: np.ndarray
     modal_lam: np.ndarray
+    srow: np.ndarray
+    nrow: np.ndarray
     ring_frac: float
     use_modal: bool
 

@@ -66,6 +66,14 @@ _STATE_NAMES = (
     "tube 1 contact velocity",
     "tube 2 contact displacement",
     "tube 2 contact velocity",
+    "sphere translation 1",
+    "sphere translation 1 velocity",
+    "sphere translation 2",
+    "sphere translation 2 velocity",
+    "axis tube contact displacement 1",
+    "axis tube contact velocity 1",
+    "axis tube contact displacement 2",
+    "axis tube contact velocity 2",
 )
 
 
@@ -146,6 +154,102 @@ class AxisParameters:
             tube_gain=tuple(fields["g"]),  # type: ignore[arg-type]
             normal_force=(fn, fn),
             tubes=(tubes[0], tubes[1]),
+        )
+
+
+@dataclass(frozen=True)
+class TranslationParameters:
+    """The sphere's translation normal to the axis and the contacts' normal forces, derived
+    from the full 3-D model (SI units; ``ReducedModel(translation=True)``).
+
+    The driving tubes' axes d_1, d_2 are orthonormal with the axis n (§3.1's orthogonal
+    tubes), so tube k's friction, along e_k = n × d_k = ±d_j, pushes the sphere along the
+    other contact's normal, and the sphere's translation x = x_1 d_1 + x_2 d_2 slides the
+    contact points: slip_k = u_k − ρθ − e_k·x. Each driving contact's normal force is
+    F_N + k_n(x_k − s V) + d_c(ẋ_k − s V̇) (Eq. 3.21's k_c δ^e + d_c δ̇ linearised at F_N),
+    and it sets the contact's Stribeck level (Eq. 2.13). The tube on the axis holds the
+    translation tangentially through its stuck contact (Σk_i with micro-damping β_tΣk_i,
+    Eq. 2.24) in series with its bending, condensed at its contact point as the driving
+    tubes'. The table's inertia couples the rotation and the translation through the
+    centre of mass, 3R/8 below the centre (App. C): T = ½J_nθ̇² + mθ̇(n × c)·ẋ + ½m|ẋ|².
+
+    Attributes:
+        mass: m, the table's mass [kg].
+        coupling: (n × c)·d_j [m], c the centre of mass from the sphere's centre.
+        direction: e_k·d_j [-] (row k: driving contact, column j: translation component).
+        hertz_stiffness: dF/dδ of the contact's k_c δ^e at F_N, e·F_N/δ_0 [N/m].
+        axial_stiffness: the tube's, at its contact point along d_k [N/m].
+        normal_damping: d_c [N·s/m].
+        stroke: s, the ball's displacement along d_k per channel volt (the quadrant
+            wiring's axial strain, §3.1) [m/V].
+        axis_tube_mass, axis_tube_stiffness, axis_tube_damping: the tube on the axis
+            condensed at its contact point [kg], [N/m], [N·s/m].
+        axis_contact_stiffness, axis_contact_damping: its stuck contact [N/m], [N·s/m].
+    """
+
+    mass: float
+    coupling: tuple[float, float]
+    direction: tuple[tuple[float, float], tuple[float, float]]
+    hertz_stiffness: float
+    axial_stiffness: float
+    normal_damping: float
+    stroke: float
+    axis_tube_mass: float
+    axis_tube_stiffness: float
+    axis_tube_damping: float
+    axis_contact_stiffness: float
+    axis_contact_damping: float
+
+    @property
+    def normal_stiffness(self) -> float:
+        """k_n, the Hertz stiffness in series with the tube's axial stiffness [N/m]."""
+        return 1.0 / (1.0 / self.hertz_stiffness + 1.0 / self.axial_stiffness)
+
+    @classmethod
+    def from_model(cls, model: TurntableModel, axis: str) -> TranslationParameters:
+        """Derive the translation's parameters for ``axis`` (see the class docstring)."""
+        if axis not in REDUCED_AXES:
+            raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
+        ar, ps = model.packed, model.params
+        c = axis_index(axis)
+        n = model.layout.axis_units[c]
+        drv = [k for k in range(3) if k != c]
+        d = [ar["d_nom"][k] for k in drv]
+        e = [np.cross(n, dk) / np.linalg.norm(np.cross(n, dk)) for dk in d]
+        tp = ar["table_p"]
+        fn0 = float(ps.contact.preload)  # type: ignore[union-attr]
+        delta0 = (fn0 / tp[6]) ** (1.0 / tp[7])  # static overlap (F_N/k_c)^(1/e) [m]
+        k_hertz = tp[7] * fn0 / delta0  # dF/dδ of k_c δ^e at F_N [N/m]
+        r_ball = ps.tube.outer_radius
+        k0 = drv[0]
+        r_c = ar["r0"][k0] - r_ball * ar["d_nom"][k0]  # tube top → contact point [m]
+        a_d = np.concatenate([np.cross(r_c, d[0]), d[0]])
+        kinv = np.linalg.inv(ar["ktop"][k0])
+        k_axial = 1.0 / float(a_d @ kinv @ a_d)
+        q = (ar["qchan"][k0] == c) * ar["qsign"][k0]  # quadrant voltage per channel volt
+        stroke = float(a_d @ kinv @ ar["bcoup"][k0] @ q)
+        r_cn = ar["r0"][c] - r_ball * ar["d_nom"][c]
+        a_n = np.concatenate([np.cross(r_cn, d[0]), d[0]])
+        kinv_a = np.linalg.solve(ar["ktop"][c], a_n)
+        k_b = 1.0 / float(a_n @ kinv_a)
+        psi = kinv_a * k_b
+        fr = ps.friction
+        assert fr is not None
+        k_sum = float(np.sum(fr.k))
+        cn = np.cross(n, ar["c_body"])
+        return cls(
+            mass=float(tp[0]),
+            coupling=(float(cn @ d[0]), float(cn @ d[1])),
+            direction=tuple(tuple(float(ek @ dj) for dj in d) for ek in e),  # type: ignore[arg-type]
+            hertz_stiffness=float(k_hertz),
+            axial_stiffness=k_axial,
+            normal_damping=float(tp[8]),
+            stroke=stroke,
+            axis_tube_mass=float(psi @ ar["mtube"][c] @ psi),
+            axis_tube_stiffness=k_b,
+            axis_tube_damping=ps.tube.damping_coefficient * k_b,
+            axis_contact_stiffness=k_sum,
+            axis_contact_damping=fr.stribeck.sigma2 + ps.contact.tangential_damping * k_sum,  # type: ignore[union-attr]
         )
 
 
@@ -253,7 +357,10 @@ class ReducedModel:
         step_scale: float = 1.0,
         model: TurntableModel | None = None,
         analytic: bool = False,
+        translation: bool = False,
     ) -> None:
+        if analytic and translation:
+            raise ValueError("analytic=True: the analytic all-stick step has no translation")
         ps = get_parameter_set(params) if isinstance(params, str) else params
         self.params = ps
         if model is not None and (
@@ -269,12 +376,115 @@ class ReducedModel:
         fn = ps.contact.preload  # type: ignore[union-attr]
         condensed = AxisParameters.from_model(self.full, axis)
         self.axis_params = replace(condensed, normal_force=(fn, fn))
+        self.translation_params = (
+            TranslationParameters.from_model(self.full, axis) if translation else None
+        )
         self._pack()
+
+    @property
+    def n_state(self) -> int:
+        """Length of the state y: 6 (θ, u1, u2 and their rates), 14 with the translation
+        (x1, x2 and the axis tube's contact point b1, b2 after them, each with its rate)."""
+        return 6 if self.translation_params is None else 14
+
+    def _slip_rows(self) -> np.ndarray:
+        """(2, 2, n_state): each driving contact's slip (tube point − table point) [m] and
+        its rate [m/s] as rows over y: u_k − ρ_kθ (− e_k·x with the translation)."""
+        ny = self.n_state
+        rows = np.zeros((2, 2, ny))
+        for k in range(2):
+            for r in range(2):
+                rows[k, r, 2 + 2 * k + r] = 1.0
+                rows[k, r, r] = -self.axis_params.lever[k]
+                if self.translation_params is not None:
+                    for j in range(2):
+                        rows[k, r, 6 + 2 * j + r] = -self.translation_params.direction[k][j]
+        return rows
+
+    def _normal_rows(self) -> np.ndarray:
+        """(2, n_state + 2): each driving contact's normal force less F_N [N] as a row over
+        (y, V, V̇): k_n(x_k − sV) + d_c(ẋ_k − sV̇); zero without the translation."""
+        ny = self.n_state
+        rows = np.zeros((2, ny + 2))
+        tr = self.translation_params
+        if tr is not None:
+            for k in range(2):
+                rows[k, 6 + 2 * k] = tr.normal_stiffness
+                rows[k, 7 + 2 * k] = tr.normal_damping
+                rows[k, ny] = -tr.normal_stiffness * tr.stroke
+                rows[k, ny + 1] = -tr.normal_damping * tr.stroke
+        return rows
+
+    def _system_translation(self, s_stuck: tuple[float, float]) -> np.ndarray:
+        """Augmented 18×18 matrix of (y, V, V̇, f1, f2) with the translation (y as
+        :attr:`n_state`; see :class:`TranslationParameters`): M q̈ = −K q − C q̇ + b_V V +
+        b_V̇ V̇ − Σ_k S_k F_k over q = (θ, u1, u2, x1, x2, b1, b2), F_k = s_k S_k q +
+        d_k S_k q̇ + f_k the driving contacts' friction (Eq. 2.24, the stuck stiffness s_k)."""
+        fr = self.params.friction
+        assert fr is not None
+        beta_t = self.params.contact.tangential_damping  # type: ignore[union-attr]
+        mass, kq, cq, b_v, b_vd = self.translation_matrices()
+        nq = mass.shape[0]
+        ny = 2 * nq
+        a = np.zeros((ny + 4, ny + 4))
+        rows = self._slip_rows()
+        acc = np.zeros((nq, ny + 4))  # generalised forces as rows over the augmented state
+        acc[:, 0:ny:2] -= kq
+        acc[:, 1:ny:2] -= cq
+        acc[:, ny] += b_v
+        acc[:, ny + 1] += b_vd
+        for k in range(2):
+            sq = rows[k, 0, 0:ny:2]  # slip over q
+            d = fr.stribeck.sigma2 + beta_t * s_stuck[k]
+            frow = np.zeros(ny + 4)
+            frow[:ny] = s_stuck[k] * rows[k, 0] + d * rows[k, 1]
+            frow[ny + 2 + k] = 1.0
+            acc -= np.outer(sq, frow)
+        for i in range(nq):
+            a[2 * i, 2 * i + 1] = 1.0
+        a[1:ny:2] = np.linalg.solve(mass, acc)
+        a[ny, ny + 1] = 1.0
+        return a
+
+    def translation_matrices(self) -> tuple[np.ndarray, ...]:
+        """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2) [SI] of the model with
+        the translation, without the driving contacts' friction (see
+        :meth:`_system_translation`): M q̈ + C q̇ + K q = b_V V + b_V̇ V̇ + friction."""
+        ap, tr = self.axis_params, self.translation_params
+        if tr is None:
+            raise ValueError("translation_matrices: this model has no translation")
+        nq = 7
+        mass = np.diag([ap.inertia, *ap.tube_mass, tr.mass, tr.mass, tr.axis_tube_mass,
+                        tr.axis_tube_mass])  # fmt: skip
+        mass[0, 3:5] = mass[3:5, 0] = tr.mass * np.asarray(tr.coupling)
+        kq = np.zeros((nq, nq))
+        cq = np.zeros((nq, nq))
+        b_v = np.zeros(nq)
+        b_vd = np.zeros(nq)
+        kq[0, 0] = ap.gravity_stiffness
+        for k in range(2):
+            kq[1 + k, 1 + k] = ap.tube_stiffness[k]
+            cq[1 + k, 1 + k] = ap.tube_damping[k]
+            b_v[1 + k] = ap.tube_stiffness[k] * ap.tube_gain[k]
+            kq[3 + k, 3 + k] = tr.normal_stiffness  # the ball pushes the table along −d_k
+            cq[3 + k, 3 + k] = tr.normal_damping
+            b_v[3 + k] = tr.normal_stiffness * tr.stroke
+            b_vd[3 + k] = tr.normal_damping * tr.stroke
+            kq[5 + k, 5 + k] = tr.axis_tube_stiffness
+            cq[5 + k, 5 + k] = tr.axis_tube_damping
+            sb = np.zeros(nq)  # the axis tube's stuck contact: slip b_j − x_j
+            sb[5 + k], sb[3 + k] = 1.0, -1.0
+            kq += tr.axis_contact_stiffness * np.outer(sb, sb)
+            cq += tr.axis_contact_damping * np.outer(sb, sb)
+        return mass, kq, cq, b_v, b_vd
 
     # ------------------------------------------------------------------------------
     def _system(self, s_stuck: tuple[float, float]) -> np.ndarray:
         """Augmented 10×10 matrix of (θ, θ̇, u1, u̇1, u2, u̇2, V, V̇, f1, f2) with the stuck
-        stiffness s_stuck[k] on each contact (see module docstring)."""
+        stiffness s_stuck[k] on each contact (see module docstring); 18×18 with the
+        translation (:meth:`_system_translation`)."""
+        if self.translation_params is not None:
+            return self._system_translation(s_stuck)
         ap = self.axis_params
         fr = self.params.friction
         assert fr is not None
@@ -311,7 +521,8 @@ class ReducedModel:
         Returns (A (6, 6), b (6,))."""
         kk = float(np.sum(self.packed["kk"]))
         a = self._system((kk, kk))
-        return a[:6, :6].copy(), a[:6, 6].copy()
+        ny = self.n_state
+        return a[:ny, :ny].copy(), a[:ny, ny].copy()
 
     def _pack(self) -> None:
         fr = self.params.friction
@@ -336,24 +547,23 @@ class ReducedModel:
         nl = len(levels)
         h = H_MIN * self.step_scale
         a_stick = self._system((float(kk.sum()), float(kk.sum())))
-        a6 = a_stick[:6, :6]
+        ny = self.n_state
+        a6 = a_stick[:ny, :ny]
         lam, vec = np.linalg.eig(a6)
         om = np.abs(lam)
         omega_hi = float(np.max(om))
         ring_frac = RING_FRACTION * self.step_scale
         r_slip = math.floor(math.log2(max(SLIP_STEP * self.step_scale / h, 1.0)))
         # quasi-static state per unit input (V, f1, f2) and modal projections (all stick)
-        qs = -np.linalg.solve(a6, a_stick[:6, [6, 8, 9]])
-        c_rel = np.zeros((2, 6))
-        for k in range(2):
-            c_rel[k, 2 + 2 * k] = 1.0
-            c_rel[k, 0] = -ap.lever[k]
+        qs = -np.linalg.solve(a6, a_stick[:ny, [ny, ny + 2, ny + 3]])
+        srow = self._slip_rows()
+        c_rel = np.ascontiguousarray(srow[:, 0, :])
         r_small = r_slip + 1  # rungs of the configurations with a slipping element
         systems = np.stack([self._system((levels[i0], levels[i1]))
                             for i0 in range(nl) for i1 in range(nl)])  # fmt: skip
-        small = _ladders(systems, h, r_small)  # (nl², r_small, 10, 10)
-        phi_s = np.ascontiguousarray(small[:, :, :6, :6])
-        gam_s = np.ascontiguousarray(small[:, :, :6, 6:10])
+        small = _ladders(systems, h, r_small)  # (nl², r_small, ny + 4, ny + 4)
+        phi_s = np.ascontiguousarray(small[:, :, :ny, :ny])
+        gam_s = np.ascontiguousarray(small[:, :, :ny, ny : ny + 4])
         e = _ladders(a_stick[None], h, MAX_RUNG + 1)[0]
         amp = self.params.amplifier
         c_load = self.full.output_capacitance(self.axis)
@@ -404,8 +614,10 @@ class ReducedModel:
             "nlvl": np.array([nl, nl], dtype=np.int64),
             "phi_small": phi_s,
             "gam_small": gam_s,
-            "phi_big": e[:, :6, :6].copy(),
-            "gam_big": e[:, :6, 6:10].copy(),
+            "phi_big": e[:, :ny, :ny].copy(),
+            "gam_big": e[:, :ny, ny : ny + 4].copy(),
+            "srow": srow,
+            "nrow": self._normal_rows(),
             "h": h,
             "omega": (float(np.min(om)), omega_hi),
         }
@@ -439,9 +651,14 @@ class ReducedModel:
         cap = nu[None, :] * mu_s * np.asarray(ap.normal_force)[:, None]  # N
         if (np.abs(f) >= cap).any():
             raise ValueError(f"angle={angle!r}: friction cannot hold the table there")
-        y = np.zeros(6)
+        y = np.zeros(self.n_state)
         y[0] = th
         y[2:6:2] = np.asarray(ap.tube_gain) * v - force / np.asarray(ap.tube_stiffness)
+        if self.translation_params is not None:  # K q = b_V V − Σ S_k F_k, θ given
+            _m, kq, _c, b_v, _bd = self.translation_matrices()
+            sq = self._slip_rows()[:, 0, 0::2]
+            rhs = b_v * v - sq.T @ force - kq[:, 0] * th
+            y[2::2] = np.linalg.solve(kq[1:, 1:], rhs[1:])
         a = self.params.amplifier.fast_fraction
         return {
             "y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64),
@@ -491,7 +708,7 @@ class ReducedBatch:
         self.arrays = ReducedArrays(**stacked, **{k: models[0].packed[k] for k in _SCALARS})
         self._mu = self.arrays.gms[:, 1:3].copy()  # μ_s, μ_c of each model (friction scale 1)
         self.state = ReducedState(
-            y=np.zeros((nb, 6)),
+            y=np.zeros((nb, max(m.n_state for m in models))),
             volt=np.zeros(nb),
             f=np.zeros((nb, 2, ne)),
             st=np.ones((nb, 2, ne), dtype=np.int64),
@@ -566,7 +783,11 @@ class ReducedBatch:
     def set_state(self, b: int, state: dict[str, np.ndarray], time: float = 0.0) -> None:
         """Set turntable b's state (from :meth:`ReducedModel.rest_state`) at ``time`` [s]."""
         st = self.state
-        st.y[b] = state["y"]
+        y = np.asarray(state["y"], dtype=float)
+        if y.size > st.y.shape[1]:
+            raise ValueError(f"state['y']: {y.size} states do not fit the batch's {st.y.shape[1]}")
+        st.y[b] = 0.0
+        st.y[b, : y.size] = y
         st.volt[b] = float(state["volt"])
         st.f[b] = state["f"]
         st.st[b] = state["st"]
@@ -598,7 +819,7 @@ class ReducedBatch:
         bad_b = np.nonzero(self.counters[:, 2] != 0)[0]
         if bad_b.size:
             b = int(bad_b[0])
-            bad = [i for i in range(6) if not np.isfinite(self.state.y[b, i])]
+            bad = [i for i in range(self.state.y.shape[1]) if not np.isfinite(self.state.y[b, i])]
             name = _STATE_NAMES[bad[0]] if bad else "amplifier voltage"
             raise SimulationError(
                 "non-finite",

@@ -84,10 +84,27 @@ SAMPLE_FRACTION = 0.25
 
 
 @njit(cache=CACHE)
-def _rel(y, mech, k):
-    """Relative displacement and velocity (tube contact point − table point) of contact k."""
-    rho = mech[2 + k]
-    return y[2 + 2 * k] - rho * y[0], y[3 + 2 * k] - rho * y[1]
+def _rel(y, srow, k):
+    """Relative displacement and velocity (tube contact point − table point) of contact k:
+    u_k − ρ_kθ (less e_k·x with the sphere's translation), rows ``srow[k]`` over y (for the
+    per-axis state the sums are exactly u_k − ρ_kθ: the other terms add zeros)."""
+    x = 0.0
+    xd = 0.0
+    for a in range(y.shape[0]):
+        x += srow[k, 0, a] * y[a]
+        xd += srow[k, 1, a] * y[a]
+    return x, xd
+
+
+@njit(cache=CACHE)
+def _normal(y, volt, vdot, fn0, nrow, k):
+    """Normal force [N] of contact k: F_N plus the translation's k_n(x_k − sV) +
+    d_c(ẋ_k − sV̇) (rows ``nrow`` over (y, V, V̇); zero rows leave F_N exactly)."""
+    ny = y.shape[0]
+    d = nrow[k, ny] * volt + nrow[k, ny + 1] * vdot
+    for a in range(ny):
+        d += nrow[k, a] * y[a]
+    return fn0 + d
 
 
 @njit(cache=CACHE)
@@ -288,14 +305,14 @@ def _modal_y(t, z0, vmat, lam, yp0, yp1, ez, out):
 
 
 @njit(cache=CACHE)
-def _write_record(row, t, yv, volt, mech, f0, kk, x0, ne):
+def _write_record(row, t, yv, volt, srow, f0, kk, x0, ne):
     """One record (fields :data:`REC_FIELDS`) of an all-stick state yv at t [s]."""
     row[0] = t
     row[1] = yv[0]
     row[2] = yv[1]
     row[3] = volt
     for k in range(2):
-        x, _xd = _rel(yv, mech, k)
+        x, _xd = _rel(yv, srow, k)
         row[4 + k] = yv[2 + 2 * k]
         row[6 + k] = x
         fk = 0.0
@@ -374,6 +391,7 @@ def _run_one(b, state, model, drive, h_min, recording):
     phi_small, gam_small, phi_big, gam_big = (
         model.phi_small, model.gam_small, model.phi_big, model.gam_big
     )  # fmt: skip
+    srow, nrow = model.srow, model.nrow
     qs, modal_w, modal_c, modal_om = model.qs, model.modal_w, model.modal_c, model.modal_om
     modal_om_max, ring_frac = model.modal_om_max, model.ring_frac
     wg, wv, wn = drive.times, drive.values, drive.count
@@ -381,10 +399,16 @@ def _run_one(b, state, model, drive, h_min, recording):
     n_rec, counters = recording.n_rec, recording.counters
     ne = f.shape[2]
     r_big = phi_big.shape[1]
-    y0 = np.empty(6)
+    ny = y.shape[1]  # 6, or 14 with the sphere's translation
+    translation = False  # this turntable's normal forces move
+    for k in range(2):
+        for a in range(ny + 2):
+            if nrow[b, k, a] != 0.0:
+                translation = True
+    y0 = np.empty(ny)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)
-    dev = np.empty(6)
+    dev = np.empty(ny)
     x0 = np.empty(2)  # relative displacement [m] and velocity [m/s] at the step start
     xd0 = np.empty(2)
     fin = np.empty(2)  # constant force inputs [N]
@@ -393,11 +417,11 @@ def _run_one(b, state, model, drive, h_min, recording):
     # the analytic all-stick step (see the module docstring)
     q2, modal_v, modal_lam = model.q2, model.modal_v, model.modal_lam
     use_modal = model.use_modal
-    yp0 = np.empty(6)  # particular solution at the step start [state units]
-    yp1 = np.empty(6)  # and its rate [state units / s]
-    z0 = np.empty(6, dtype=np.complex128)  # modal amplitudes at the step start
-    ez = np.empty(6, dtype=np.complex128)
-    yv = np.empty(6)
+    yp0 = np.empty(ny)  # particular solution at the step start [state units]
+    yp1 = np.empty(ny)  # and its rate [state units / s]
+    z0 = np.empty(ny, dtype=np.complex128)  # modal amplitudes at the step start
+    ez = np.empty(ny, dtype=np.complex128)
+    yv = np.empty(ny)
     xq0 = np.empty(2)  # particular relative displacement at the start [m]
     xrate = np.empty(2)  # its rate [m/s]
     xs = np.empty(2)
@@ -434,8 +458,8 @@ def _run_one(b, state, model, drive, h_min, recording):
             e_tau[r] = math.exp(-h_r / tau)
             if a_fast != 0.0:
                 e_tf[r] = math.exp(-h_r / amp[b, 6])
-    order = np.arange(6)  # modes from the fastest down (the ringing cap; NaN last)
-    for i in range(1, 6):
+    order = np.arange(ny)  # modes from the fastest down (the ringing cap; NaN last)
+    for i in range(1, ny):
         j = i
         while j > 0 and _om_key(modal_om[b, order[j - 1]]) < _om_key(modal_om[b, order[j]]):
             order[j - 1], order[j] = order[j], order[j - 1]
@@ -453,7 +477,7 @@ def _run_one(b, state, model, drive, h_min, recording):
             row[2] = y[b, 1]
             row[3] = volt[b]
             for k in range(2):
-                x, _xd = _rel(y[b], mech[b], k)
+                x, _xd = _rel(y[b], srow[b], k)
                 row[4 + k] = y[b, 2 + 2 * k]
                 row[6 + k] = x
                 fk = 0.0
@@ -487,7 +511,7 @@ def _run_one(b, state, model, drive, h_min, recording):
         # constant force inputs over the step (both contacts): the stuck elements'
         # offsets F_i − k_i x and the slipping elements' forces [N]
         for k in range(2):
-            x0[k], xd0[k] = _rel(y[b], mech[b], k)
+            x0[k], xd0[k] = _rel(y[b], srow[b], k)
             fin[k] = 0.0
             for i in range(ne):
                 fin[k] += f[b, k, i] - (kk[b, i] * x0[k] if st[b, k, i] == 1 else 0.0)
@@ -508,15 +532,15 @@ def _run_one(b, state, model, drive, h_min, recording):
             ):
                 v0 = gain * u0 if ideal else volt[b]  # V (ideal: right after a jump)
                 vsl = gain * slope  # V/s, the output's slope
-                for a in range(6):
+                for a in range(ny):
                     yp0[a] = (
                         qs[b, a, 0] * v0 + qs[b, a, 1] * fin[0] + qs[b, a, 2] * fin[1]
                         + q2[b, a] * vsl
                     )  # fmt: skip
                     yp1[a] = qs[b, a, 0] * vsl
-                for j in range(6):
+                for j in range(ny):
                     zj = 0.0j
-                    for c in range(6):
+                    for c in range(ny):
                         zj += modal_w[b, j, c] * (y[b, c] - yp0[c])
                     z0[j] = zj
                 for k in range(2):
@@ -562,7 +586,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                 while n_o < n + m_step and n_rec[b] < rec.shape[1]:
                     t_o = (n_o - n) * h_min
                     _modal_y(t_o, z0, modal_v[b], lam, yp0, yp1, ez, yv)
-                    _write_record(rec[b, n_rec[b]], n_o * h_min, yv, v0 + vsl * t_o, mech[b],
+                    _write_record(rec[b, n_rec[b]], n_o * h_min, yv, v0 + vsl * t_o, srow[b],
                                   f0, kk[b], x0, ne)  # fmt: skip
                     n_rec[b] += 1
                     n_o += out_every[b]
@@ -578,10 +602,10 @@ def _run_one(b, state, model, drive, h_min, recording):
                     volt[b], vslow[b], vfast[b] = amplifier_step(
                         v0, vslow[b], vfast[b], u0, u_e, t_e, amp[b]
                     )
-                for j in range(6):
+                for j in range(ny):
                     y[b, j] = yv[j]
                 for k in range(2):
-                    x1, xd1 = _rel(y[b], mech[b], k)
+                    x1, xd1 = _rel(y[b], srow[b], k)
                     s1 = _level(xd1, fnk[k], gms[b])
                     for i in range(ne):
                         fi = f0[k, i] + kk[b, i] * (x1 - x0[k])
@@ -612,17 +636,17 @@ def _run_one(b, state, model, drive, h_min, recording):
             # ringing: modal amplitudes of the deviation from the quasi-static state
             # (y − y_qs, y_qs = −A⁻¹(b_V V + B_f f)); the fastest mode whose amplitude in
             # the contacts' relative motion exceeds quiet_len sets the largest step
-            for j in range(6):
+            for j in range(ny):
                 dev[j] = y[b, j] - (
                     qs[b, j, 0] * volt[b] + qs[b, j, 1] * fin[0] + qs[b, j, 2] * fin[1]
                 )
             om_fast = 0.0
-            for jj in range(6):  # from the fastest mode down: the first that rings decides
+            for jj in range(ny):  # from the fastest mode down: the first that rings decides
                 j = order[jj]
                 if not modal_om[b, j] > om_fast:
                     break  # no slower mode can raise om_fast
                 zj = 0.0j
-                for c in range(6):
+                for c in range(ny):
                     zj += modal_w[b, j, c] * dev[c]
                 for k in range(2):
                     if _exceeds(modal_c[b, k, j] * zj, quiet_len, q2_lo, q2_hi):
@@ -655,7 +679,7 @@ def _run_one(b, state, model, drive, h_min, recording):
         cfg = lvl[b, 0, m0] * nlvl[b, 1] + lvl[b, 1, m1]
         all_stick = not any_slip
         # save for a rejected step
-        for j in range(6):
+        for j in range(ny):
             y0[j] = y[b, j]
         for k in range(2):
             for i in range(ne):
@@ -668,7 +692,8 @@ def _run_one(b, state, model, drive, h_min, recording):
         u0 = u_now
         for k in range(2):  # Stribeck level at the step start [N] (event interpolation):
             # the last accepted step's end level where it ended at this state
-            s_start[k] = s_end[k] if s_ok else _level(xd0[k], mech[b, 12 + k], gms[b])
+            fn_s = _normal(y[b], volt[b], 0.0, mech[b, 12 + k], nrow[b], k)
+            s_start[k] = s_end[k] if s_ok else _level(xd0[k], fn_s, gms[b])
         while True:
             dn = 1 << rung
             h = dn * h_min
@@ -691,18 +716,18 @@ def _run_one(b, state, model, drive, h_min, recording):
             else:  # partial slip: rung ≤ r_slip
                 ph = phi_small[b, cfg, rung]
                 gm = gam_small[b, cfg, rung]
-            for a in range(6):
+            for a in range(ny):
                 s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
-                for c in range(6):
+                for c in range(ny):
                     s += ph[a, c] * y0[c]
                 y[b, a] = s
             # elements
             event = False
             frac = 1.0  # earliest crossing in the step by linear interpolation [-]
             for k in range(2):
-                x1, xd1 = _rel(y[b], mech[b], k)
+                x1, xd1 = _rel(y[b], srow[b], k)
                 dx = x1 - x0[k]
-                fn_k = mech[b, 12 + k]
+                fn_k = _normal(y[b], v1, vslope, mech[b, 12 + k], nrow[b], k)  # at the end
                 s1 = _level(xd1, fn_k, gms[b])
                 s_end[k] = s1
                 sbar = 0.0  # slipping elements' level, relaxation and direction (only theirs)
@@ -710,7 +735,11 @@ def _run_one(b, state, model, drive, h_min, recording):
                 sg = 0.0
                 if slip_k[k]:
                     vbar = 0.5 * (xd0[k] + xd1)
-                    sbar = _level(vbar, fn_k, gms[b])
+                    fn_bar = fn_k  # the step's mean normal force (F_N without translation)
+                    if translation:
+                        fn_bar = 0.5 * (fn_k + _normal(y0, v0e, vslope, mech[b, 12 + k],
+                                                       nrow[b], k))  # fmt: skip
+                    sbar = _level(vbar, fn_bar, gms[b])
                     decay = math.exp(-gms[b, 0] * h / sbar)
                     sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
                 for i in range(ne):  # the GMS law (Eq. 2.24–2.25), one compiled place

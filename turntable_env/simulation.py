@@ -136,9 +136,7 @@ def simulate(
         raise ValueError("model: was built for another parameter set")
     given = drives  # the drive as commanded (its periods give the step detection)
     if bool(input_active(pl.effect_row)):  # the piezo's input stage on each channel's input
-        drives = {
-            k: _input_staged(w, pl, dur) for k, w in mdl.drive_waveforms(drives).items()
-        }
+        drives = {k: _input_staged(w, pl, dur) for k, w in mdl.drive_waveforms(drives).items()}
     wall0 = time.perf_counter()
     raw = mdl.run(
         drives, dur, dt_factor=dt_factor, dt_max=dt, coarse_factor=coarse_factor,
@@ -214,7 +212,7 @@ def simulate_axes(
     check_nonnegative("settle", settle)
     if duration is None:
         duration = _drive_end(drives) + settle
-    models = [reduced_model(p.params, axis) for p in resolved]
+    models = [reduced_model(p.params, axis, p.fidelity == "translation") for p in resolved]
     inputs: list[DriveSignal | Waveform] = []
     for p, m, d in zip(resolved, models, drives, strict=True):
         if bool(input_active(p.effect_row)):  # the piezo's input stage on the channel input

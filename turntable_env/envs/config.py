@@ -187,7 +187,8 @@ class EnvConfig:
         params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2),
             ``"calibrated"`` (the real turntable with the rig the thesis's figures ask for)
             or a ParameterSet, without effects; give ``plant`` or ``params``, not both.
-        fidelity: ``"reduced"`` (per-axis model), ``"full"`` (3-D model; ``turntable
+        fidelity: ``"reduced"`` (per-axis model), ``"translation"`` (it with the sphere's
+            translation and the contacts' normal forces), ``"full"`` (3-D model; ``turntable
             bench`` compares the two real-time factors) or ``"independent"`` (the
             independent test plant, :mod:`turntable_env.plant.independent`); default: the
             plant's (reduced).
@@ -238,7 +239,7 @@ class EnvConfig:
 
     plant: Plant | str | os.PathLike[str] | None = None
     params: str | ParameterSet | None = None
-    fidelity: Literal["reduced", "full", "independent"] | None = None
+    fidelity: Literal["reduced", "translation", "full", "independent"] | None = None
     axis: str = "B"
     control_interval: float = 0.01
     randomize: bool | Mapping[str, tuple[float, float]] = False

@@ -3,7 +3,8 @@
 A :class:`Plant` is what a laboratory would call "the turntable as we know it": a
 parameter set (Table D.1, D.2 or a calibrated one) with multiplicative factors on its
 uncertain values (friction, preload, amplifier), a fidelity (``"reduced"`` per-axis
-model, ``"full"`` 3-D model, or ``"independent"``: the independent test plant,
+model, ``"translation"`` the same with the sphere's translation and the contacts' normal
+forces, ``"full"`` 3-D model, or ``"independent"``: the independent test plant,
 :mod:`turntable_env.plant.independent`), the effects of the catalogue (:mod:`turntable_env.effects`)
 with their parameters, the detector noise and the amplifier setting. It is immutable,
 hashable and picklable; :meth:`Plant.from_report` reads the plant a calibration report

@@ -48,9 +48,8 @@ def output_capacitance(ps: ParameterSet, axis: str) -> float:
 
 
 @functools.lru_cache(maxsize=128)
-def reduced_model(ps: ParameterSet, axis: str) -> ReducedModel:
+def reduced_model(ps: ParameterSet, axis: str, translation: bool = False) -> ReducedModel:
     """The reduced model of ``ps`` about ``axis``, condensed from a cached 3-D model of its
-    table and tubes (friction, preload and amplifier come from ``ps``); cached."""
-    return ReducedModel(ps, axis, model=_bodies(ps))
-
-
+    table and tubes (friction, preload and amplifier come from ``ps``), with the sphere's
+    translation where ``translation`` (the ``"translation"`` fidelity); cached."""
+    return ReducedModel(ps, axis, model=_bodies(ps), translation=translation)

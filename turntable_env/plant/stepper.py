@@ -6,6 +6,7 @@ segments, detector)."""
 
 from __future__ import annotations
 
+import functools
 import time as _time
 from collections.abc import Sequence
 from typing import Any, NamedTuple, Protocol
@@ -89,16 +90,19 @@ class Backend(Protocol):
 class _ReducedBackend:
     """N reduced per-axis models integrated together (:class:`~.reduced.ReducedBatch`)."""
 
-    def __init__(self, params: Sequence[ParameterSet], axis: str) -> None:
+    def __init__(
+        self, params: Sequence[ParameterSet], axis: str, translation: bool = False
+    ) -> None:
         if axis not in REDUCED_AXES:
             raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
         self.axis = axis
-        self.batch = ReducedBatch([reduced_model(ps, axis) for ps in params])
+        self.translation = translation
+        self.batch = ReducedBatch([reduced_model(ps, axis, translation) for ps in params])
         self.grid = self.batch.grid
 
     def set_params(self, b: int, ps: ParameterSet) -> None:
         if ps != self.batch.models[b].params:
-            self.batch.set_model(b, reduced_model(ps, self.axis))
+            self.batch.set_model(b, reduced_model(ps, self.axis, self.translation))
 
     def reset(self, b: int, angle: float, time: float, voltage: float) -> None:
         self.batch.set_state(b, self.batch.models[b].rest_state(angle, voltage), time)
@@ -289,6 +293,7 @@ class PlantStepper:
         n = len(plants)
         params = [p.params for p in plants]
         backend = {"reduced": _ReducedBackend, "full": _FullBackend,
+                   "translation": functools.partial(_ReducedBackend, translation=True),
                    "independent": IndependentBackend}[plants[0].fidelity]  # fmt: skip
         self._physics: Backend = backend(params, axis)
         self.grid = self._physics.grid

@@ -37,7 +37,7 @@ __all__ = [
     "parameter_set",
 ]
 
-FIDELITIES = ("reduced", "full", "independent")
+FIDELITIES = ("reduced", "translation", "full", "independent")
 # Domain randomisation: multiplicative factors drawn uniformly per episode.
 DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
     "friction": (0.8, 1.2),  # µ_s and µ_c together (dry-contact scatter, ±20 %)
@@ -99,7 +99,10 @@ class Plant:
             ``friction`` (μ_s, μ_c), ``preload`` (F_N), ``amplifier`` (slew, current limit).
         effects: catalogue effect name → {parameter: value} (validated; missing parameters
             take their typical values).
-        fidelity: ``"reduced"`` (per-axis model) or ``"full"`` (3-D model).
+        fidelity: ``"reduced"`` (per-axis model), ``"translation"`` (the per-axis model
+            with the sphere's translation and the contacts' normal forces,
+            :class:`~turntable_env.reduced.TranslationParameters`), ``"full"`` (3-D model)
+            or ``"independent"`` (the independent test plant).
         sensor_noise: detector voltage noise standard deviation [V].
         ideal_amplifier: run an instant source V = G·u instead of the set's amplifier model
             (the thesis's simulations, §3.4).
@@ -114,7 +117,7 @@ class Plant:
     base: str | ParameterSet = "real"
     factors: Mapping[str, float] = field(default_factory=dict)
     effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
-    fidelity: Literal["reduced", "full", "independent"] = "reduced"
+    fidelity: Literal["reduced", "translation", "full", "independent"] = "reduced"
     sensor_noise: float = SENSOR_NOISE
     ideal_amplifier: bool = False
     uncertainty: Mapping[str, float] = field(default_factory=dict)
@@ -442,5 +445,3 @@ def _effect_parameter(name: str) -> Any:
     if eff not in CATALOGUE:
         return None
     return next((p for p in CATALOGUE[eff].parameters if p.name == par), None)
-
-
