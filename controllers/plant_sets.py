@@ -144,6 +144,13 @@ PLANT_SETS: dict[str, Callable[[], PlantSet]] = {
         "calibrated", Plant.named("calibrated").replace(fidelity="reduced"),
         "the thesis calibration's plant (data/calibrated.toml, whole), reduced model", _same
     ),
+    "calibrated_translation": lambda: PlantSet(
+        "calibrated_translation",
+        Plant.named("calibrated").replace(fidelity="translation"),
+        "the thesis calibration's plant on the per-axis model with the sphere's translation "
+        "(not in the default run)",
+        _same,
+    ),
     "full_3d": lambda: PlantSet(
         "full_3d", Plant("real", fidelity="full"), "Table D.1 on the full 3-D model", _same
     ),

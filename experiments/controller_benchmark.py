@@ -86,11 +86,19 @@ def summarize(out: Path) -> None:
         row = {c: sum(t["controllers"][c]["success"]["mean"] for t in tasks.values()) / len(tasks)
                for c in names}  # fmt: skip
         print(f"  {ps:<11} " + "  ".join(f"{c} {v:.2f}" for c, v in row.items()))
+    largest = {}  # the largest run-away of each plant set [µm]
+    with (out / "episodes.csv").open(encoding="utf-8") as fh:
+        for r in csv.DictReader(fh):
+            largest[r["plant_set"]] = max(largest.get(r["plant_set"], 0.0), float(r["runaway_um"]))
+    print("largest run-away per plant set: "
+          + ", ".join(f"{ps} {v:.1f} µm" for ps, v in largest.items()))  # fmt: skip
     print("\ncells (plant set × task) where a pair's paired 95 % interval excludes 0:")
     for pair, metrics in doc["separations"].items():
         print(f"  {pair}: " + ", ".join(f"{m} {n}" for m, n in metrics.items()))
     print("\nquoted paired differences, mean [95 % interval]:")
     for ps, task, pair, metric in QUOTED:
+        if pair not in res.get(ps, {}).get(task, {}).get("paired", {}):
+            continue  # a run of other plant sets, tasks or controllers
         v = res[ps][task]["paired"][pair][metric]
         print(f"  {ps}/{task} {pair} {metric}: {v['mean']:+.3g} "
               f"[{v['ci_low']:+.3g}, {v['ci_high']:+.3g}]")  # fmt: skip

@@ -32,6 +32,14 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
   capped at ``r_slip`` while an element slips, at ``ring_frac`` of the fastest ringing
   mode's period while all stick, and lands on breakpoints and output times.
 
+With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
+the ``"translation"`` fidelity) the state has 14 entries (the translation normal to the
+axis and the axis tube's stuck contact after the 6), each contact's slip is a row over
+the state and its normal force F_N + k_n(x_k − sV) + d_c(ẋ_k − sV̇) a row over (y, V, V̇)
+that sets its Stribeck level at a step's ends and, for the slipping elements, its mean;
+the ladder is unchanged and the analytic all-stick step is not used. Each turntable runs
+an integrator compiled for its form (:func:`_run_either`).
+
 Time runs on the integer grid of h_min (1/16 µs by default): drive breakpoints and
 outputs are rounded to it and transitions are located to it.
 
@@ -49,7 +57,7 @@ import cmath
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import literally, njit, prange
 
 from .amplifier import amplifier_step, amplifier_step_decayed
 from .friction.kernels import gms_element_step, stribeck_magnitude
@@ -84,10 +92,15 @@ SAMPLE_FRACTION = 0.25
 
 
 @njit(cache=CACHE)
-def _rel(y, srow, k):
-    """Relative displacement and velocity (tube contact point − table point) of contact k:
-    u_k − ρ_kθ (less e_k·x with the sphere's translation), rows ``srow[k]`` over y (for the
-    per-axis state the sums are exactly u_k − ρ_kθ: the other terms add zeros)."""
+def _rel(y, mech, k):
+    """Relative displacement and velocity (tube contact point − table point) of contact k."""
+    rho = mech[2 + k]
+    return y[2 + 2 * k] - rho * y[0], y[3 + 2 * k] - rho * y[1]
+
+
+@njit(cache=CACHE)
+def _rel_moved(y, srow, k):
+    """:func:`_rel` less e_k·x where the sphere translates: the rows ``srow[k]`` over y."""
     x = 0.0
     xd = 0.0
     for a in range(y.shape[0]):
@@ -97,9 +110,11 @@ def _rel(y, srow, k):
 
 
 @njit(cache=CACHE)
-def _normal(y, volt, vdot, fn0, nrow, k):
-    """Normal force [N] of contact k: F_N plus the translation's k_n(x_k − sV) +
-    d_c(ẋ_k − sV̇) (rows ``nrow`` over (y, V, V̇); zero rows leave F_N exactly)."""
+def _normal(y, volt, vdot, fn0, nrow, k, moved):
+    """Normal force [N] of contact k: F_N, plus the translation's k_n(x_k − sV) +
+    d_c(ẋ_k − sV̇) where the sphere translates (``moved``; rows ``nrow`` over (y, V, V̇))."""
+    if not moved:
+        return fn0
     ny = y.shape[0]
     d = nrow[k, ny] * volt + nrow[k, ny + 1] * vdot
     for a in range(ny):
@@ -305,14 +320,14 @@ def _modal_y(t, z0, vmat, lam, yp0, yp1, ez, out):
 
 
 @njit(cache=CACHE)
-def _write_record(row, t, yv, volt, srow, f0, kk, x0, ne):
+def _write_record(row, t, yv, volt, mech, f0, kk, x0, ne):
     """One record (fields :data:`REC_FIELDS`) of an all-stick state yv at t [s]."""
     row[0] = t
     row[1] = yv[0]
     row[2] = yv[1]
     row[3] = volt
     for k in range(2):
-        x, _xd = _rel(yv, srow, k)
+        x, _xd = _rel(yv, mech, k)
         row[4 + k] = yv[2 + 2 * k]
         row[6 + k] = x
         fk = 0.0
@@ -367,23 +382,43 @@ def run_reduced_batch(state, model, drive, h_min, recording):
             ``out_every`` grid units into rec[b, i] (fields :data:`REC_FIELDS`), n_rec[b]
             counts them; counters[b] = (accepted steps, rejected steps, status, evaluations
             of the analytic solution). Status 0 ok, 1 non-finite state.
+
+    Each turntable runs the integrator compiled for its form (:func:`_run_either`).
     """
     for b in prange(state.y.shape[0]):
         # prange's index is unsigned: cast, so the kernel's int64 compilation serves both
         # entry points (an unsigned b compiled the whole integrator a second time)
-        _run_one(np.int64(b), state, model, drive, h_min, recording)
+        _run_either(np.int64(b), state, model, drive, h_min, recording)
 
 
 @njit(cache=CACHE)
 def run_reduced_serial(state, model, drive, h_min, recording):
     """:func:`run_reduced_batch` on one thread (a batch of one: no thread launch)."""
     for b in range(state.y.shape[0]):
-        _run_one(b, state, model, drive, h_min, recording)
+        _run_either(b, state, model, drive, h_min, recording)
 
 
 @njit(cache=CACHE)
-def _run_one(b, state, model, drive, h_min, recording):
-    """Turntable b of :func:`run_reduced_batch`."""
+def _run_either(b, state, model, drive, h_min, recording):
+    """Turntable b with the integrator compiled for its form: the per-axis model's 6 states,
+    or 14 where its sphere translates (a normal-force row is non-zero). The form is a
+    compile-time constant of each compilation, so the per-axis form's code holds no
+    translation (a batch's y may be wider than a turntable's states: padded with zeros)."""
+    moved = False
+    for k in range(2):
+        for a in range(model.nrow.shape[2]):
+            if model.nrow[b, k, a] != 0.0:
+                moved = True
+    if moved:
+        _run_one(b, state, model, drive, h_min, recording, True)
+    else:
+        _run_one(b, state, model, drive, h_min, recording, False)
+
+
+@njit(cache=CACHE)
+def _run_one(b, state, model, drive, h_min, recording, moved):
+    """Turntable b of :func:`run_reduced_batch` (``moved``: the form, a literal)."""
+    literally(moved)
     y, volt, f, st, n_now = state.y, state.volt, state.f, state.st, state.n
     vslow, vfast = state.vslow, state.vfast
     mech, gms, nu, kk, amp, ctl = model.mech, model.gms, model.nu, model.kk, model.amp, model.ctl
@@ -399,12 +434,8 @@ def _run_one(b, state, model, drive, h_min, recording):
     n_rec, counters = recording.n_rec, recording.counters
     ne = f.shape[2]
     r_big = phi_big.shape[1]
-    ny = y.shape[1]  # 6, or 14 with the sphere's translation
-    translation = False  # this turntable's normal forces move
-    for k in range(2):
-        for a in range(ny + 2):
-            if nrow[b, k, a] != 0.0:
-                translation = True
+    translation = moved  # this turntable's sphere translates: its normal forces move
+    ny = 14 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
     y0 = np.empty(ny)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)
@@ -477,7 +508,10 @@ def _run_one(b, state, model, drive, h_min, recording):
             row[2] = y[b, 1]
             row[3] = volt[b]
             for k in range(2):
-                x, _xd = _rel(y[b], srow[b], k)
+                if translation:
+                    x, _xd = _rel_moved(y[b], srow[b], k)
+                else:
+                    x, _xd = _rel(y[b], mech[b], k)
                 row[4 + k] = y[b, 2 + 2 * k]
                 row[6 + k] = x
                 fk = 0.0
@@ -511,7 +545,10 @@ def _run_one(b, state, model, drive, h_min, recording):
         # constant force inputs over the step (both contacts): the stuck elements'
         # offsets F_i − k_i x and the slipping elements' forces [N]
         for k in range(2):
-            x0[k], xd0[k] = _rel(y[b], srow[b], k)
+            if translation:
+                x0[k], xd0[k] = _rel_moved(y[b], srow[b], k)
+            else:
+                x0[k], xd0[k] = _rel(y[b], mech[b], k)
             fin[k] = 0.0
             for i in range(ne):
                 fin[k] += f[b, k, i] - (kk[b, i] * x0[k] if st[b, k, i] == 1 else 0.0)
@@ -586,7 +623,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                 while n_o < n + m_step and n_rec[b] < rec.shape[1]:
                     t_o = (n_o - n) * h_min
                     _modal_y(t_o, z0, modal_v[b], lam, yp0, yp1, ez, yv)
-                    _write_record(rec[b, n_rec[b]], n_o * h_min, yv, v0 + vsl * t_o, srow[b],
+                    _write_record(rec[b, n_rec[b]], n_o * h_min, yv, v0 + vsl * t_o, mech[b],
                                   f0, kk[b], x0, ne)  # fmt: skip
                     n_rec[b] += 1
                     n_o += out_every[b]
@@ -605,7 +642,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                 for j in range(ny):
                     y[b, j] = yv[j]
                 for k in range(2):
-                    x1, xd1 = _rel(y[b], srow[b], k)
+                    x1, xd1 = _rel(y[b], mech[b], k)  # no translation here
                     s1 = _level(xd1, fnk[k], gms[b])
                     for i in range(ne):
                         fi = f0[k, i] + kk[b, i] * (x1 - x0[k])
@@ -692,7 +729,9 @@ def _run_one(b, state, model, drive, h_min, recording):
         u0 = u_now
         for k in range(2):  # Stribeck level at the step start [N] (event interpolation):
             # the last accepted step's end level where it ended at this state
-            fn_s = _normal(y[b], volt[b], 0.0, mech[b, 12 + k], nrow[b], k)
+            fn_s = mech[b, 12 + k]
+            if translation:
+                fn_s = _normal(y[b], volt[b], 0.0, fn_s, nrow[b], k, True)
             s_start[k] = s_end[k] if s_ok else _level(xd0[k], fn_s, gms[b])
         while True:
             dn = 1 << rung
@@ -725,9 +764,15 @@ def _run_one(b, state, model, drive, h_min, recording):
             event = False
             frac = 1.0  # earliest crossing in the step by linear interpolation [-]
             for k in range(2):
-                x1, xd1 = _rel(y[b], srow[b], k)
+                if translation:
+                    x1, xd1 = _rel_moved(y[b], srow[b], k)
+                else:
+                    x1, xd1 = _rel(y[b], mech[b], k)
                 dx = x1 - x0[k]
-                fn_k = _normal(y[b], v1, vslope, mech[b, 12 + k], nrow[b], k)  # at the end
+                # the normal force at the step's end [N]
+                fn_k = mech[b, 12 + k]
+                if translation:
+                    fn_k = _normal(y[b], v1, vslope, fn_k, nrow[b], k, True)
                 s1 = _level(xd1, fn_k, gms[b])
                 s_end[k] = s1
                 sbar = 0.0  # slipping elements' level, relaxation and direction (only theirs)
@@ -738,7 +783,7 @@ def _run_one(b, state, model, drive, h_min, recording):
                     fn_bar = fn_k  # the step's mean normal force (F_N without translation)
                     if translation:
                         fn_bar = 0.5 * (fn_k + _normal(y0, v0e, vslope, mech[b, 12 + k],
-                                                       nrow[b], k))  # fmt: skip
+                                                       nrow[b], k, True))  # fmt: skip
                     sbar = _level(vbar, fn_bar, gms[b])
                     decay = math.exp(-gms[b, 0] * h / sbar)
                     sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
