@@ -143,3 +143,32 @@ def test_env_runs_the_translation_fidelity():
         assert task.stepper.plants[0].fidelity == fid
         angles[fid] = float(task.angle[0])
     assert 0.0 < angles["translation"] < 0.98 * angles["reduced"]  # 0.955 here
+
+
+def test_translation_follows_the_simulated_set():
+    """A reduced model condensed from a cached 3-D model of another preload takes its
+    contact and friction from its own set (the plant layer shares the bodies' model)."""
+    base = ReducedModel("real", "B")
+    ps = base.params.with_factors({"preload": 1.2})
+    shared = ReducedModel(ps, "B", model=base.full, translation=True).translation_params
+    assert shared == TranslationParameters.from_model(ReducedModel(ps, "B").full, "B")
+    nominal = TranslationParameters.from_model(base.full, "B")
+    # Hertz: dF/dδ ∝ F_N^(1/3)
+    assert shared.hertz_stiffness / nominal.hertz_stiffness == pytest.approx(1.2 ** (1 / 3))
+
+
+def test_an_unloaded_contact_has_no_friction_and_stays_finite():
+    """A full-scale voltage jump on the ideal amplifier pulls the balls away faster than
+    the sphere follows: the normal force is held at 0, never negative, and the run stays
+    finite (no division by a zero Stribeck level)."""
+    from turntable_env.reduced_kernel import _normal
+
+    row = np.zeros((2, 16))
+    row[0, 14] = -1.0  # N/V
+    assert _normal(np.zeros(14), 10.0, 0.0, 2.5, row, 0, True) == 0.0
+    assert _normal(np.zeros(14), 1.0, 0.0, 2.5, row, 0, True) == pytest.approx(1.5)
+    _drive, ps = stepping_drive("real", amplitude=1.0, frequency=100.0, amplifier="ideal")
+    m = ReducedModel(ps, "B", translation=True)
+    jump = Waveform(np.array([0.0, 1e-3, 1e-3, 3e-3]), np.array([-10.0, -10.0, 10.0, 10.0]))
+    r = simulate_batch([m], [jump], 3e-3, output_dt=1e-6)[0]
+    assert np.isfinite(r.angle_rad).all() and np.isfinite(r.slip).all()

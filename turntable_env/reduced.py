@@ -206,20 +206,30 @@ class TranslationParameters:
         return 1.0 / (1.0 / self.hertz_stiffness + 1.0 / self.axial_stiffness)
 
     @classmethod
-    def from_model(cls, model: TurntableModel, axis: str) -> TranslationParameters:
-        """Derive the translation's parameters for ``axis`` (see the class docstring)."""
+    def from_model(
+        cls, model: TurntableModel, axis: str, params: ParameterSet | None = None
+    ) -> TranslationParameters:
+        """Derive the translation's parameters for ``axis`` (see the class docstring): the
+        bodies (table, tubes, drive mode) from ``model``, the contact (preload, Hertz law,
+        normal damping) and the friction from ``params`` (default: the model's own; a
+        reduced model condensed from a cached 3-D model of other contact values passes its
+        own set, as :class:`ReducedModel` does)."""
         if axis not in REDUCED_AXES:
             raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
-        ar, ps = model.packed, model.params
+        ar = model.packed
+        ps = params if params is not None else model.params
+        contact = ps.contact
+        assert contact is not None
         c = axis_index(axis)
         n = model.layout.axis_units[c]
         drv = [k for k in range(3) if k != c]
         d = [ar["d_nom"][k] for k in drv]
         e = [np.cross(n, dk) / np.linalg.norm(np.cross(n, dk)) for dk in d]
         tp = ar["table_p"]
-        fn0 = float(ps.contact.preload)  # type: ignore[union-attr]
-        delta0 = (fn0 / tp[6]) ** (1.0 / tp[7])  # static overlap (F_N/k_c)^(1/e) [m]
-        k_hertz = tp[7] * fn0 / delta0  # dF/dδ of k_c δ^e at F_N [N/m]
+        fn0 = float(contact.preload)
+        k_c, e_c = contact.normal_stiffness, contact.normal_exponent
+        delta0 = (fn0 / k_c) ** (1.0 / e_c)  # static overlap (F_N/k_c)^(1/e) [m]
+        k_hertz = e_c * fn0 / delta0  # dF/dδ of k_c δ^e at F_N [N/m]
         r_ball = ps.tube.outer_radius
         k0 = drv[0]
         r_c = ar["r0"][k0] - r_ball * ar["d_nom"][k0]  # tube top → contact point [m]
@@ -243,13 +253,13 @@ class TranslationParameters:
             direction=tuple(tuple(float(ek @ dj) for dj in d) for ek in e),  # type: ignore[arg-type]
             hertz_stiffness=float(k_hertz),
             axial_stiffness=k_axial,
-            normal_damping=float(tp[8]),
+            normal_damping=float(contact.normal_damping),
             stroke=stroke,
             axis_tube_mass=float(psi @ ar["mtube"][c] @ psi),
             axis_tube_stiffness=k_b,
             axis_tube_damping=ps.tube.damping_coefficient * k_b,
             axis_contact_stiffness=k_sum,
-            axis_contact_damping=fr.stribeck.sigma2 + ps.contact.tangential_damping * k_sum,  # type: ignore[union-attr]
+            axis_contact_damping=fr.stribeck.sigma2 + contact.tangential_damping * k_sum,
         )
 
 
@@ -377,7 +387,7 @@ class ReducedModel:
         condensed = AxisParameters.from_model(self.full, axis)
         self.axis_params = replace(condensed, normal_force=(fn, fn))
         self.translation_params = (
-            TranslationParameters.from_model(self.full, axis) if translation else None
+            TranslationParameters.from_model(self.full, axis, ps) if translation else None
         )
         self._pack()
 
@@ -648,9 +658,6 @@ class ReducedModel:
         force = ap.gravity_stiffness * th * rho / float(rho @ rho)  # N on the table
         f = np.outer(force, kk / kk.sum())
         mu_s = self.params.friction.stribeck.mu_s  # type: ignore[union-attr]
-        cap = nu[None, :] * mu_s * np.asarray(ap.normal_force)[:, None]  # N
-        if (np.abs(f) >= cap).any():
-            raise ValueError(f"angle={angle!r}: friction cannot hold the table there")
         y = np.zeros(self.n_state)
         y[0] = th
         y[2:6:2] = np.asarray(ap.tube_gain) * v - force / np.asarray(ap.tube_stiffness)
@@ -659,6 +666,11 @@ class ReducedModel:
             sq = self._slip_rows()[:, 0, 0::2]
             rhs = b_v * v - sq.T @ force - kq[:, 0] * th
             y[2::2] = np.linalg.solve(kq[1:, 1:], rhs[1:])
+        nrow = self._normal_rows()  # the normal forces at rest (F_N without translation)
+        fn_rest = np.asarray(ap.normal_force) + nrow[:, : self.n_state] @ y + nrow[:, -2] * v
+        cap = nu[None, :] * mu_s * fn_rest[:, None]  # N
+        if (np.abs(f) >= cap).any():
+            raise ValueError(f"angle={angle!r}: friction cannot hold the table there")
         a = self.params.amplifier.fast_fraction
         return {
             "y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64),
@@ -767,6 +779,7 @@ class ReducedBatch:
             row[tuple(slice(0, s) for s in a.shape)] = a
             dest[b] = row
         self._mu[b] = self.arrays.gms[b, 1:3]
+        self.state.y[b, model.n_state :] = 0.0  # a narrower form's unused states
         self.models[b] = model
 
     def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None:
@@ -784,8 +797,10 @@ class ReducedBatch:
         """Set turntable b's state (from :meth:`ReducedModel.rest_state`) at ``time`` [s]."""
         st = self.state
         y = np.asarray(state["y"], dtype=float)
-        if y.size > st.y.shape[1]:
-            raise ValueError(f"state['y']: {y.size} states do not fit the batch's {st.y.shape[1]}")
+        if y.size != self.models[b].n_state:
+            raise ValueError(
+                f"state['y']: {y.size} states, turntable {b}'s model has {self.models[b].n_state}"
+            )
         st.y[b] = 0.0
         st.y[b, : y.size] = y
         st.volt[b] = float(state["volt"])

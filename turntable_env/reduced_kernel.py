@@ -112,14 +112,16 @@ def _rel_moved(y, srow, k):
 @njit(cache=CACHE)
 def _normal(y, volt, vdot, fn0, nrow, k, moved):
     """Normal force [N] of contact k: F_N, plus the translation's k_n(x_k − sV) +
-    d_c(ẋ_k − sV̇) where the sphere translates (``moved``; rows ``nrow`` over (y, V, V̇))."""
+    d_c(ẋ_k − sV̇) where the sphere translates (``moved``; rows ``nrow`` over (y, V, V̇),
+    V and V̇ in its last two columns), never below 0: a contact that would pull has lost
+    its friction (the normal spring itself stays linear: lift-off is not modelled)."""
     if not moved:
         return fn0
-    ny = y.shape[0]
-    d = nrow[k, ny] * volt + nrow[k, ny + 1] * vdot
-    for a in range(ny):
+    nv = nrow.shape[1] - 2
+    d = nrow[k, nv] * volt + nrow[k, nv + 1] * vdot
+    for a in range(nv):
         d += nrow[k, a] * y[a]
-    return fn0 + d
+    return max(fn0 + d, 0.0)
 
 
 @njit(cache=CACHE)
@@ -785,7 +787,8 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                         fn_bar = 0.5 * (fn_k + _normal(y0, v0e, vslope, mech[b, 12 + k],
                                                        nrow[b], k, True))  # fmt: skip
                     sbar = _level(vbar, fn_bar, gms[b])
-                    decay = math.exp(-gms[b, 0] * h / sbar)
+                    # no level (a translating contact unloaded): the elements drop at once
+                    decay = math.exp(-gms[b, 0] * h / sbar) if sbar > 0.0 else 0.0
                     sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
                 for i in range(ne):  # the GMS law (Eq. 2.24–2.25), one compiled place
                     fi = gms_element_step(f0[k, i], st[b, k, i], kk[b, i], dx,
