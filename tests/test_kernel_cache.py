@@ -89,8 +89,9 @@ def test_a_read_only_install_runs_the_env(tmp_path):
 @pytest.mark.slow
 def test_the_batch_and_serial_kernels_share_one_compiled_integrator(tmp_path):
     """A fresh cache after a serial and a parallel batch run holds one compilation of the
-    per-turntable integrator, indexed by int64: prange's index is unsigned, and passed on
-    as it is it compiled the whole integrator a second time (about 20 s at every fresh
+    per-turntable integrator per form (the per-axis model's and the translation's, a
+    literal of each compilation), indexed by int64: prange's index is unsigned, and passed
+    on as it is it compiled the whole integrator a second time (about 20 s at every fresh
     start). The compiled code's index is numba's cache file, read in a fresh process."""
     import os
     import subprocess
@@ -104,10 +105,14 @@ def test_the_batch_and_serial_kernels_share_one_compiled_integrator(tmp_path):
         "m = ReducedModel(ps, 'B')\n"
         "simulate_batch([m], [d], 0.01)\n"
         "simulate_batch([m, m], [d, d], 0.01)\n"
-        "print(' '.join(str(k[0][0]) for k in rk._run_one._cache._cache_file._load_index()))\n"
+        "index = lambda f: f._cache._cache_file._load_index()\n"
+        "print(sorted(str(k[0][0]) for k in index(rk._run_either)))\n"
+        "print(sorted((str(k[0][0]), str(k[0][-1])) for k in index(rk._run_one)))\n"
     )
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                        timeout=900, cwd=str(tmp_path))  # fmt: skip
     assert r.returncode == 0, r.stderr[-2000:]
-    assert r.stdout.split() == ["int64"]
+    either, one = r.stdout.splitlines()
+    assert either == "['int64']"
+    assert one == "[('int64', 'Literal[bool](False)'), ('int64', 'Literal[bool](True)')]"
