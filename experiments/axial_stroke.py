@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 
 import numpy as np
+from sphere_translation import remove_axial_stroke  # this directory is on sys.path
 
 from turntable_env.reduced import ReducedModel, simulate_reduced
 from turntable_env.simulation import simulate, stepping_drive
@@ -59,11 +60,7 @@ def main() -> int:
           + ", ".join(f"{a:.3f}" for a in axial))  # fmt: skip
     s_as_is = steps_nm(rm.full, ps)
     fn_pos, fn_neg = ramp_end_normal_forces(rm.full, ps)
-    for k in range(3):  # remove the translation along each tube from its free twist per volt
-        d = ar["d_nom"][k]
-        xi = np.linalg.solve(ar["ktop"][k], ar["bcoup"][k])
-        xi[3:] -= np.outer(d, d @ xi[3:])
-        ar["bcoup"][k][:] = ar["ktop"][k] @ xi
+    remove_axial_stroke(rm.full)  # the translation along each tube, bending kept
     s_bend = steps_nm(rm.full, ps)
     proxy = []  # the per-axis model with each direction's ramp-end normal force as its preload
     for sign, fn in ((1.0, fn_pos), (-1.0, fn_neg)):

@@ -263,6 +263,18 @@ def run(amplitude: float, frequency: float, a: float, *, variant: str = "transla
             "ramp_end_normal_N": fn_end, "translation": p["translation"]}  # fmt: skip
 
 
+def remove_axial_stroke(model) -> None:  # type: ignore[no-untyped-def]
+    """Remove, in place, the translation along each tube's axis from its free twist per
+    quadrant volt (bending kept) of a 3-D model built for this use alone (its packed
+    ``bcoup``); ``experiments/axial_stroke.py`` uses it too."""
+    ar = model.packed
+    for k in range(3):
+        d = ar["d_nom"][k]
+        xi = np.linalg.solve(ar["ktop"][k], ar["bcoup"][k])
+        xi[3:] -= np.outer(d, d @ xi[3:])
+        ar["bcoup"][k][:] = ar["ktop"][k] @ xi
+
+
 def full_step(amplitude: float, frequency: float, a: float, *, no_stroke: bool = False,
               periods: int = 3) -> float:  # fmt: skip
     """The 3-D model's mean |step| per period [nm] (adapted amplifier, axis B, as
@@ -272,12 +284,7 @@ def full_step(amplitude: float, frequency: float, a: float, *, no_stroke: bool =
                                periods=periods, a=a, amplifier="adapted")  # fmt: skip
     rm = ReducedModel(ps, "B")
     if no_stroke:
-        ar = rm.full.packed
-        for k in range(3):
-            d = ar["d_nom"][k]
-            xi = np.linalg.solve(ar["ktop"][k], ar["bcoup"][k])
-            xi[3:] -= np.outer(d, d @ xi[3:])
-            ar["bcoup"][k][:] = ar["ktop"][k] @ xi
+        remove_axial_stroke(rm.full)
     return 1e9 * simulate(ps, drive, axis="B", model=rm.full, coarse_factor=FULL_COARSE,
                           output_dt=min(1e-5, 0.01 / frequency)).step_size  # fmt: skip
 
@@ -313,6 +320,9 @@ def main(argv: list[str] | None = None) -> int:
                 f"variant {args.variant}, a = {args.a:g}, dt = {args.dt:g} s; "
                 "steps [nm] per period, differences against the 3-D model"
             )
+            if args.variant != "translation":
+                print("(the kernel column is the kernel's translation as the env runs it, "
+                      "stroke included, whatever the variant)")  # fmt: skip
             print("   V     Hz   3-D  prototype  (diff)  per-axis  (diff)    kernel  (diff)"
                   "  ramp-end F_N [N]")  # fmt: skip
         e_p, e_r = r["prototype_nm"] / full - 1.0, r["per_axis_nm"] / full - 1.0
