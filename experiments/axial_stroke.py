@@ -15,7 +15,7 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from sphere_translation import remove_axial_stroke  # this directory is on sys.path
+from sphere_tilt import remove_axial_stroke  # this directory is on sys.path
 
 from turntable_env.reduced import ReducedModel, simulate_reduced
 from turntable_env.simulation import simulate, stepping_drive

@@ -20,7 +20,7 @@ implementation of the reduced model — it measures, in one process:
   reduced model, for uniformly random actions and for the nominal drive;
 * the per-axis model's step against the 3-D model's over a drive sweep
   (:func:`reduced_vs_full_sweep`), as it is (``reduced_vs_full_*``) and with the sphere's
-  translation (``reduced_translation_vs_full_*``, the ``"translation"`` fidelity).
+  translation and tilts (``reduced_translation_vs_full_*``, the ``"translation"`` fidelity).
 """
 
 from __future__ import annotations
@@ -167,7 +167,7 @@ def reduced_vs_full_sweep(quick: bool = False, translation: bool = False) -> lis
     :data:`VS_FULL` (``quick``: :data:`VS_FULL_QUICK`), both directions, and their relative
     difference (reduced/full − 1; None where the full step is under
     :data:`STEP_FLOOR_NM` or the adapted flyback does not fit the period, with the note);
-    ``translation``: the reduced model with the sphere's translation
+    ``translation``: the reduced model with the sphere's translation and tilts
     (:class:`~turntable_env.reduced.TranslationParameters`)."""
     grid = VS_FULL_QUICK if quick else VS_FULL
     rows: list[dict[str, Any]] = []

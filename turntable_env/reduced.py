@@ -74,6 +74,16 @@ _STATE_NAMES = (
     "axis tube contact velocity 1",
     "axis tube contact displacement 2",
     "axis tube contact velocity 2",
+    "sphere translation along the axis",
+    "sphere translation along the axis velocity",
+    "table tilt 1",
+    "table tilt 1 rate",
+    "table tilt 2",
+    "table tilt 2 rate",
+    "tube 1 contact displacement along the axis",
+    "tube 1 contact velocity along the axis",
+    "tube 2 contact displacement along the axis",
+    "tube 2 contact velocity along the axis",
 )
 
 
@@ -159,23 +169,34 @@ class AxisParameters:
 
 @dataclass(frozen=True)
 class TranslationParameters:
-    """The sphere's translation normal to the axis and the contacts' normal forces, derived
-    from the full 3-D model (SI units; ``ReducedModel(translation=True)``).
+    """The sphere's rigid-body motion beside the turn about the axis (its translation and
+    its tilts) and the contacts' normal forces, derived from the full 3-D model (SI units;
+    ``ReducedModel(translation=True)``).
 
-    The driving tubes' axes d_1, d_2 are orthonormal with the axis n (§3.1's orthogonal
-    tubes), so tube k's friction, along e_k = n × d_k = ±d_j, pushes the sphere along the
-    other contact's normal, and the sphere's translation x = x_1 d_1 + x_2 d_2 slides the
-    contact points: slip_k = u_k − ρθ − e_k·x. Each driving contact's normal force is
-    F_N + k_n(x_k − s V) + d_c(ẋ_k − s V̇) (Eq. 3.21's k_c δ^e + d_c δ̇ linearised at F_N),
-    and it sets the contact's Stribeck level (Eq. 2.13). The tube on the axis holds the
-    translation tangentially through its stuck contact (Σk_i with micro-damping β_tΣk_i,
-    Eq. 2.24) in series with its bending, condensed at its contact point as the driving
-    tubes'. The table's inertia couples the rotation and the translation through the
-    centre of mass, 3R/8 below the centre (App. C): T = ½J_nθ̇² + mθ̇(n × c)·ẋ + ½m|ẋ|².
+    The tubes' axes d_1, d_2 (driving) and n (the axis) are orthonormal (§3.1's orthogonal
+    tubes). The table's coordinates beside θ are its centre's translation x = x_1 d_1 +
+    x_2 d_2 + x_n n and its tilts φ_1, φ_2 about d_1, d_2 (rotation φ = φ_1 d_1 + φ_2 d_2 +
+    θ n). Tube k's friction, along e_k = n × d_k = ±d_j, pushes the sphere along the other
+    contact's normal, and the translation slides the contact points: slip_k = u_k − ρθ −
+    e_k·x (the tilts move a driving contact's point along n alone). Each driving
+    contact's normal force is F_N + k_n(x_k − s V) + d_c(ẋ_k − s V̇) (Eq. 3.21's k_c δ^e +
+    d_c δ̇ linearised at F_N), and it sets the contact's Stribeck level (Eq. 2.13). The
+    contacts' other tangent directions never slip: the tube on the axis holds x_1, x_2
+    and the tilts at its contact point ρn (slip b_j − d_j·(x + φ × ρn)), each driving
+    tube holds x_n and the tilts along n at ρd_k (slip w_k − n·(x + φ × ρd_k)), each a
+    stuck GMS contact (Σk_i with micro-damping β_tΣk_i, Eq. 2.24) in series with the
+    tube's bending there, condensed at its contact point as the driving direction is;
+    the axis contact's normal spring k_n holds x_n. The table's inertia couples rotation
+    and translation through the centre of mass c, 3R/8 below the centre (App. C): T =
+    ½m|ẋ + φ̇ × c|² + ½φ̇ᵀJ_cφ̇ (J_c about the centre of mass), and gravity's pendulum
+    stiffness on φ is m g (|c| I − c cᵀ/|c|) (Eq. C.16's lever).
 
     Attributes:
         mass: m, the table's mass [kg].
-        coupling: (n × c)·d_j [m], c the centre of mass from the sphere's centre.
+        centre_of_mass: c from the sphere's centre in (d_1, d_2, n) [m].
+        centre_inertia: the table's inertia about the sphere's centre in (d_1, d_2, n)
+            [kg·m²] (3 × 3).
+        gravity: g [m/s²].
         direction: e_k·d_j [-] (row k: driving contact, column j: translation component).
         hertz_stiffness: dF/dδ of the contact's k_c δ^e at F_N, e·F_N/δ_0 [N/m].
         axial_stiffness: the tube's, at its contact point along d_k [N/m].
@@ -184,11 +205,17 @@ class TranslationParameters:
             wiring's axial strain, §3.1) [m/V].
         axis_tube_mass, axis_tube_stiffness, axis_tube_damping: the tube on the axis
             condensed at its contact point [kg], [N/m], [N·s/m].
-        axis_contact_stiffness, axis_contact_damping: its stuck contact [N/m], [N·s/m].
+        side_tube_mass, side_tube_stiffness, side_tube_damping, side_tube_gain: each
+            driving tube condensed at its contact point along n [kg], [N/m], [N·s/m],
+            and its free deflection there per channel volt [m/V].
+        axis_contact_stiffness, axis_contact_damping: a stuck contact direction [N/m],
+            [N·s/m].
     """
 
     mass: float
-    coupling: tuple[float, float]
+    centre_of_mass: tuple[float, float, float]
+    centre_inertia: tuple[tuple[float, float, float], ...]
+    gravity: float
     direction: tuple[tuple[float, float], tuple[float, float]]
     hertz_stiffness: float
     axial_stiffness: float
@@ -197,8 +224,23 @@ class TranslationParameters:
     axis_tube_mass: float
     axis_tube_stiffness: float
     axis_tube_damping: float
+    side_tube_mass: tuple[float, float]
+    side_tube_stiffness: tuple[float, float]
+    side_tube_damping: tuple[float, float]
+    side_tube_gain: tuple[float, float]
     axis_contact_stiffness: float
     axis_contact_damping: float
+
+    @property
+    def handedness(self) -> float:
+        """σ = (d_1 × d_2)·n = e_1·d_2 = ±1 [-]: cross products in (d_1, d_2, n) carry it."""
+        return 1.0 if self.direction[0][1] > 0.0 else -1.0
+
+    @property
+    def coupling(self) -> tuple[float, float]:
+        """(n × c)·d_j [m]: the rotation's coupling to the translation, m θ̇ (n × c)·ẋ."""
+        c, sg = self.centre_of_mass, self.handedness
+        return (-sg * c[1], sg * c[0])
 
     @property
     def normal_stiffness(self) -> float:
@@ -243,13 +285,29 @@ class TranslationParameters:
         kinv_a = np.linalg.solve(ar["ktop"][c], a_n)
         k_b = 1.0 / float(a_n @ kinv_a)
         psi = kinv_a * k_b
+        side: dict[str, list[float]] = {k: [] for k in ("M", "K", "g")}
+        for k in drv:  # each driving tube along n, condensed as its driving direction
+            r_ck = ar["r0"][k] - r_ball * ar["d_nom"][k]
+            a_s = np.concatenate([np.cross(r_ck, n), n])
+            kinv_s = np.linalg.solve(ar["ktop"][k], a_s)
+            k_s = 1.0 / float(a_s @ kinv_s)
+            qk = (ar["qchan"][k] == c) * ar["qsign"][k]
+            side["M"].append(float((kinv_s * k_s) @ ar["mtube"][k] @ (kinv_s * k_s)))
+            side["K"].append(k_s)
+            side["g"].append(float(a_s @ np.linalg.solve(ar["ktop"][k], ar["bcoup"][k] @ qk)))
         fr = ps.friction
         assert fr is not None
         k_sum = float(np.sum(fr.k))
-        cn = np.cross(n, ar["c_body"])
+        basis = np.stack([d[0], d[1], n], axis=1)  # columns d_1, d_2, n (world)
+        cb = np.asarray(ar["c_body"], float)
+        m = float(tp[0])
+        j_o = np.linalg.inv(ar["jinv"]) + m * (cb @ cb * np.eye(3) - np.outer(cb, cb))
+        beta = ps.tube.damping_coefficient
         return cls(
-            mass=float(tp[0]),
-            coupling=(float(cn @ d[0]), float(cn @ d[1])),
+            mass=m,
+            centre_of_mass=tuple(float(v) for v in basis.T @ cb),  # type: ignore[arg-type]
+            centre_inertia=tuple(tuple(float(v) for v in row) for row in basis.T @ j_o @ basis),
+            gravity=float(model.gravity),
             direction=tuple(tuple(float(ek @ dj) for dj in d) for ek in e),  # type: ignore[arg-type]
             hertz_stiffness=float(k_hertz),
             axial_stiffness=k_axial,
@@ -257,7 +315,11 @@ class TranslationParameters:
             stroke=stroke,
             axis_tube_mass=float(psi @ ar["mtube"][c] @ psi),
             axis_tube_stiffness=k_b,
-            axis_tube_damping=ps.tube.damping_coefficient * k_b,
+            axis_tube_damping=beta * k_b,
+            side_tube_mass=tuple(side["M"]),  # type: ignore[arg-type]
+            side_tube_stiffness=tuple(side["K"]),  # type: ignore[arg-type]
+            side_tube_damping=tuple(beta * k for k in side["K"]),  # type: ignore[arg-type]
+            side_tube_gain=tuple(side["g"]),  # type: ignore[arg-type]
             axis_contact_stiffness=k_sum,
             axis_contact_damping=fr.stribeck.sigma2 + contact.tangential_damping * k_sum,
         )
@@ -393,9 +455,10 @@ class ReducedModel:
 
     @property
     def n_state(self) -> int:
-        """Length of the state y: 6 (θ, u1, u2 and their rates), 14 with the translation
-        (x1, x2 and the axis tube's contact point b1, b2 after them, each with its rate)."""
-        return 6 if self.translation_params is None else 14
+        """Length of the state y: 6 (θ, u1, u2 and their rates), 24 with the translation
+        (x1, x2, the axis tube's contact point b1, b2, x_n, the tilts φ1, φ2 and the
+        driving tubes' contact points along n, w1, w2 after them, each with its rate)."""
+        return 6 if self.translation_params is None else 24
 
     def _slip_rows(self) -> np.ndarray:
         """(2, 2, n_state): each driving contact's slip (tube point − table point) [m] and
@@ -426,9 +489,9 @@ class ReducedModel:
         return rows
 
     def _system_translation(self, s_stuck: tuple[float, float]) -> np.ndarray:
-        """Augmented 18×18 matrix of (y, V, V̇, f1, f2) with the translation (y as
+        """Augmented 28×28 matrix of (y, V, V̇, f1, f2) with the translation (y as
         :attr:`n_state`; see :class:`TranslationParameters`): M q̈ = −K q − C q̇ + b_V V +
-        b_V̇ V̇ − Σ_k S_k F_k over q = (θ, u1, u2, x1, x2, b1, b2), F_k = s_k S_k q +
+        b_V̇ V̇ − Σ_k S_k F_k over q of :meth:`translation_matrices`, F_k = s_k S_k q +
         d_k S_k q̇ + f_k the driving contacts' friction (Eq. 2.24, the stuck stiffness s_k)."""
         fr = self.params.friction
         assert fr is not None
@@ -457,21 +520,31 @@ class ReducedModel:
         return a
 
     def translation_matrices(self) -> tuple[np.ndarray, ...]:
-        """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2) [SI] of the model with
-        the translation, without the driving contacts' friction (see
-        :meth:`_system_translation`): M q̈ + C q̇ + K q = b_V V + b_V̇ V̇ + friction."""
+        """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2, x_n, φ1, φ2, w1, w2)
+        [SI] of the model with the translation and tilts, without the driving contacts'
+        friction (see :meth:`_system_translation` and :class:`TranslationParameters`):
+        M q̈ + C q̇ + K q = b_V V + b_V̇ V̇ + friction."""
         ap, tr = self.axis_params, self.translation_params
         if tr is None:
             raise ValueError("translation_matrices: this model has no translation")
-        nq = 7
-        mass = np.diag([ap.inertia, *ap.tube_mass, tr.mass, tr.mass, tr.axis_tube_mass,
-                        tr.axis_tube_mass])  # fmt: skip
-        mass[0, 3:5] = mass[3:5, 0] = tr.mass * np.asarray(tr.coupling)
+        nq = 12
+        m, sg, rho = tr.mass, tr.handedness, ap.lever[0]
+        c = np.asarray(tr.centre_of_mass)
+        mass = np.diag([0.0, *ap.tube_mass, 0.0, 0.0, tr.axis_tube_mass, tr.axis_tube_mass,
+                        0.0, 0.0, 0.0, *tr.side_tube_mass])  # fmt: skip
+        table = [3, 4, 7, 8, 9, 0]  # x1, x2, x_n, φ1, φ2, θ
+        skew = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+        vmap = np.hstack([np.eye(3), -sg * skew])  # v_com = ẋ + φ̇ × c = ẋ − σ[c]×φ̇
+        j_com = np.asarray(tr.centre_inertia) - m * (c @ c * np.eye(3) - np.outer(c, c))
+        block = m * vmap.T @ vmap
+        block[3:, 3:] += j_com
+        mass[np.ix_(table, table)] += block
         kq = np.zeros((nq, nq))
         cq = np.zeros((nq, nq))
         b_v = np.zeros(nq)
         b_vd = np.zeros(nq)
-        kq[0, 0] = ap.gravity_stiffness
+        h = float(np.linalg.norm(c))  # gravity's pendulum on the rotation (Eq. C.16)
+        kq[np.ix_(table[3:], table[3:])] = tr.gravity * m * (h * np.eye(3) - np.outer(c, c) / h)
         for k in range(2):
             kq[1 + k, 1 + k] = ap.tube_stiffness[k]
             cq[1 + k, 1 + k] = ap.tube_damping[k]
@@ -482,16 +555,26 @@ class ReducedModel:
             b_vd[3 + k] = tr.normal_damping * tr.stroke
             kq[5 + k, 5 + k] = tr.axis_tube_stiffness
             cq[5 + k, 5 + k] = tr.axis_tube_damping
-            sb = np.zeros(nq)  # the axis tube's stuck contact: slip b_j − x_j
-            sb[5 + k], sb[3 + k] = 1.0, -1.0
-            kq += tr.axis_contact_stiffness * np.outer(sb, sb)
-            cq += tr.axis_contact_damping * np.outer(sb, sb)
+            kq[10 + k, 10 + k] = tr.side_tube_stiffness[k]
+            cq[10 + k, 10 + k] = tr.side_tube_damping[k]
+            b_v[10 + k] = tr.side_tube_stiffness[k] * tr.side_tube_gain[k]
+        kq[7, 7] = tr.normal_stiffness  # the axis contact's normal spring holds x_n
+        cq[7, 7] = tr.normal_damping
+        # the stuck directions' slips (tube point − table point), φ × ρd in (d1, d2, n)
+        stuck = np.zeros((4, nq))
+        stuck[0, [5, 3, 9]] = 1.0, -1.0, -sg * rho  # axis contact along d1
+        stuck[1, [6, 4, 8]] = 1.0, -1.0, sg * rho  # along d2
+        stuck[2, [10, 7, 9]] = 1.0, -1.0, sg * rho  # driving contact 1 along n
+        stuck[3, [11, 7, 8]] = 1.0, -1.0, -sg * rho  # driving contact 2 along n
+        for row in stuck:
+            kq += tr.axis_contact_stiffness * np.outer(row, row)
+            cq += tr.axis_contact_damping * np.outer(row, row)
         return mass, kq, cq, b_v, b_vd
 
     # ------------------------------------------------------------------------------
     def _system(self, s_stuck: tuple[float, float]) -> np.ndarray:
         """Augmented 10×10 matrix of (θ, θ̇, u1, u̇1, u2, u̇2, V, V̇, f1, f2) with the stuck
-        stiffness s_stuck[k] on each contact (see module docstring); 18×18 with the
+        stiffness s_stuck[k] on each contact (see module docstring); 28×28 with the
         translation (:meth:`_system_translation`)."""
         if self.translation_params is not None:
             return self._system_translation(s_stuck)

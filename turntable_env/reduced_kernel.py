@@ -33,8 +33,8 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
   mode's period while all stick, and lands on breakpoints and output times.
 
 With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
-the ``"translation"`` fidelity) the state has 14 entries (the translation normal to the
-axis and the axis tube's stuck contact after the 6), each contact's slip is a row over
+the ``"translation"`` fidelity) the state has 24 entries (the sphere's translation, its
+tilts and the stuck tangent directions' tube points after the 6), each contact's slip is a row over
 the state and its normal force F_N + k_n(x_k − sV) + d_c(ẋ_k − sV̇) a row over (y, V, V̇)
 that sets its Stribeck level at a step's ends and, for the slipping elements, its mean;
 the ladder is unchanged and the analytic all-stick step is not used. Each turntable runs
@@ -403,7 +403,7 @@ def run_reduced_serial(state, model, drive, h_min, recording):
 @njit(cache=CACHE)
 def _run_either(b, state, model, drive, h_min, recording):
     """Turntable b with the integrator compiled for its form: the per-axis model's 6 states,
-    or 14 where its sphere translates (a normal-force row is non-zero). The form is a
+    or 24 where its sphere translates (a normal-force row is non-zero). The form is a
     compile-time constant of each compilation, so the per-axis form's code holds no
     translation (a batch's y may be wider than a turntable's states: padded with zeros)."""
     moved = False
@@ -437,7 +437,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
     ne = f.shape[2]
     r_big = phi_big.shape[1]
     translation = moved  # this turntable's sphere translates: its normal forces move
-    ny = 14 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
+    ny = 24 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
     y0 = np.empty(ny)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)

@@ -188,8 +188,8 @@ class EnvConfig:
             ``"calibrated"`` (the real turntable with the rig the thesis's figures ask for)
             or a ParameterSet, without effects; give ``plant`` or ``params``, not both.
         fidelity: ``"reduced"`` (per-axis model), ``"translation"`` (it with the sphere's
-            translation and the contacts' normal forces), ``"full"`` (3-D model; ``turntable
-            bench`` compares the two real-time factors) or ``"independent"`` (the
+            translation and tilts and the contacts' normal forces), ``"full"`` (3-D model;
+            ``turntable bench`` compares the two real-time factors) or ``"independent"`` (the
             independent test plant, :mod:`turntable_env.plant.independent`); default: the
             plant's (reduced).
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.

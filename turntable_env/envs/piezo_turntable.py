@@ -46,7 +46,7 @@ class PiezoTurntableEnv(gym.Env):
     it with little electrical energy. The env runs a :class:`~turntable_env.plant.Plant`:
     by default the reduced per-axis model derived from the 3-D model
     (:mod:`turntable_env.reduced`; ``fidelity="translation"`` adds the sphere's translation
-    and the contacts' normal forces, which bring its steps closer to the 3-D model's;
+    and tilts and the contacts' normal forces, which bring its steps closer to the 3-D model's;
     ``fidelity="full"`` runs the 3-D model itself) with the
     real turntable's parameters (Table D.1) and no effects; ``plant=`` runs any other —
     for example the one a calibration report describes (``plant="cal/report.json"``),

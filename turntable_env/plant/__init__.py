@@ -3,7 +3,7 @@
 A :class:`Plant` is what a laboratory would call "the turntable as we know it": a
 parameter set (Table D.1, D.2 or a calibrated one) with multiplicative factors on its
 uncertain values (friction, preload, amplifier), a fidelity (``"reduced"`` per-axis
-model, ``"translation"`` the same with the sphere's translation and the contacts' normal
+model, ``"translation"`` the same with the sphere's translation and tilts and the contacts' normal
 forces, ``"full"`` 3-D model, or ``"independent"``: the independent test plant,
 :mod:`turntable_env.plant.independent`), the effects of the catalogue (:mod:`turntable_env.effects`)
 with their parameters, the detector noise and the amplifier setting. It is immutable,

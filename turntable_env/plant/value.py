@@ -100,7 +100,7 @@ class Plant:
         effects: catalogue effect name → {parameter: value} (validated; missing parameters
             take their typical values).
         fidelity: ``"reduced"`` (per-axis model), ``"translation"`` (the per-axis model
-            with the sphere's translation and the contacts' normal forces,
+            with the sphere's translation and tilts and the contacts' normal forces,
             :class:`~turntable_env.reduced.TranslationParameters`), ``"full"`` (3-D model)
             or ``"independent"`` (the independent test plant).
         sensor_noise: detector voltage noise standard deviation [V].
