@@ -6,39 +6,46 @@ axis and the two driving tubes' bending at the static normal force F_N. Against 
 model it steps 31 % too far forward at ±90 V, 100 Hz, a = 0.95, and 6.5× too far on the
 small steps at ±20 V, 100 Hz, a = 0.5 (1.7 nm). Stop 66 added the sphere's translation in
 the plane normal to the axis (``--variant no_tilt`` here): +13.9 % and 3.6× remained.
-The rest is the sphere's tilts: with the 3-D model's tilts held (its inertia about the
-other two axes ×10⁴) or its centre of mass at the centre (``--variant no_com``), the 3-D
-model steps as the translation does, since the centre of mass, 3R/8 below the centre,
-couples the translation to the tilts. This reference keeps the table's six rigid-body
-coordinates and each tube's two bending directions at its contact, linearised about the
-rest state, all derived from the 3-D model, nothing fitted:
+Most of the rest is the sphere's tilts: with the 3-D model's tilts held (``--variant
+tilts_held``) or its centre of mass at the centre (``--variant no_com``), the 3-D model
+steps as the translation does, since the centre of mass, 3R/8 below the centre, couples
+the translation to the tilts. On the fast flybacks the balls' axial mass matters too
+(``--variant series`` holds it massless). This reference keeps the table's six rigid-body
+coordinates and each tube condensed at its contact point in three directions (its
+tangent plane's two and its axis), linearised about the rest state, all derived from the
+3-D model, nothing fitted:
 
 * the table: the centre's translation x and the rotation vector φ (world frame); kinetic
   energy ½m|ẋ + φ̇ × c|² + ½φ̇ᵀJ_com φ̇ (App. C: c the centre of mass), gravity's pendulum
   stiffness m g h (I − ẑẑᵀ) on φ (Eq. C.16's h = 3R/8); the angle read is n·φ;
-* each tube's contact point in the two directions of its tangent plane, condensed from
-  the 3-D model's tube top (mass, stiffness and drive per volt, jointly over the two
-  directions, as the per-axis model condenses its driving direction);
-* each contact's normal force F_N + k_n(d_k·x − s_k V) + d_c(d_k·ẋ − s_k V̇) (k_n: Hertz at
-  F_N in series with the tube's axial stiffness, s_k the tube's axial stroke per channel
-  volt; :class:`~turntable_env.reduced.TranslationParameters`), which sets its Stribeck
-  level;
+* each tube's contact point (the ball) in its tangent directions and along its axis d_k,
+  condensed from the 3-D model's tube top (mass, stiffness and drive per volt, as the
+  per-axis model condenses its driving direction); the drive along d_k is the stroke;
+* each contact's normal force F_N + k_H(d_k·x − a_k) + d_c(d_k·ẋ − ȧ_k) (k_H: Eq. 3.21's
+  Hertz law linearised at F_N, a_k the ball along d_k), which sets its Stribeck level;
 * friction in each tangent direction (six 1-D GMS contacts, the 2-D law of Eq. 3.27 taken
   per direction), slip = tube point − table point, the table point x + φ × R d_k.
 
 It is built in the world frame from the 3-D model's packed arrays, independently of the
 kernel's :meth:`~turntable_env.reduced.ReducedModel.translation_matrices` (which hold the
 non-driving directions stuck; ``--variant side_stuck`` does that here). Variants:
-``no_tilt`` (x normal to n, φ along n: stop 66's translation), ``frozen`` (θ and the
-driving tubes alone, F_N fixed: the per-axis model), ``no_stroke`` (the tubes' axial
-stroke removed, from the 3-D model too), ``no_com`` (the centre of mass at the centre,
-in the 3-D model too). Integration: semi-implicit Euler at a fixed step (default 5 ns),
-the per-axis kernel's GMS law (``gms_element_step``, Eq. 2.24–2.25); the channel voltage
-is the per-axis model's amplifier output, interpolated linearly.
+``series`` (the ball's axial motion massless: Hertz's spring in series with the tube's
+axial one, s V in the normal force), ``no_tilt`` (series, x normal to n, φ along n: stop
+66's translation), ``tilts_held`` (the same against the 3-D model with its tilts held by
+its inertia across n ×10⁴), ``frozen`` (θ and the driving tubes alone, F_N fixed: the
+per-axis model), ``no_stroke`` (the stroke removed, from the 3-D model too), ``no_com``
+(the centre of mass at the centre, in the 3-D model too), ``friction_2d`` (each contact's
+two directions under the 2-D law), ``hertz``, ``nonlinear`` (series with Hertz's
+curvature, the latter with the 2-D law too), ``hertz_axial`` (Hertz's curvature on the
+ball's axial coordinate), ``tube_tops`` (each tube top's six coordinates, not condensed).
+Integration: semi-implicit Euler at a fixed step (default 5 ns), the per-axis kernel's GMS
+law (``gms_element_step``, Eq. 2.24–2.25); the channel voltage is the per-axis model's
+amplifier output, interpolated linearly.
 
-    python experiments/sphere_tilt.py [--variant rigid|no_tilt|frozen|no_stroke|no_com|
-        side_stuck] [--amplitude 20 90 200] [--frequency 100 2000] [--a 0.95]
-        [--amplifier adapted] [--dt 5e-9]
+    python experiments/sphere_tilt.py [--variant rigid|series|no_tilt|tilts_held|frozen|
+        no_stroke|no_com|side_stuck|friction_2d|hertz|nonlinear|hertz_axial|tube_tops]
+        [--amplitude 20 90 200] [--frequency 100 2000] [--a 0.95] [--amplifier adapted]
+        [--dt 5e-9]
 
 prints, per case both ways, the 3-D model's step, this reference's, the kernel's with
 the translation and the per-axis model's, their differences, and the median and largest
@@ -58,23 +65,22 @@ import numpy as np
 from numba import njit
 
 from turntable_env.bench import FULL_COARSE
+from turntable_env.friction.gms2d import gms2d_rates, gms2d_update
 from turntable_env.friction.kernels import gms_element_step, stribeck_magnitude
 from turntable_env.model import axis_index
 from turntable_env.reduced import ReducedModel, TranslationParameters, simulate_reduced
 from turntable_env.simulation import simulate, stepping_drive
 
-NQ = 12  # x (3), φ (3), then each tube's contact point in its two tangent directions
-
 
 class Arrays(NamedTuple):
-    """What crosses into :func:`_run` (SI units; q as in :data:`NQ`'s comment)."""
+    """What crosses into :func:`_run` (SI units; q: the table's x, φ, then the tubes')."""
 
-    minv: np.ndarray  # (12, 12) inverse mass matrix
-    kq: np.ndarray  # (12, 12) stiffness: tubes' bending, gravity on φ [N/m, N m/rad]
-    cq: np.ndarray  # (12, 12) the tubes' bending damping
-    bq: np.ndarray  # (12,) the tubes' bending force per channel volt [N/V]
-    slip: np.ndarray  # (6, 12) each tangent direction's slip over q [m]
-    normal: np.ndarray  # (3, 12) d_k·x over q [m]
+    minv: np.ndarray  # (nq, nq) inverse mass matrix
+    kq: np.ndarray  # (nq, nq) stiffness: the tubes', gravity on φ [N/m, N m/rad]
+    cq: np.ndarray  # (nq, nq) the tubes' damping
+    bq: np.ndarray  # (nq,) the tubes' force per channel volt [N/V]
+    slip: np.ndarray  # (6, nq) each tangent direction's slip over q [m]
+    normal: np.ndarray  # (3, nq) each contact's approach over q [m]
     stroke: np.ndarray  # (3,) each tube's axial stroke per channel volt [m/V]
     kn: float  # normal stiffness [N/m]
     dc: float  # normal damping [N s/m]
@@ -84,6 +90,73 @@ class Arrays(NamedTuple):
     gms: np.ndarray  # C [N/s], μ_s, μ_c, v_s [m/s], δ
     beta_t: float  # micro-damping of the sticking elements [s]
     held: np.ndarray  # (6,) 1 where a tangent direction's contact never slips
+    two_d: int  # 1: each contact's two directions under the 2-D GMS law (Eq. 3.27)
+    hertz: np.ndarray  # k_c [N/m^e], e, the tube's axial stiffness [N/m]; k_c = 0: linear
+
+
+@njit(cache=False)
+def _hertz_series(hz, fn0, approach, guess):
+    """The Hertz overlap δ [m] where k_c δ^e in series with the axial spring k_a carries
+    the contact's approach beyond rest (``approach`` [m], positive: closer): δ + k_cδ^e/k_a
+    = δ_0 + F_N/k_a + approach (Newton from ``guess``); 0 where the contact opens."""
+    kc, ex, ka = hz[0], hz[1], hz[2]
+    d0 = (fn0 / kc) ** (1.0 / ex)
+    total = d0 + fn0 / ka + approach
+    if total <= 0.0:
+        return 0.0
+    d = guess if guess > 0.0 else d0
+    for _ in range(50):
+        g = d + kc * d**ex / ka - total
+        dg = 1.0 + ex * kc * d ** (ex - 1.0) / ka
+        dn = d - g / dg
+        if dn <= 0.0:
+            dn = 0.5 * d
+        if abs(dn - d) < 1e-15:
+            return dn
+        d = dn
+    return d
+
+
+@njit(cache=False)
+def _friction_2d(q, qd, slip_rows, fn, f2, st2, df2, dt, arr, force):
+    """Each contact's two tangent directions under the 2-D GMS law (Eq. 3.27 in the
+    isotropic vector form of :mod:`turntable_env.friction.gms2d`), explicit over the step;
+    adds the friction's generalised forces to ``force``."""
+    gms, nu, kk = arr.gms, arr.nu, arr.kk
+    nq = q.shape[0]
+    ne = nu.shape[0]
+    for k in range(3):
+        v = np.zeros(2)
+        for j in range(2):
+            for a in range(nq):
+                v[j] += slip_rows[2 * k + j, a] * qd[a]
+        if fn[k] <= 0.0:  # unloaded: no friction, the elements released
+            f2[k, :, :] = 0.0
+            st2[k, :] = 1
+            continue
+        gms2d_rates(f2[k], st2[k], v[0], v[1], fn[k], nu, kk, gms[0], gms[1], gms[2], gms[3],
+                    gms[4], df2)  # fmt: skip
+        for i in range(ne):
+            f2[k, i, 0] += dt * df2[i, 0]
+            f2[k, i, 1] += dt * df2[i, 1]
+        was = st2[k].copy()
+        gms2d_update(f2[k], st2[k], v[0], v[1], fn[k], nu, gms[1], gms[2], gms[3], gms[4])
+        lvl = stribeck_magnitude(math.sqrt(v[0] ** 2 + v[1] ** 2), fn[k], gms[1], gms[2],
+                                 gms[3], gms[4])  # fmt: skip
+        ct = 0.0
+        for i in range(ne):
+            fm = math.sqrt(f2[k, i, 0] ** 2 + f2[k, i, 1] ** 2)
+            if was[i] == 1 and st2[k, i] == 0 and fm > nu[i] * lvl:  # clipped at breakaway
+                f2[k, i, 0] *= nu[i] * lvl / fm
+                f2[k, i, 1] *= nu[i] * lvl / fm
+            if st2[k, i] == 1:
+                ct += arr.beta_t * kk[i]
+        for j in range(2):
+            ftot = ct * v[j]
+            for i in range(ne):
+                ftot += f2[k, i, j]
+            for a in range(nq):
+                force[a] -= ftot * slip_rows[2 * k + j, a]
 
 
 @njit(cache=False)
@@ -102,8 +175,12 @@ def _run(t_v, v_v, dt, n_steps, arr, out_every):
     rec_t = np.empty(n_out)
     rec_q = np.empty((n_out, nq))
     force = np.empty(nq)
+    f2 = np.zeros((3, ne, 2))  # the 2-D law's element forces [N] per contact
+    st2 = np.ones((3, ne), dtype=np.int64)
+    df2 = np.zeros((ne, 2))
     slip_prev = np.zeros(nc)
     fn = np.empty(3)
+    d_el = np.full(3, -1.0)  # the Hertz overlaps [m] (the last solution; −1: none yet)
     j = 0
     iv = 0
     nv = t_v.shape[0]
@@ -132,13 +209,23 @@ def _run(t_v, v_v, dt, n_steps, arr, out_every):
             for a in range(nq):
                 xn += nrow[k, a] * q[a]
                 vn += nrow[k, a] * qd[a]
-            df = arr.kn * (xn - arr.stroke[k] * volt) + arr.dc * (vn - arr.stroke[k] * vdot)
+            if arr.hertz[0] > 0.0:  # Eq. 3.21's k_c δ^e in series with the tube's axial spring
+                d_el[k] = _hertz_series(arr.hertz, arr.fn0, xn - arr.stroke[k] * volt, d_el[k])
+                df = arr.hertz[0] * d_el[k] ** arr.hertz[1] - arr.fn0
+                df += arr.dc * (vn - arr.stroke[k] * vdot)
+            else:
+                df = arr.kn * (xn - arr.stroke[k] * volt) + arr.dc * (vn - arr.stroke[k] * vdot)
             if arr.fn0 + df < 0.0:
                 df = -arr.fn0
             fn[k] = arr.fn0 + df
             for a in range(nq):
                 force[a] -= df * nrow[k, a]
-        for c in range(nc):
+        if arr.two_d == 1:
+            _friction_2d(q, qd, slip_rows, fn, f2, st2, df2, dt, arr, force)
+            continue_1d = False
+        else:
+            continue_1d = True
+        for c in range(nc if continue_1d else 0):
             x = 0.0
             xd = 0.0
             for a in range(nq):
@@ -183,105 +270,168 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def build(rm: ReducedModel, variant: str = "rigid") -> dict:
-    """The reference's arrays for ``rm``'s axis and parameter set (see the module
-    docstring and :data:`VARIANTS`) and the row that reads the angle about the axis."""
-    if variant not in VARIANTS:
-        raise ValueError(f"variant={variant!r}: one of {', '.join(VARIANTS)}")
-    no_com = variant == "no_com"
-    ps, model = rm.params, rm.full
+def _table(model, nq: int, no_com: bool = False) -> tuple[np.ndarray, ...]:  # type: ignore[no-untyped-def]
+    """(M, K, C, b) over nq coordinates, the table's six first (x, φ; world frame): its
+    kinetic energy ½m|ẋ + φ̇ × c|² + ½φ̇ᵀJ_com φ̇ and gravity's pendulum m g h (I − ẑẑᵀ)."""
     ar = model.packed
-    c_ax = axis_index(rm.axis)
-    n = np.asarray(model.layout.axis_units[c_ax], float)
-    tr = TranslationParameters.from_model(model, rm.axis, ps)
     m = float(ar["table_p"][0])
-    R = float(ps.table.radius)
     cb = np.zeros(3) if no_com else np.asarray(ar["c_body"], float)
     j_com = np.linalg.inv(ar["jinv"])
     if no_com:  # the inertia about the centre, J_com + m(|c|²I − ccᵀ), now about the CoM
         c0 = np.asarray(ar["c_body"], float)
         j_com = j_com + m * (c0 @ c0 * np.eye(3) - np.outer(c0, c0))
-    mass = np.zeros((NQ, NQ))
+    mass = np.zeros((nq, nq))
     bmap = np.hstack([np.eye(3), -_skew(cb)])  # v_com = ẋ + φ̇ × c
     mass[:6, :6] = m * bmap.T @ bmap
     mass[3:6, 3:6] += j_com
-    kq = np.zeros((NQ, NQ))
-    cq = np.zeros((NQ, NQ))
-    bq = np.zeros(NQ)
-    g = float(model.gravity)
-    h = -float(cb[2])
-    kq[3:6, 3:6] = m * g * h * np.diag([1.0, 1.0, 0.0])
-    r_ball = ps.tube.outer_radius
-    beta = ps.tube.damping_coefficient
-    slip = np.zeros((6, NQ))
-    normal = np.zeros((3, NQ))
-    stroke = np.zeros(3)
+    kq = np.zeros((nq, nq))
+    kq[3:6, 3:6] = m * float(model.gravity) * -float(cb[2]) * np.diag([1.0, 1.0, 0.0])
+    return mass, kq, np.zeros((nq, nq)), np.zeros(nq)
+
+
+def _directions(ar, k: int, c_ax: int, n: np.ndarray) -> tuple[np.ndarray, ...]:  # type: ignore[no-untyped-def]
+    """Tube k's axis d and the two tangent directions of its contact: e = n × d and d × e
+    for a driving tube, the driving tubes' axes for the tube on the axis."""
+    d = np.asarray(ar["d_nom"][k], float)
+    if k == c_ax:
+        t1, t2 = (np.asarray(ar["d_nom"][j], float) for j in range(3) if j != c_ax)
+    else:
+        t1 = np.cross(n, d)
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(d, t1)
+    return d, t1, t2
+
+
+def _build_tops(rm: ReducedModel, tr: TranslationParameters) -> dict:
+    """``tube_tops``: each tube top's six coordinates (rotation, translation; the 3-D
+    model's mass, stiffness, damping and drive per quadrant volt) instead of its contact
+    point condensed; the normal springs are Hertz's, the stroke the tops' drive."""
+    ps, model = rm.params, rm.full
+    ar = model.packed
+    c_ax = axis_index(rm.axis)
+    n = np.asarray(model.layout.axis_units[c_ax], float)
+    nq = 24
+    mass, kq, cq, bq = _table(model, nq)
+    slip = np.zeros((6, nq))
+    normal = np.zeros((3, nq))
     for k in range(3):
-        d = np.asarray(ar["d_nom"][k], float)
-        if k == c_ax:  # the tube on the axis: its plane spanned by the other two tubes
-            t1, t2 = (np.asarray(ar["d_nom"][j], float) for j in range(3) if j != c_ax)
-        else:
-            t1 = np.cross(n, d)
-            t1 /= np.linalg.norm(t1)
-            t2 = np.cross(d, t1)
-        r_c = ar["r0"][k] - r_ball * d  # tube top → contact point [m]
-        amap = np.stack([np.concatenate([np.cross(r_c, t), t]) for t in (t1, t2)], axis=1)
-        kinv = np.linalg.inv(ar["ktop"][k])
-        k_eff = np.linalg.inv(amap.T @ kinv @ amap)  # (2, 2) [N/m]
-        psi = kinv @ amap @ k_eff
-        qv = (ar["qchan"][k] == c_ax) * ar["qsign"][k]  # quadrant volts per channel volt
-        free_disp = amap.T @ kinv @ ar["bcoup"][k] @ qv  # free deflection per volt [m/V]
-        i0 = 6 + 2 * k
-        mass[i0:i0 + 2, i0:i0 + 2] = psi.T @ ar["mtube"][k] @ psi
-        kq[i0:i0 + 2, i0:i0 + 2] = k_eff
-        cq[i0:i0 + 2, i0:i0 + 2] = beta * k_eff
-        bq[i0:i0 + 2] = k_eff @ free_disp
-        a_d = np.concatenate([np.cross(r_c, d), d])
-        stroke[k] = float(a_d @ kinv @ ar["bcoup"][k] @ qv)
-        normal[k, :3] = d
-        for j, t in enumerate((t1, t2)):  # slip = u − t·(x + φ × R d)
-            row = slip[2 * k + j]
-            row[i0 + j] = 1.0
-            row[:3] = -t
-            row[3:6] = -R * np.cross(d, t)
-    # coordinates p = (x1, x2, x_n, φ1, φ2, θ, each tube's two directions) over (d1, d2, n):
-    # q = T p, and a variant keeps some of them (the others held at 0)
-    basis = [np.asarray(ar["d_nom"][j], float) for j in range(3) if j != c_ax] + [n]
-    tmat = np.zeros((NQ, NQ))
-    for i, v in enumerate(basis):
-        tmat[:3, i], tmat[3:6, 3 + i] = v, v
-    tmat[6:, 6:] = np.eye(6)
-    side = [6 + 2 * k + 1 for k in range(3) if k != c_ax]  # driving tubes along n
-    axis_tube = [6 + 2 * c_ax, 7 + 2 * c_ax]
-    drop = {"rigid": [], "no_stroke": [], "no_com": [], "side_stuck": [],
-            "no_tilt": [2, 3, 4, *side],
-            "frozen": [0, 1, 2, 3, 4, *side, *axis_tube]}[variant]  # fmt: skip
-    keep = [i for i in range(NQ) if i not in drop]
-    tmat = tmat[:, keep]
-    mass = tmat.T @ mass @ tmat
-    kq, cq, bq = tmat.T @ kq @ tmat, tmat.T @ cq @ tmat, tmat.T @ bq
-    slip, normal = slip @ tmat, normal @ tmat
-    angle_row = np.zeros(len(keep))
-    angle_row[keep.index(5)] = 1.0
-    if variant in ("no_stroke", "frozen"):
-        stroke[:] = 0.0
-    held = np.zeros(6, dtype=np.int64)
-    if variant == "side_stuck":  # every direction but the two driving ones never slips
-        held[:] = 1
-        for k in range(3):
-            if k != c_ax:
-                held[2 * k] = 0
+        d, t1, t2 = _directions(ar, k, c_ax, n)
+        r_c = ar["r0"][k] - ps.tube.outer_radius * d  # tube top → contact point [m]
+        sl = slice(6 + 6 * k, 12 + 6 * k)
+        mass[sl, sl], kq[sl, sl], cq[sl, sl] = ar["mtube"][k], ar["ktop"][k], ar["dtop"][k]
+        bq[sl] = ar["bcoup"][k] @ ((ar["qchan"][k] == c_ax) * ar["qsign"][k])
+        normal[k, :3] = d  # approach: d·x − d·(u + θ × r_c) of the ball's contact point
+        normal[k, sl] = -np.concatenate([np.cross(r_c, d), d])
+        for j, t in enumerate((t1, t2)):
+            _table_side(slip[2 * k + j], t, d, float(ps.table.radius))
+            slip[2 * k + j, sl] = np.concatenate([np.cross(r_c, t), t])
+    arrays = _arrays(rm, tr, (mass, kq, cq, bq), slip, normal, np.zeros(3), "tube_tops")
+    return {"arrays": arrays, "angle_row": np.concatenate([np.zeros(3), n, np.zeros(18)])}
+
+
+def _table_side(row: np.ndarray, t: np.ndarray, d: np.ndarray, radius: float) -> None:
+    """The table point's part of a slip row (tube point − table point) along t at the
+    contact radius·d: −t·(x + φ × radius d)."""
+    row[:3] = -t
+    row[3:6] = -radius * np.cross(d, t)
+
+
+def _arrays(rm: ReducedModel, tr: TranslationParameters, mkcb: tuple, slip: np.ndarray,
+            normal: np.ndarray, stroke: np.ndarray, variant: str) -> Arrays:  # fmt: skip
+    """The :class:`Arrays` of (M, K, C, b) ``mkcb`` and the rows, for ``variant``."""
+    ps = rm.params
     fr = ps.friction
     gms = np.array([fr.C, fr.stribeck.mu_s, fr.stribeck.mu_c, fr.stribeck.v_s,
                     fr.stribeck.delta])  # fmt: skip
-    arrays = Arrays(np.linalg.inv(mass), kq, cq, bq, slip, normal, stroke,
-                    tr.normal_stiffness, tr.normal_damping, float(ps.contact.preload),
-                    np.asarray(fr.nu, float), np.asarray(fr.k, float), gms,
-                    float(ps.contact.tangential_damping), held)  # fmt: skip
+    hertz = np.zeros(3)
+    if variant in ("hertz", "nonlinear", "hertz_axial"):
+        hertz[:] = ps.contact.normal_stiffness, ps.contact.normal_exponent, tr.axial_stiffness
+        if variant == "hertz_axial":  # the ball's axial coordinate takes the tube's spring
+            hertz[2] = 1e30
+    held = np.zeros(6, dtype=np.int64)
+    if variant == "side_stuck":  # every direction but the two driving ones never slips
+        held[:] = 1
+        held[[2 * k for k in range(3) if k != axis_index(rm.axis)]] = 0
+    series = variant in SERIES
+    mass, kq, cq, bq = mkcb
+    return Arrays(np.linalg.inv(mass), kq, cq, bq, slip, normal, stroke,
+                  tr.normal_stiffness if series else tr.hertz_stiffness, tr.normal_damping,
+                  float(ps.contact.preload), np.asarray(fr.nu, float),
+                  np.asarray(fr.k, float), gms, float(ps.contact.tangential_damping), held,
+                  int(variant in ("friction_2d", "nonlinear")), hertz)  # fmt: skip
+
+
+def build(rm: ReducedModel, variant: str = "rigid") -> dict:
+    """The reference's arrays for ``rm``'s axis and parameter set (see the module
+    docstring and :data:`VARIANTS`) and the row that reads the angle about the axis."""
+    if variant not in VARIANTS:
+        raise ValueError(f"variant={variant!r}: one of {', '.join(VARIANTS)}")
+    ps, model = rm.params, rm.full
+    ar = model.packed
+    c_ax = axis_index(rm.axis)
+    n = np.asarray(model.layout.axis_units[c_ax], float)
+    tr = TranslationParameters.from_model(model, rm.axis, ps)
+    if variant == "tube_tops":
+        return _build_tops(rm, tr)
+    # each tube condensed at its contact point along its tangent directions, and along its
+    # axis too (the ball's own coordinate) unless the normal spring is the series one
+    ndir = 2 if variant in SERIES else 3
+    nq = 6 + 3 * ndir
+    mass, kq, cq, bq = _table(model, nq, variant == "no_com")
+    slip = np.zeros((6, nq))
+    normal = np.zeros((3, nq))
+    stroke = np.zeros(3)
+    for k in range(3):
+        d, t1, t2 = _directions(ar, k, c_ax, n)
+        r_c = ar["r0"][k] - ps.tube.outer_radius * d  # tube top → contact point [m]
+        dirs = (t1, t2, d)[:ndir]
+        amap = np.stack([np.concatenate([np.cross(r_c, t), t]) for t in dirs], axis=1)
+        kinv = np.linalg.inv(ar["ktop"][k])
+        k_eff = np.linalg.inv(amap.T @ kinv @ amap)  # [N/m]
+        psi = kinv @ amap @ k_eff
+        qv = (ar["qchan"][k] == c_ax) * ar["qsign"][k]  # quadrant volts per channel volt
+        sl = slice(6 + ndir * k, 6 + ndir * (k + 1))
+        mass[sl, sl] = psi.T @ ar["mtube"][k] @ psi
+        kq[sl, sl] = k_eff
+        cq[sl, sl] = ps.tube.damping_coefficient * k_eff
+        bq[sl] = k_eff @ (amap.T @ kinv @ ar["bcoup"][k] @ qv)  # free deflection's force
+        normal[k, :3] = d
+        if ndir == 3:  # approach d·x − a_k; the stroke drives a_k
+            normal[k, sl.start + 2] = -1.0
+            if variant == "no_stroke":
+                bq[sl.start + 2] = 0.0
+        else:  # the ball's axial stroke in series with Hertz's and the tube's springs
+            a_d = np.concatenate([np.cross(r_c, d), d])
+            stroke[k] = float(a_d @ kinv @ ar["bcoup"][k] @ qv)
+        for j, t in enumerate((t1, t2)):  # slip = u − t·(x + φ × R d)
+            slip[2 * k + j, sl.start + j] = 1.0
+            _table_side(slip[2 * k + j], t, d, float(ps.table.radius))
+    # coordinates p = (x1, x2, x_n, φ1, φ2, θ, the tubes') over (d1, d2, n): q = T p, and a
+    # variant keeps some of them (the others held at 0)
+    basis = [np.asarray(ar["d_nom"][j], float) for j in range(3) if j != c_ax] + [n]
+    tmat = np.zeros((nq, nq))
+    for i, v in enumerate(basis):
+        tmat[:3, i], tmat[3:6, 3 + i] = v, v
+    tmat[6:, 6:] = np.eye(nq - 6)
+    side = [6 + ndir * k + 1 for k in range(3) if k != c_ax]  # driving tubes along n
+    axis_tube = list(range(6 + ndir * c_ax, 6 + ndir * (c_ax + 1)))
+    drop = {"no_tilt": [2, 3, 4, *side], "tilts_held": [2, 3, 4, *side],
+            "frozen": [0, 1, 2, 3, 4, *side, *axis_tube]}.get(variant, [])  # fmt: skip
+    keep = [i for i in range(nq) if i not in drop]
+    tmat = tmat[:, keep]
+    mkcb = (tmat.T @ mass @ tmat, tmat.T @ kq @ tmat, tmat.T @ cq @ tmat, tmat.T @ bq)
+    if variant == "frozen":  # F_N fixed
+        stroke[:] = 0.0
+    angle_row = np.zeros(len(keep))
+    angle_row[keep.index(5)] = 1.0
+    arrays = _arrays(rm, tr, mkcb, slip @ tmat, normal @ tmat, stroke, variant)
     return {"arrays": arrays, "angle_row": angle_row}
 
 
-VARIANTS = ("rigid", "no_tilt", "frozen", "no_stroke", "no_com", "side_stuck")
+# the variants whose normal spring is Hertz's in series with the tube's massless axial one
+SERIES = ("series", "no_tilt", "tilts_held", "frozen", "hertz", "nonlinear")
+VARIANTS = ("rigid", "series", "no_tilt", "tilts_held", "frozen", "no_stroke", "no_com",
+            "side_stuck", "friction_2d", "hertz", "nonlinear", "hertz_axial", "tube_tops")
 
 
 def remove_axial_stroke(model) -> None:  # type: ignore[no-untyped-def]
@@ -307,13 +457,24 @@ def _centre_of_mass_at_the_centre(model) -> None:  # type: ignore[no-untyped-def
     ar["jinv"][:] = np.linalg.inv(j_o)
 
 
+def _tilts_held(model, axis: int) -> None:  # type: ignore[no-untyped-def]
+    """Hold, in effect, a 3-D model's tilts: its inertia about the centre of mass across the
+    axis n multiplied by 10⁴, n·J·n kept (a model built for this use alone)."""
+    ar = model.packed
+    n = np.asarray(model.layout.axis_units[axis], float)
+    j = np.linalg.inv(ar["jinv"])
+    across = np.eye(3) - np.outer(n, n)
+    ar["jinv"][:] = np.linalg.inv(float(n @ j @ n) * np.outer(n, n) + 1e4 * float(j.max()) * across)
+
+
 def run(amplitude: float, frequency: float, a: float, *, variant: str = "rigid",
         amplifier: str = "adapted", dt: float = 5e-9, periods: int = 3,
         full: bool = True) -> dict:  # fmt: skip
     """Mean |step| per period [nm] of this reference (``variant``), the per-axis model,
     the per-axis kernel with the translation (``"translation"`` fidelity) and, with
     ``full``, the 3-D model (amplitude in tube volts; the 3-D model with the variant's
-    change where it has one: no stroke, the centre of mass at the centre)."""
+    change where it has one: no stroke, the centre of mass at the centre, the tilts held;
+    the kernel is built before that change, but for the centre of mass)."""
     drive, ps = stepping_drive("real", amplitude=amplitude / 45.0, frequency=frequency,
                                periods=periods, a=a, amplifier=amplifier)  # fmt: skip
     rm = ReducedModel(ps, "B")
@@ -332,6 +493,8 @@ def run(amplitude: float, frequency: float, a: float, *, variant: str = "rigid",
     if full:
         if variant == "no_stroke":
             remove_axial_stroke(rm.full)
+        if variant == "tilts_held":
+            _tilts_held(rm.full, axis_index("B"))
         out["full_nm"] = 1e9 * simulate(ps, drive, axis="B", model=rm.full,
                                         coarse_factor=FULL_COARSE,
                                         output_dt=min(1e-5, 0.01 / frequency)).step_size

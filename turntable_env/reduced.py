@@ -84,6 +84,12 @@ _STATE_NAMES = (
     "tube 1 contact velocity along the axis",
     "tube 2 contact displacement along the axis",
     "tube 2 contact velocity along the axis",
+    "tube 1 ball along its axis",
+    "tube 1 ball velocity along its axis",
+    "tube 2 ball along its axis",
+    "tube 2 ball velocity along its axis",
+    "axis tube ball along its axis",
+    "axis tube ball velocity along its axis",
 )
 
 
@@ -178,15 +184,18 @@ class TranslationParameters:
     x_2 d_2 + x_n n and its tilts φ_1, φ_2 about d_1, d_2 (rotation φ = φ_1 d_1 + φ_2 d_2 +
     θ n). Tube k's friction, along e_k = n × d_k = ±d_j, pushes the sphere along the other
     contact's normal, and the translation slides the contact points: slip_k = u_k − ρθ −
-    e_k·x (the tilts move a driving contact's point along n alone). Each driving
-    contact's normal force is F_N + k_n(x_k − s V) + d_c(ẋ_k − s V̇) (Eq. 3.21's k_c δ^e +
-    d_c δ̇ linearised at F_N), and it sets the contact's Stribeck level (Eq. 2.13). The
+    e_k·x (the tilts move a driving contact's point along n alone). Each tube's ball
+    moves along the tube's axis d_k with its own coordinate a_k (the tube condensed there:
+    its axial mass and stiffness, driven by the stroke s V), and each contact's normal
+    force is F_N + k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) (Eq. 3.21's k_c δ^e + d_c δ̇ linearised
+    at F_N; x_n, a_n on the axis); a driving contact's sets its Stribeck level (Eq. 2.13).
+    The
     contacts' other tangent directions never slip: the tube on the axis holds x_1, x_2
     and the tilts at its contact point ρn (slip b_j − d_j·(x + φ × ρn)), each driving
     tube holds x_n and the tilts along n at ρd_k (slip w_k − n·(x + φ × ρd_k)), each a
     stuck GMS contact (Σk_i with micro-damping β_tΣk_i, Eq. 2.24) in series with the
     tube's bending there, condensed at its contact point as the driving direction is;
-    the axis contact's normal spring k_n holds x_n. The table's inertia couples rotation
+    the axis contact's normal spring holds x_n. The table's inertia couples rotation
     and translation through the centre of mass c, 3R/8 below the centre (App. C): T =
     ½m|ẋ + φ̇ × c|² + ½φ̇ᵀJ_cφ̇ (J_c about the centre of mass), and gravity's pendulum
     stiffness on φ is m g (|c| I − c cᵀ/|c|) (Eq. C.16's lever).
@@ -199,7 +208,9 @@ class TranslationParameters:
         gravity: g [m/s²].
         direction: e_k·d_j [-] (row k: driving contact, column j: translation component).
         hertz_stiffness: dF/dδ of the contact's k_c δ^e at F_N, e·F_N/δ_0 [N/m].
-        axial_stiffness: the tube's, at its contact point along d_k [N/m].
+        axial_stiffness, axial_mass, axial_damping: each tube condensed at its contact
+            point along its axis d_k [N/m], [kg], [N·s/m] (the ball's axial coordinate
+            a_k, which the stroke drives and the Hertz spring joins to the table).
         normal_damping: d_c [N·s/m].
         stroke: s, the ball's displacement along d_k per channel volt (the quadrant
             wiring's axial strain, §3.1) [m/V].
@@ -219,6 +230,8 @@ class TranslationParameters:
     direction: tuple[tuple[float, float], tuple[float, float]]
     hertz_stiffness: float
     axial_stiffness: float
+    axial_mass: float
+    axial_damping: float
     normal_damping: float
     stroke: float
     axis_tube_mass: float
@@ -278,6 +291,7 @@ class TranslationParameters:
         a_d = np.concatenate([np.cross(r_c, d[0]), d[0]])
         kinv = np.linalg.inv(ar["ktop"][k0])
         k_axial = 1.0 / float(a_d @ kinv @ a_d)
+        psi_d = kinv @ a_d * k_axial
         q = (ar["qchan"][k0] == c) * ar["qsign"][k0]  # quadrant voltage per channel volt
         stroke = float(a_d @ kinv @ ar["bcoup"][k0] @ q)
         r_cn = ar["r0"][c] - r_ball * ar["d_nom"][c]
@@ -311,6 +325,8 @@ class TranslationParameters:
             direction=tuple(tuple(float(ek @ dj) for dj in d) for ek in e),  # type: ignore[arg-type]
             hertz_stiffness=float(k_hertz),
             axial_stiffness=k_axial,
+            axial_mass=float(psi_d @ ar["mtube"][k0] @ psi_d),
+            axial_damping=ps.tube.damping_coefficient * k_axial,
             normal_damping=float(contact.normal_damping),
             stroke=stroke,
             axis_tube_mass=float(psi @ ar["mtube"][c] @ psi),
@@ -455,10 +471,11 @@ class ReducedModel:
 
     @property
     def n_state(self) -> int:
-        """Length of the state y: 6 (θ, u1, u2 and their rates), 24 with the translation
-        (x1, x2, the axis tube's contact point b1, b2, x_n, the tilts φ1, φ2 and the
-        driving tubes' contact points along n, w1, w2 after them, each with its rate)."""
-        return 6 if self.translation_params is None else 24
+        """Length of the state y: 6 (θ, u1, u2 and their rates), 30 with the translation
+        (x1, x2, the axis tube's contact point b1, b2, x_n, the tilts φ1, φ2, the driving
+        tubes' contact points along n, w1, w2, and the balls along their tubes' axes a1,
+        a2, a_n after them, each with its rate)."""
+        return 6 if self.translation_params is None else 30
 
     def _slip_rows(self) -> np.ndarray:
         """(2, 2, n_state): each driving contact's slip (tube point − table point) [m] and
@@ -476,20 +493,21 @@ class ReducedModel:
 
     def _normal_rows(self) -> np.ndarray:
         """(2, n_state + 2): each driving contact's normal force less F_N [N] as a row over
-        (y, V, V̇): k_n(x_k − sV) + d_c(ẋ_k − sV̇); zero without the translation."""
+        (y, V, V̇): k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k), the stroke in a_k (see
+        :class:`TranslationParameters`); zero without the translation."""
         ny = self.n_state
         rows = np.zeros((2, ny + 2))
         tr = self.translation_params
         if tr is not None:
             for k in range(2):
-                rows[k, 6 + 2 * k] = tr.normal_stiffness
+                rows[k, 6 + 2 * k] = tr.hertz_stiffness
                 rows[k, 7 + 2 * k] = tr.normal_damping
-                rows[k, ny] = -tr.normal_stiffness * tr.stroke
-                rows[k, ny + 1] = -tr.normal_damping * tr.stroke
+                rows[k, 24 + 2 * k] = -tr.hertz_stiffness
+                rows[k, 25 + 2 * k] = -tr.normal_damping
         return rows
 
     def _system_translation(self, s_stuck: tuple[float, float]) -> np.ndarray:
-        """Augmented 28×28 matrix of (y, V, V̇, f1, f2) with the translation (y as
+        """Augmented 34×34 matrix of (y, V, V̇, f1, f2) with the translation (y as
         :attr:`n_state`; see :class:`TranslationParameters`): M q̈ = −K q − C q̇ + b_V V +
         b_V̇ V̇ − Σ_k S_k F_k over q of :meth:`translation_matrices`, F_k = s_k S_k q +
         d_k S_k q̇ + f_k the driving contacts' friction (Eq. 2.24, the stuck stiffness s_k)."""
@@ -520,18 +538,19 @@ class ReducedModel:
         return a
 
     def translation_matrices(self) -> tuple[np.ndarray, ...]:
-        """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2, x_n, φ1, φ2, w1, w2)
-        [SI] of the model with the translation and tilts, without the driving contacts'
+        """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2, x_n, φ1, φ2, w1, w2,
+        a1, a2, a_n) [SI] of the model with the translation and tilts, without the driving contacts'
         friction (see :meth:`_system_translation` and :class:`TranslationParameters`):
         M q̈ + C q̇ + K q = b_V V + b_V̇ V̇ + friction."""
         ap, tr = self.axis_params, self.translation_params
         if tr is None:
             raise ValueError("translation_matrices: this model has no translation")
-        nq = 12
+        nq = 15
         m, sg, rho = tr.mass, tr.handedness, ap.lever[0]
         c = np.asarray(tr.centre_of_mass)
         mass = np.diag([0.0, *ap.tube_mass, 0.0, 0.0, tr.axis_tube_mass, tr.axis_tube_mass,
-                        0.0, 0.0, 0.0, *tr.side_tube_mass])  # fmt: skip
+                        0.0, 0.0, 0.0, *tr.side_tube_mass, tr.axial_mass, tr.axial_mass,
+                        tr.axial_mass])  # fmt: skip
         table = [3, 4, 7, 8, 9, 0]  # x1, x2, x_n, φ1, φ2, θ
         skew = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
         vmap = np.hstack([np.eye(3), -sg * skew])  # v_com = ẋ + φ̇ × c = ẋ − σ[c]×φ̇
@@ -544,22 +563,25 @@ class ReducedModel:
         b_v = np.zeros(nq)
         b_vd = np.zeros(nq)
         h = float(np.linalg.norm(c))  # gravity's pendulum on the rotation (Eq. C.16)
-        kq[np.ix_(table[3:], table[3:])] = tr.gravity * m * (h * np.eye(3) - np.outer(c, c) / h)
+        if h > 0.0:  # m g (h I − c cᵀ/h), which vanishes with h
+            kq[np.ix_(table[3:], table[3:])] = tr.gravity * m * (h * np.eye(3) - np.outer(c, c) / h)
         for k in range(2):
             kq[1 + k, 1 + k] = ap.tube_stiffness[k]
             cq[1 + k, 1 + k] = ap.tube_damping[k]
             b_v[1 + k] = ap.tube_stiffness[k] * ap.tube_gain[k]
-            kq[3 + k, 3 + k] = tr.normal_stiffness  # the ball pushes the table along −d_k
-            cq[3 + k, 3 + k] = tr.normal_damping
-            b_v[3 + k] = tr.normal_stiffness * tr.stroke
-            b_vd[3 + k] = tr.normal_damping * tr.stroke
+            b_v[12 + k] = tr.axial_stiffness * tr.stroke  # the stroke drives the ball
             kq[5 + k, 5 + k] = tr.axis_tube_stiffness
             cq[5 + k, 5 + k] = tr.axis_tube_damping
             kq[10 + k, 10 + k] = tr.side_tube_stiffness[k]
             cq[10 + k, 10 + k] = tr.side_tube_damping[k]
             b_v[10 + k] = tr.side_tube_stiffness[k] * tr.side_tube_gain[k]
-        kq[7, 7] = tr.normal_stiffness  # the axis contact's normal spring holds x_n
-        cq[7, 7] = tr.normal_damping
+        for x_k, a_k in ((3, 12), (4, 13), (7, 14)):  # each ball on its tube's axis
+            kq[a_k, a_k] += tr.axial_stiffness
+            cq[a_k, a_k] += tr.axial_damping
+            joint = np.zeros(nq)  # the contact's approach x_k − a_k: Hertz's spring
+            joint[x_k], joint[a_k] = 1.0, -1.0
+            kq += tr.hertz_stiffness * np.outer(joint, joint)
+            cq += tr.normal_damping * np.outer(joint, joint)
         # the stuck directions' slips (tube point − table point), φ × ρd in (d1, d2, n)
         stuck = np.zeros((4, nq))
         stuck[0, [5, 3, 9]] = 1.0, -1.0, -sg * rho  # axis contact along d1
@@ -574,7 +596,7 @@ class ReducedModel:
     # ------------------------------------------------------------------------------
     def _system(self, s_stuck: tuple[float, float]) -> np.ndarray:
         """Augmented 10×10 matrix of (θ, θ̇, u1, u̇1, u2, u̇2, V, V̇, f1, f2) with the stuck
-        stiffness s_stuck[k] on each contact (see module docstring); 28×28 with the
+        stiffness s_stuck[k] on each contact (see module docstring); 34×34 with the
         translation (:meth:`_system_translation`)."""
         if self.translation_params is not None:
             return self._system_translation(s_stuck)

@@ -33,12 +33,13 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
   mode's period while all stick, and lands on breakpoints and output times.
 
 With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
-the ``"translation"`` fidelity) the state has 24 entries (the sphere's translation, its
-tilts and the stuck tangent directions' tube points after the 6), each contact's slip is a row over
-the state and its normal force F_N + k_n(x_k − sV) + d_c(ẋ_k − sV̇) a row over (y, V, V̇)
-that sets its Stribeck level at a step's ends and, for the slipping elements, its mean;
-the ladder is unchanged and the analytic all-stick step is not used. Each turntable runs
-an integrator compiled for its form (:func:`_run_either`).
+the ``"translation"`` fidelity) the state has 30 entries (the sphere's translation, its
+tilts, the stuck tangent directions' tube points and the balls' axial coordinates after
+the 6), each contact's slip is a row over the state and its normal force F_N +
+k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) a row over (y, V, V̇) that sets its Stribeck level at a
+step's ends and, for the slipping elements, its mean; the ladder is unchanged and the
+analytic all-stick step is not used. Each turntable runs an integrator compiled for its
+form (:func:`_run_either`).
 
 Time runs on the integer grid of h_min (1/16 µs by default): drive breakpoints and
 outputs are rounded to it and transitions are located to it.
@@ -89,6 +90,11 @@ FAST_QUIET = 1e-3  # V: an amplifier fast-path transient above it keeps steps sh
 # samples of the all-stick event function per ladder ring step (ring_frac of a period):
 # 1/4 → 1/16 of the ringing mode's period, so a sampled peak is ≥ cos(11.25°) = 98 % of it
 SAMPLE_FRACTION = 0.25
+# the ringing cap's fraction of a period where the sphere translates, over ring_frac: the
+# balls' axial ringing moves the normal forces, and with them the breakaway capacity
+# ν_iμ_sF_N that each step's end checks: a quarter period misses its dips (turntable
+# bench's reduced_translation_step_error, docs/performance.md stop 67)
+MOVED_RING_FACTOR = 0.25
 
 
 @njit(cache=CACHE)
@@ -403,7 +409,7 @@ def run_reduced_serial(state, model, drive, h_min, recording):
 @njit(cache=CACHE)
 def _run_either(b, state, model, drive, h_min, recording):
     """Turntable b with the integrator compiled for its form: the per-axis model's 6 states,
-    or 24 where its sphere translates (a normal-force row is non-zero). The form is a
+    or 30 where its sphere translates (a normal-force row is non-zero). The form is a
     compile-time constant of each compilation, so the per-axis form's code holds no
     translation (a batch's y may be wider than a turntable's states: padded with zeros)."""
     moved = False
@@ -437,7 +443,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
     ne = f.shape[2]
     r_big = phi_big.shape[1]
     translation = moved  # this turntable's sphere translates: its normal forces move
-    ny = 24 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
+    ny = 30 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
     y0 = np.empty(ny)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)
@@ -696,7 +702,8 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                     om_fast = max(om_fast, modal_om_max[b])
             if om_fast > 0.0:
                 r_dyn = 0
-                lim = ring_frac * 2.0 * math.pi / om_fast / h_min
+                lim = ring_frac * (MOVED_RING_FACTOR if moved else 1.0) * 2.0 * math.pi
+                lim /= om_fast * h_min
                 while (1 << (r_dyn + 1)) <= lim:
                     r_dyn += 1
                 cap = min(cap, r_dyn)
