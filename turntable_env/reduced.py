@@ -189,9 +189,8 @@ class TranslationParameters:
     its axial mass and stiffness, driven by the stroke s V), and each contact's normal
     force is F_N + k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) (Eq. 3.21's k_c δ^e + d_c δ̇ linearised
     at F_N; x_n, a_n on the axis); a driving contact's sets its Stribeck level (Eq. 2.13).
-    The
-    contacts' other tangent directions never slip: the tube on the axis holds x_1, x_2
-    and the tilts at its contact point ρn (slip b_j − d_j·(x + φ × ρn)), each driving
+    The contacts' other tangent directions never slip: the tube on the axis holds x_1,
+    x_2 and the tilts at its contact point ρn (slip b_j − d_j·(x + φ × ρn)), each driving
     tube holds x_n and the tilts along n at ρd_k (slip w_k − n·(x + φ × ρd_k)), each a
     stuck GMS contact (Σk_i with micro-damping β_tΣk_i, Eq. 2.24) in series with the
     tube's bending there, condensed at its contact point as the driving direction is;
@@ -326,7 +325,7 @@ class TranslationParameters:
             hertz_stiffness=float(k_hertz),
             axial_stiffness=k_axial,
             axial_mass=float(psi_d @ ar["mtube"][k0] @ psi_d),
-            axial_damping=ps.tube.damping_coefficient * k_axial,
+            axial_damping=beta * k_axial,
             normal_damping=float(contact.normal_damping),
             stroke=stroke,
             axis_tube_mass=float(psi @ ar["mtube"][c] @ psi),
@@ -539,9 +538,11 @@ class ReducedModel:
 
     def translation_matrices(self) -> tuple[np.ndarray, ...]:
         """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2, x_n, φ1, φ2, w1, w2,
-        a1, a2, a_n) [SI] of the model with the translation and tilts, without the driving contacts'
-        friction (see :meth:`_system_translation` and :class:`TranslationParameters`):
-        M q̈ + C q̇ + K q = b_V V + b_V̇ V̇ + friction."""
+        a1, a2, a_n) [SI] of the model with the translation, the tilts and the balls'
+        axial coordinates, without the driving contacts' friction (see
+        :meth:`_system_translation` and :class:`TranslationParameters`): M q̈ + C q̇ + K q =
+        b_V V + b_V̇ V̇ + friction (b_V̇ = 0: the stroke drives the balls through their
+        tubes' springs)."""
         ap, tr = self.axis_params, self.translation_params
         if tr is None:
             raise ValueError("translation_matrices: this model has no translation")
