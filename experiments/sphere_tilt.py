@@ -45,7 +45,7 @@ amplifier output, interpolated linearly.
     python experiments/sphere_tilt.py [--variant rigid|series|no_tilt|tilts_held|frozen|
         no_stroke|no_com|side_stuck|friction_2d|hertz|nonlinear|hertz_axial|tube_tops]
         [--amplitude 20 90 200] [--frequency 100 2000] [--a 0.95] [--amplifier adapted]
-        [--dt 5e-9]
+        [--dt 5e-9] [--full-dt-factor F]
 
 prints, per case both ways, the 3-D model's step, this reference's, the kernel's with
 the translation and the per-axis model's, their differences, and the median and largest
@@ -469,7 +469,7 @@ def _tilts_held(model, axis: int) -> None:  # type: ignore[no-untyped-def]
 
 def run(amplitude: float, frequency: float, a: float, *, variant: str = "rigid",
         amplifier: str = "adapted", dt: float = 5e-9, periods: int = 3,
-        full: bool = True) -> dict:  # fmt: skip
+        full: bool = True, full_dt_factor: float | None = None) -> dict:  # fmt: skip
     """Mean |step| per period [nm] of this reference (``variant``), the per-axis model,
     the per-axis kernel with the translation (``"translation"`` fidelity) and, with
     ``full``, the 3-D model (amplitude in tube volts; the 3-D model with the variant's
@@ -495,8 +495,10 @@ def run(amplitude: float, frequency: float, a: float, *, variant: str = "rigid",
             remove_axial_stroke(rm.full)
         if variant == "tilts_held":
             _tilts_held(rm.full, axis_index("B"))
+        fine = {} if full_dt_factor is None else {"dt_factor": full_dt_factor,
+                                                  "coarse_factor": None}  # fmt: skip
         out["full_nm"] = 1e9 * simulate(ps, drive, axis="B", model=rm.full,
-                                        coarse_factor=FULL_COARSE,
+                                        **{"coarse_factor": FULL_COARSE, **fine},
                                         output_dt=min(1e-5, 0.01 / frequency)).step_size
     return out
 
@@ -512,14 +514,19 @@ def main(argv: list[str] | None = None) -> int:
                     default="adapted")  # fmt: skip
     ap.add_argument("--dt", type=float, default=5e-9, help="fixed step [s], <= 1e-8")
     ap.add_argument("--variant", choices=VARIANTS, default="rigid")
+    ap.add_argument("--full-dt-factor", type=float, default=None,
+                    help="the 3-D model's fixed step as a fraction of 1/ω_max, 0 < f <= 0.05 "
+                    "(default: its adaptive step, as turntable bench runs it)")  # fmt: skip
     args = ap.parse_args(argv)
     bad = [f"--amplitude {v!r}" for v in args.amplitude if not 0.0 < v <= 200.0]
     bad += [f"--frequency {v!r}" for v in args.frequency if not 1.0 <= v <= 5000.0]
     bad += [f"--a {args.a!r}"] if not 0.5 <= args.a < 1.0 else []
     bad += [f"--dt {args.dt!r}"] if not 0.0 < args.dt <= 1e-8 else []
+    f_dt = args.full_dt_factor
+    bad += [f"--full-dt-factor {f_dt!r}"] if f_dt is not None and not 0.0 < f_dt <= 0.05 else []
     if bad:
         ap.error(f"{bad[0]}: out of range (amplitude 0-200 V, frequency 1-5000 Hz, "
-                 "a 0.5-1, dt 0-1e-8 s)")  # fmt: skip
+                 "a 0.5-1, dt 0-1e-8 s, full-dt-factor 0-0.05)")  # fmt: skip
     print(f"variant {args.variant}, a = {args.a:g}, {args.amplifier} amplifier, "
           f"dt = {args.dt:g} s; steps [nm] per period, differences against the 3-D model")
     print("   V     Hz     3-D  reference (diff)  translation  (diff)  per-axis  (diff)")
@@ -527,7 +534,7 @@ def main(argv: list[str] | None = None) -> int:
     for f, v, sign in itertools.product(args.frequency, args.amplitude, (1.0, -1.0)):
         try:
             r = run(sign * v, f, args.a, variant=args.variant, amplifier=args.amplifier,
-                    dt=args.dt)  # fmt: skip
+                    dt=args.dt, full_dt_factor=f_dt)  # fmt: skip
         except ValueError as exc:  # the adapted flyback does not fit the period
             print(f"{sign * v:+5.0f} {f:6.0f}  skipped ({str(exc)[:60]})")
             continue
