@@ -87,7 +87,7 @@ class Arrays(NamedTuple):
     fn0: float  # static normal force [N]
     nu: np.ndarray  # GMS fractions [-]
     kk: np.ndarray  # GMS stiffnesses [N/m]
-    gms: np.ndarray  # C [N/s], μ_s, μ_c, v_s [m/s], δ
+    gms: np.ndarray  # C [N/s], μ_s, μ_c, v_s [m/s], δ, σ₂ [N s/m]
     beta_t: float  # micro-damping of the sticking elements [s]
     held: np.ndarray  # (6,) 1 where a tangent direction's contact never slips
     two_d: int  # 1: each contact's two directions under the 2-D GMS law (Eq. 3.27)
@@ -115,6 +115,46 @@ def _hertz_series(hz, fn0, approach, guess):
             return dn
         d = dn
     return d
+
+
+@njit(cache=False)
+def _friction_1d(q, qd, slip_rows, fn, f, st, slip_prev, dt, arr, force):
+    """Each tangent direction under the 1-D GMS law (the per-axis kernel's element step,
+    Eq. 2.24–2.26); adds the friction's generalised forces to ``force``."""
+    gms, nu, kk, beta_t = arr.gms, arr.nu, arr.kk, arr.beta_t
+    nq = q.shape[0]
+    ne = nu.shape[0]
+    for c in range(slip_rows.shape[0]):
+        x = 0.0
+        xd = 0.0
+        for a in range(nq):
+            x += slip_rows[c, a] * q[a]
+            xd += slip_rows[c, a] * qd[a]
+        dx = x - slip_prev[c]
+        slip_prev[c] = x
+        lvl = stribeck_magnitude(xd, fn[c // 2], gms[1], gms[2], gms[3], gms[4])
+        if arr.held[c] == 1:
+            lvl = 1e12  # never slips: its elements stay stuck, a linear spring
+        decay = math.exp(-gms[0] * dt / lvl) if lvl > 0.0 else 0.0
+        sg = 1.0 if xd > 0.0 else (-1.0 if xd < 0.0 else 0.0)
+        ftot = 0.0
+        ct = 0.0
+        for i in range(ne):
+            fi = gms_element_step(f[c, i], st[c, i], kk[i], dx, nu[i] * lvl * sg, decay)
+            if st[c, i] == 1:
+                if abs(fi) >= nu[i] * lvl and fi * xd > 0.0:
+                    st[c, i] = 0
+                    cap = nu[i] * lvl
+                    fi = cap if fi > 0.0 else -cap
+                else:
+                    ct += beta_t * kk[i]
+            elif fi * xd <= 0.0:
+                st[c, i] = 1
+            f[c, i] = fi
+            ftot += fi
+        ftot += (ct + gms[5]) * xd  # micro-damping and viscous σ₂ (Eq. 2.26)
+        for a in range(nq):  # F on the table, −F on the tube: −F ∂slip/∂q
+            force[a] -= ftot * slip_rows[c, a]
 
 
 @njit(cache=False)
@@ -152,7 +192,7 @@ def _friction_2d(q, qd, slip_rows, fn, f2, st2, df2, dt, arr, force):
             if st2[k, i] == 1:
                 ct += arr.beta_t * kk[i]
         for j in range(2):
-            ftot = ct * v[j]
+            ftot = (ct + gms[5]) * v[j]
             for i in range(ne):
                 ftot += f2[k, i, j]
             for a in range(nq):
@@ -163,7 +203,7 @@ def _friction_2d(q, qd, slip_rows, fn, f2, st2, df2, dt, arr, force):
 def _run(t_v, v_v, dt, n_steps, arr, out_every):
     """Semi-implicit Euler at a fixed step; returns (times, q records)."""
     minv, kq, cq, bq, slip_rows, nrow = arr.minv, arr.kq, arr.cq, arr.bq, arr.slip, arr.normal
-    nu, kk, gms, beta_t = arr.nu, arr.kk, arr.gms, arr.beta_t
+    nu = arr.nu
     nq = minv.shape[0]
     nc = slip_rows.shape[0]
     ne = nu.shape[0]
@@ -222,40 +262,8 @@ def _run(t_v, v_v, dt, n_steps, arr, out_every):
                 force[a] -= df * nrow[k, a]
         if arr.two_d == 1:
             _friction_2d(q, qd, slip_rows, fn, f2, st2, df2, dt, arr, force)
-            continue_1d = False
         else:
-            continue_1d = True
-        for c in range(nc if continue_1d else 0):
-            x = 0.0
-            xd = 0.0
-            for a in range(nq):
-                x += slip_rows[c, a] * q[a]
-                xd += slip_rows[c, a] * qd[a]
-            dx = x - slip_prev[c]
-            slip_prev[c] = x
-            lvl = stribeck_magnitude(xd, fn[c // 2], gms[1], gms[2], gms[3], gms[4])
-            if arr.held[c] == 1:
-                lvl = 1e12  # never slips: its elements stay stuck, a linear spring
-            decay = math.exp(-gms[0] * dt / lvl) if lvl > 0.0 else 0.0
-            sg = 1.0 if xd > 0.0 else (-1.0 if xd < 0.0 else 0.0)
-            ftot = 0.0
-            ct = 0.0
-            for i in range(ne):
-                fi = gms_element_step(f[c, i], st[c, i], kk[i], dx, nu[i] * lvl * sg, decay)
-                if st[c, i] == 1:
-                    if abs(fi) >= nu[i] * lvl and fi * xd > 0.0:
-                        st[c, i] = 0
-                        cap = nu[i] * lvl
-                        fi = cap if fi > 0.0 else -cap
-                    else:
-                        ct += beta_t * kk[i]
-                elif fi * xd <= 0.0:
-                    st[c, i] = 1
-                f[c, i] = fi
-                ftot += fi
-            ftot += ct * xd
-            for a in range(nq):  # F on the table, −F on the tube: −F ∂slip/∂q
-                force[a] -= ftot * slip_rows[c, a]
+            _friction_1d(q, qd, slip_rows, fn, f, st, slip_prev, dt, arr, force)
         for a in range(nq):
             acc = 0.0
             for c in range(nq):
@@ -342,7 +350,7 @@ def _arrays(rm: ReducedModel, tr: TranslationParameters, mkcb: tuple, slip: np.n
     ps = rm.params
     fr = ps.friction
     gms = np.array([fr.C, fr.stribeck.mu_s, fr.stribeck.mu_c, fr.stribeck.v_s,
-                    fr.stribeck.delta])  # fmt: skip
+                    fr.stribeck.delta, fr.stribeck.sigma2])  # fmt: skip
     hertz = np.zeros(3)
     if variant in ("hertz", "nonlinear", "hertz_axial"):
         hertz[:] = ps.contact.normal_stiffness, ps.contact.normal_exponent, tr.axial_stiffness

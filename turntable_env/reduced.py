@@ -218,8 +218,8 @@ class TranslationParameters:
         side_tube_mass, side_tube_stiffness, side_tube_damping, side_tube_gain: each
             driving tube condensed at its contact point along n [kg], [N/m], [N·s/m],
             and its free deflection there per channel volt [m/V].
-        axis_contact_stiffness, axis_contact_damping: a stuck contact direction [N/m],
-            [N·s/m].
+        stuck_stiffness, stuck_damping: each stuck contact direction (the axis
+            contact's two, the driving contacts' along n) [N/m], [N·s/m].
     """
 
     mass: float
@@ -240,8 +240,8 @@ class TranslationParameters:
     side_tube_stiffness: tuple[float, float]
     side_tube_damping: tuple[float, float]
     side_tube_gain: tuple[float, float]
-    axis_contact_stiffness: float
-    axis_contact_damping: float
+    stuck_stiffness: float
+    stuck_damping: float
 
     @property
     def handedness(self) -> float:
@@ -335,8 +335,8 @@ class TranslationParameters:
             side_tube_stiffness=tuple(side["K"]),  # type: ignore[arg-type]
             side_tube_damping=tuple(beta * k for k in side["K"]),  # type: ignore[arg-type]
             side_tube_gain=tuple(side["g"]),  # type: ignore[arg-type]
-            axis_contact_stiffness=k_sum,
-            axis_contact_damping=fr.stribeck.sigma2 + contact.tangential_damping * k_sum,
+            stuck_stiffness=k_sum,
+            stuck_damping=fr.stribeck.sigma2 + contact.tangential_damping * k_sum,
         )
 
 
@@ -590,8 +590,8 @@ class ReducedModel:
         stuck[2, [10, 7, 9]] = 1.0, -1.0, sg * rho  # driving contact 1 along n
         stuck[3, [11, 7, 8]] = 1.0, -1.0, -sg * rho  # driving contact 2 along n
         for row in stuck:
-            kq += tr.axis_contact_stiffness * np.outer(row, row)
-            cq += tr.axis_contact_damping * np.outer(row, row)
+            kq += tr.stuck_stiffness * np.outer(row, row)
+            cq += tr.stuck_damping * np.outer(row, row)
         return mass, kq, cq, b_v, b_vd
 
     # ------------------------------------------------------------------------------
