@@ -24,7 +24,11 @@ tangent plane's two and its axis), linearised about the rest state, all derived 
 * each contact's normal force F_N + k_H(d_k·x − a_k) + d_c(d_k·ẋ − ȧ_k) (k_H: Eq. 3.21's
   Hertz law linearised at F_N, a_k the ball along d_k), which sets its Stribeck level;
 * friction in each tangent direction (six 1-D GMS contacts, the 2-D law of Eq. 3.27 taken
-  per direction), slip = tube point − table point, the table point x + φ × R d_k.
+  per direction), slip = tube point − table point, the table point x + φ × R d_k; a
+  sticking element holds no more than its share ν_i|s(v)|: where the stroke's ringing
+  drops F_N under its load it is clipped there, as the 3-D model clips it (stop 67's
+  reference and kernel cut an element only at breakaway and stepped 12–16 % short on the
+  forward flybacks of the ideal amplifier, ``--variant unclipped``).
 
 It is built in the world frame from the 3-D model's packed arrays, independently of the
 kernel's :meth:`~turntable_env.reduced.ReducedModel.translation_matrices` (which hold the
@@ -37,13 +41,18 @@ per-axis model), ``no_stroke`` (the stroke removed, from the 3-D model too), ``n
 (the centre of mass at the centre, in the 3-D model too), ``friction_2d`` (each contact's
 two directions under the 2-D law), ``hertz``, ``nonlinear`` (series with Hertz's
 curvature, the latter with the 2-D law too), ``hertz_axial`` (Hertz's curvature on the
-ball's axial coordinate), ``tube_tops`` (each tube top's six coordinates, not condensed).
+ball's axial coordinate), ``tube_tops`` (each tube top's six coordinates, not condensed),
+``unclipped`` (a sticking element cut only at breakaway), ``shared`` (the non-driving
+directions stuck, as the kernel holds them, but each element's share in a driving
+direction what the other direction's load leaves of it, √((ν_i|s|)² − F_i,n²): the 2-D
+law's bound on a contact the kernel treats per direction).
 Integration: semi-implicit Euler at a fixed step (default 5 ns), the per-axis kernel's GMS
 law (``gms_element_step``, Eq. 2.24–2.25); the channel voltage is the per-axis model's
 amplifier output, interpolated linearly.
 
     python experiments/sphere_tilt.py [--variant rigid|series|no_tilt|tilts_held|frozen|
-        no_stroke|no_com|side_stuck|friction_2d|hertz|nonlinear|hertz_axial|tube_tops]
+        no_stroke|no_com|side_stuck|friction_2d|hertz|nonlinear|hertz_axial|tube_tops|
+        unclipped|shared]
         [--amplitude 20 90 200] [--frequency 100 2000] [--a 0.95] [--amplifier adapted]
         [--dt 5e-9] [--full-dt-factor F]
 
@@ -91,6 +100,8 @@ class Arrays(NamedTuple):
     beta_t: float  # micro-damping of the sticking elements [s]
     held: np.ndarray  # (6,) 1 where a tangent direction's contact never slips
     two_d: int  # 1: each contact's two directions under the 2-D GMS law (Eq. 3.27)
+    clip: int  # 1: a sticking element clipped at its share where F_N falls (3-D model's)
+    shared: int  # 1: a direction's element share is what the other direction leaves
     hertz: np.ndarray  # k_c [N/m^e], e, the tube's axial stiffness [N/m]; k_c = 0: linear
 
 
@@ -120,7 +131,11 @@ def _hertz_series(hz, fn0, approach, guess):
 @njit(cache=False)
 def _friction_1d(q, qd, slip_rows, fn, f, st, slip_prev, dt, arr, force):
     """Each tangent direction under the 1-D GMS law (the per-axis kernel's element step,
-    Eq. 2.24–2.26); adds the friction's generalised forces to ``force``."""
+    Eq. 2.24–2.26); adds the friction's generalised forces to ``force``. A sticking
+    element holds no more than its share ν_i|s(v)| (as the 3-D model: where F_N falls under
+    its load it is clipped) unless ``arr.clip`` is 0; with ``arr.shared`` an element's share
+    in a direction that can slip is what the contact's other direction leaves of it,
+    √((ν_i|s|)² − F_i,other²) (the isotropic 2-D law's bound, Eq. 3.27)."""
     gms, nu, kk, beta_t = arr.gms, arr.nu, arr.kk, arr.beta_t
     nq = q.shape[0]
     ne = nu.shape[0]
@@ -140,16 +155,20 @@ def _friction_1d(q, qd, slip_rows, fn, f, st, slip_prev, dt, arr, force):
         ftot = 0.0
         ct = 0.0
         for i in range(ne):
-            fi = gms_element_step(f[c, i], st[c, i], kk[i], dx, nu[i] * lvl * sg, decay)
+            cap = nu[i] * lvl
+            if arr.shared == 1 and arr.held[c] == 0:
+                cap = math.sqrt(max(cap * cap - f[c ^ 1, i] ** 2, 0.0))
+            fi = gms_element_step(f[c, i], st[c, i], kk[i], dx, cap * sg, decay)
             if st[c, i] == 1:
-                if abs(fi) >= nu[i] * lvl and fi * xd > 0.0:
+                if abs(fi) >= cap and fi * xd > 0.0:
                     st[c, i] = 0
-                    cap = nu[i] * lvl
                     fi = cap if fi > 0.0 else -cap
                 else:
                     ct += beta_t * kk[i]
             elif fi * xd <= 0.0:
                 st[c, i] = 1
+            if arr.clip == 1 and st[c, i] == 1 and abs(fi) > cap:  # F_N fell under its load
+                fi = cap if fi > 0.0 else -cap
             f[c, i] = fi
             ftot += fi
         ftot += (ct + gms[5]) * xd  # micro-damping and viscous σ₂ (Eq. 2.26)
@@ -186,7 +205,7 @@ def _friction_2d(q, qd, slip_rows, fn, f2, st2, df2, dt, arr, force):
         ct = 0.0
         for i in range(ne):
             fm = math.sqrt(f2[k, i, 0] ** 2 + f2[k, i, 1] ** 2)
-            if was[i] == 1 and st2[k, i] == 0 and fm > nu[i] * lvl:  # clipped at breakaway
+            if (was[i] == 1 or st2[k, i] == 1) and fm > nu[i] * lvl:  # as the 3-D model
                 f2[k, i, 0] *= nu[i] * lvl / fm
                 f2[k, i, 1] *= nu[i] * lvl / fm
             if st2[k, i] == 1:
@@ -357,7 +376,7 @@ def _arrays(rm: ReducedModel, tr: TranslationParameters, mkcb: tuple, slip: np.n
         if variant == "hertz_axial":  # the ball's axial coordinate takes the tube's spring
             hertz[2] = 1e30
     held = np.zeros(6, dtype=np.int64)
-    if variant == "side_stuck":  # every direction but the two driving ones never slips
+    if variant in ("side_stuck", "shared"):  # only the two driving directions slip
         held[:] = 1
         held[[2 * k for k in range(3) if k != axis_index(rm.axis)]] = 0
     series = variant in SERIES
@@ -366,7 +385,8 @@ def _arrays(rm: ReducedModel, tr: TranslationParameters, mkcb: tuple, slip: np.n
                   tr.normal_stiffness if series else tr.hertz_stiffness, tr.normal_damping,
                   float(ps.contact.preload), np.asarray(fr.nu, float),
                   np.asarray(fr.k, float), gms, float(ps.contact.tangential_damping), held,
-                  int(variant in ("friction_2d", "nonlinear")), hertz)  # fmt: skip
+                  int(variant in ("friction_2d", "nonlinear")), int(variant != "unclipped"),
+                  int(variant == "shared"), hertz)  # fmt: skip
 
 
 def build(rm: ReducedModel, variant: str = "rigid") -> dict:
@@ -439,7 +459,8 @@ def build(rm: ReducedModel, variant: str = "rigid") -> dict:
 # the variants whose normal spring is Hertz's in series with the tube's massless axial one
 SERIES = ("series", "no_tilt", "tilts_held", "frozen", "hertz", "nonlinear")
 VARIANTS = ("rigid", "series", "no_tilt", "tilts_held", "frozen", "no_stroke", "no_com",
-            "side_stuck", "friction_2d", "hertz", "nonlinear", "hertz_axial", "tube_tops")
+            "side_stuck", "friction_2d", "hertz", "nonlinear", "hertz_axial", "tube_tops",
+            "unclipped", "shared")
 
 
 def remove_axial_stroke(model) -> None:  # type: ignore[no-untyped-def]

@@ -37,7 +37,9 @@ the ``"translation"`` fidelity) the state has 30 entries (the sphere's translati
 tilts, the stuck tangent directions' tube points and the balls' axial coordinates after
 the 6), each contact's slip is a row over the state and its normal force F_N +
 k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) a row over (y, V, V̇) that sets its Stribeck level at a
-step's ends and, for the slipping elements, its mean; the ladder is unchanged and the
+step's ends and, for the slipping elements, its mean; where it falls under a sticking
+element's load the element is held at its share ν_i|s(v)| at the step's end (the 3-D
+model's rule, :mod:`turntable_env.integrator`); the ladder is unchanged and the
 analytic all-stick step is not used. Each turntable runs an integrator compiled for its
 form (:func:`_run_either`).
 
@@ -810,6 +812,11 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                             g1 = nu[b, i] * s1 - abs(fi)
                         else:
                             st_new[k, i] = 1
+                            if translation and abs(fi) > nu[b, i] * s1:
+                                # F_N fell under the element's load: it holds no more than
+                                # its share ν_i|s(v)| (the 3-D model's rule, Eq. 2.25)
+                                capf = nu[b, i] * s1
+                                f[b, k, i] = capf if fi > 0.0 else -capf
                             continue
                     else:
                         if fi * xd1 <= 0.0:
