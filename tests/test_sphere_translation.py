@@ -246,3 +246,44 @@ def test_translation_step_converges_at_the_timed_output():
     steps = [simulate_batch([m], [drive], drive.duration, output_dt=1e-4)[0].step_size
              for m in models]  # fmt: skip
     assert steps[0] == pytest.approx(steps[1], rel=1e-3)
+
+
+def test_no_sticking_element_holds_more_than_its_share_through_a_flyback():
+    """The friction bound as an invariant of the translation form (Eq. 2.25: an element
+    carries at most ν_i|s(v)|, s ∝ F_N by Eq. 2.13): stopped every 1 µs through two +90 V,
+    2 kHz, a = 0.5 periods on the ideal amplifier, whose jumps ring the normal forces, no
+    sticking element of either driving contact holds more than its share at that
+    contact's present F_N and slip rate, while F_N dips to 74 % of the preload and
+    elements sit at their bound at 32 stops (the clip acts; with stop 67's rule, an
+    element cut only at breakaway, one held 0.050 N over its share)."""
+    from turntable_env.friction.kernels import stribeck_magnitude
+    from turntable_env.reduced import ReducedBatch, waveform_arrays
+
+    drive, ps = stepping_drive("real", amplitude=2.0, frequency=2000.0, periods=2, a=0.5,
+                               amplifier="ideal")  # fmt: skip
+    m = ReducedModel(ps, "B", translation=True)
+    batch = ReducedBatch([m])
+    wave = m.full.drive_waveforms({"B": drive})["B"]
+    batch.set_state(0, m.initial_state(wave(0.0)[()] * ps.amplifier.gain))
+    arrays = waveform_arrays([wave], batch.grid)
+    pk = m.packed
+    ny, nu, gms = m.n_state, pk["nu"], pk["gms"]
+    fn0 = pk["mech"][12:14]
+    rec, n_rec = np.zeros((1, 1, 12)), np.zeros(1, dtype=np.int64)
+    stride = round(1e-6 / batch.grid)
+    lowest, at_bound, worst = 1.0, 0, -np.inf
+    for n_end in range(stride, round(drive.duration / batch.grid), stride):
+        n_rec[:] = 0
+        batch.advance(arrays, np.array([n_end]), np.array([10**9]), rec, n_rec)
+        y = batch.state.y[0, :ny]
+        for k in range(2):
+            fn = max(fn0[k] + pk["nrow"][k, :ny] @ y, 0.0)  # [N] (no V, V̇ columns here)
+            lowest = min(lowest, fn / fn0[k])
+            share = nu * stribeck_magnitude(pk["srow"][k, 1] @ y, fn, *gms[1:5])
+            stuck = batch.state.st[0, k] == 1
+            load = np.abs(batch.state.f[0, k])
+            worst = max(worst, np.max((load - share)[stuck], initial=-np.inf))
+            at_bound += int(np.sum(stuck & (load >= share * (1 - 1e-9))))
+    assert worst <= 1e-12 * fn0.max()
+    assert lowest < 0.8
+    assert at_bound > 0
