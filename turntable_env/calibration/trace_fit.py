@@ -1135,7 +1135,7 @@ def _second_stage(
     the same weight (the second's re-weighting, the first's best evaluated again). Twelve
     factors leave 64 points thin: on the first independent plant's 12-bit sampled drive
     the 64-point design ends at 40.1 nm held out against a target of 25.7 nm, the
-    128-point design at 21.8 nm (docs/calibration.md, stop 60). Where the doubled design's
+    128-point design at 21.8 nm (docs/calibration-log.md, stop 60). Where the doubled design's
     best starts are the first's, the search would repeat itself and is not run. A fit
     within its target does not run it: the cost falls on the traces the nominal model
     does not yet explain. ``bars``: (noise floor, target) [nm]; ``plan``: (seed, hops).
