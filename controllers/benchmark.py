@@ -519,7 +519,7 @@ def _write_files(result: BenchmarkResult, d: Path) -> dict[str, Path]:
 
     paths: dict[str, Path] = {}
     p = d / "benchmark.json"
-    write_atomic(p, json.dumps(result.to_json(), indent=1))
+    write_atomic(p, json.dumps(result.to_json(), indent=1, allow_nan=False))
     paths["json"] = p
     df = result.to_pandas()
     buf = io.StringIO()

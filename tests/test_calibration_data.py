@@ -76,6 +76,35 @@ def test_save_and_load_round_trip(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"axis": "Q"}, "axis"),
+        ({"amplifier_gain": 0.0}, "amplifier_gain"),
+        ({"amplifier_gain": float("nan")}, "amplifier_gain"),
+        ({"drives": {"C": np.full(50, 50.0)}}, "drive_C_V"),  # beyond the ±10 V input
+        ({"detector_v": np.full(50, 150.0)}, "detector_V"),
+        ({"time": np.linspace(1e-3, 0.0, 50)}, "t_s"),  # time reversed
+    ],
+)
+def test_save_refuses_what_the_loader_would_and_writes_nothing(tmp_path, change, match):
+    """Measurement.save promises a file load_measurement reads back: a measurement the
+    loader would refuse is refused before any file exists (and an old file is kept)."""
+    from dataclasses import replace
+
+    t = np.linspace(0.0, 49e-5, 50)
+    good = Measurement(axis="C", amplifier_gain=45.0, detector=Detector(), time=t,
+                       drives={"C": np.sin(t * 1e3)}, detector_v=np.cos(t * 1e3))  # fmt: skip
+    path = good.save(tmp_path / "m.csv")
+    before = path.read_bytes()
+    with pytest.raises(ValueError, match=match):
+        replace(good, **change).save(path)
+    assert path.read_bytes() == before
+    with pytest.raises(ValueError, match=match):
+        replace(good, **change).save(tmp_path / "new.csv")
+    assert not (tmp_path / "new.csv").exists()
+
+
+@pytest.mark.parametrize(
     ("edit", "line", "match"),
     [
         (lambda t: t.replace("# axis: B\n", ""), 1, "'# axis: ...' missing"),
@@ -102,6 +131,14 @@ def test_save_and_load_round_trip(tmp_path):
         (lambda t: t.replace("0.002,1.0,", "0.0005,1.0,"), 10, "'t_s'.*not increasing"),
         (lambda t: t.replace("0.003,-2.0,", "0.003,-12.0,"), 11, "'drive_B_V'.*±10"),
         (lambda t: t.replace("0.003,-2.0,0.020,0.002", "0.003,-2.0,0.020"), 11, "3 cells"),
+        # digits of other scripts are not ASCII decimals (full-width 4, Arabic-Indic 5)
+        (lambda t: t.replace("# amplifier_gain: 45", "# amplifier_gain: \uff145"), 2, "gain"),
+        (lambda t: t.replace("0.001,0.5,", "0.001,\u0665,"), 9, "'drive_B_V'"),
+        # a form feed or U+2028 inside a cell ends no line: the bad cell keeps its number
+        (lambda t: t.replace("0.0,0.0,0.010,", "0.0,0.0,0.010\x0c,").replace(
+            "0.001,0.5,", "0.001,nan,"), 9, "'drive_B_V' = 'nan'"),
+        (lambda t: t.replace("0.0,0.0,0.010,", "0.0,0.0,0.010\u2028,").replace(
+            "0.001,0.5,", "0.001,nan,"), 9, "'drive_B_V' = 'nan'"),
     ],
 )
 def test_malformed_file_names_file_line_and_column(tmp_path, edit, line, match):

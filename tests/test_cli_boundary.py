@@ -36,6 +36,16 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["simulate", "--periods", "1e9"], "--periods"),
         (["simulate", "--periods", "0"], "--periods"),
         (["simulate", "--a", "0"], "--a"),
+        (["simulate", "--a", "1"], "--a"),  # no flyback: the breakpoints would coincide
+        (["simulate", "--a", "5e-324"], "--a"),
+        (["simulate", "--amplitude", "5e-324"], "--amplitude"),  # 0/0 in the figures: NaN
+        (["simulate", "--amplitude", "1e-4"], "--amplitude"),
+        (["simulate", "--periods", "1", "--output-dt", "0.5"], "--output-dt"),  # before the run
+        (["bench", "--env-only", "--duration", "5"], "--duration"),  # not silently ignored
+        (["bench", "--env-only", "--quick"], "--quick"),
+        (["benchmark", "--backend", "ray", "--workers", "2"], "--workers"),
+        (["calibrate", "--thesis", "--base", "thesis", "--report", "rep"], "--base"),
+        (["calibrate", "--thesis", "--global-points", "5", "--report", "rep"], "--global-points"),
         (["simulate", "--settle", "1e9"], "--settle"),
         (["simulate", "--output-dt", "0"], "--output-dt"),
         (["simulate", "--output-dt", "1e-15"], "--output-dt"),

@@ -5,6 +5,7 @@ information gets no confident answer. Each test is one of the issue's numbered i
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import stat
@@ -83,6 +84,30 @@ def test_a_new_report_replaces_the_old_one_whole(tmp_path):
     assert sorted(p.name for p in d.iterdir()) == sorted([MARKER, "report.json", "report.md"])
     assert (d / "report.md").read_text() == "new"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # nothing left over
+
+
+def test_report_json_is_strict_json_with_null_for_what_was_not_computed(tmp_path):
+    """A figure the calibration could not compute (a line search over no frequency gives
+    NaN) is null in report.json, which any JSON parser reads; json.dumps alone writes a
+    bare NaN, which strict parsers refuse."""
+    from turntable_env.calibration.calibrate import write_report
+    from turntable_env.calibration.result import CalibrationResult
+
+    res = CalibrationResult(
+        selected_effects=[], parameters={}, error_before=5.0, error_after=4.0,
+        error_unit="nm", residual_structured=False, candidates=[],
+        diagnosis={"signatures": {"lines": [{"frequency_Hz": math.nan}]},
+                   "peak": np.float64(math.inf)},
+        residuals={"after": np.zeros(8)},
+    )  # fmt: skip
+
+    def refuse(name):
+        raise AssertionError(f"report.json holds a bare {name}")
+
+    paths = write_report(res, tmp_path / "r")
+    doc = json.loads(paths["json"].read_text(), parse_constant=refuse)
+    assert doc["diagnosis"]["signatures"]["lines"][0]["frequency_Hz"] is None
+    assert doc["diagnosis"]["peak"] is None and doc["error_after"] == 4.0
 
 
 def test_a_failed_report_leaves_the_old_one_untouched(tmp_path):
@@ -344,6 +369,25 @@ def test_step_before_reset_is_refused():
     venv = PiezoTurntableVectorEnv(num_envs=2)
     with pytest.raises(ResetNeeded):
         venv.step(np.zeros((2, 5)))
+    with pytest.raises(ResetNeeded):  # the base env too: not a terminated dummy step
+        gym.make("PiezoTurntable-v0").unwrapped.step(np.zeros(5))
+
+
+def test_a_refused_reset_leaves_the_episode_as_it_was():
+    """reset() with an option it refuses (a NaN target) changes nothing: not the plant
+    drawn for the episode, not its step count, not the state; the episode goes on."""
+    env = gym.make("PiezoTurntableRandomized-v0").unwrapped
+    env.reset(seed=3)
+    for _ in range(3):
+        env.step(np.array([0.5, 0.3, 0.9, 0.5, 0.0]))
+    t = env.task
+    before = (dict(t.draws[0]), env.plant, int(t.step_index[0]), float(t.angle[0]),
+              float(t.target[0]), env.np_random.bit_generator.state)  # fmt: skip
+    with pytest.raises(ValueError, match="target_angle"):
+        env.reset(options={"target_angle": float("nan")})
+    after = (dict(t.draws[0]), env.plant, int(t.step_index[0]), float(t.angle[0]),
+             float(t.target[0]), env.np_random.bit_generator.state)  # fmt: skip
+    assert after == before  # the generator too: no plant drawn and thrown away
 
 
 # --- 9. smaller -----------------------------------------------------------------------------

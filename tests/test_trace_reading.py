@@ -162,3 +162,30 @@ def test_an_effect_pinned_at_its_bound_is_told_apart(name, values, pinned):
     marks an effect standing in for something else; at neutral (off) it does not, nor do
     the other parameters (a phase at ±π)."""
     assert bool(main_at_bound(name, values)) is pinned
+
+
+@pytest.mark.parametrize("gain", [22.5, 90.0])
+def test_a_files_amplifier_gain_reaches_the_tubes(gain):
+    """The file's ``amplifier_gain`` is not the base set's: its drive u becomes the base
+    amplifier's input k·u, k = G_file/G_base, so the tubes see G_file·u (the tubes' voltage,
+    not the input, moves the table). A file at G_file with input u·G_base/G_file is then the
+    base set's own file, sample for sample; a drive that would need more than the base
+    amplifier's input limit is refused, naming the file."""
+    from dataclasses import replace
+
+    from turntable_env.calibration.measurement import Measurement
+    from turntable_env.calibration.trace_fit import at_base_gain
+    from turntable_env.detector import Detector
+    from turntable_env.plant import Plant
+
+    amp = Plant("real").params.amplifier
+    t, u = _sampled_sawtooth(amp=2.0)
+    own = Measurement("B", amp.gain, Detector(), t, {"B": u}, np.zeros_like(t), source="own")
+    assert at_base_gain(own, amp) == (own, [])  # the base's gain: the file as it is
+    lab = replace(own, amplifier_gain=gain, drives={"B": u * amp.gain / gain}, source="lab")
+    seen, warning = at_base_gain(lab, amp)
+    np.testing.assert_allclose(seen.drives["B"], u, rtol=1e-12, atol=1e-15)
+    assert "lab" in warning[0] and f"{gain:g}" in warning[0]
+    loud = replace(lab, drives={"B": 6.0 * np.ones_like(t) * amp.gain / gain * 2.0})
+    with pytest.raises(ValueError, match=r"lab: amplifier_gain .* beyond the base amplifier"):
+        at_base_gain(loud, amp)  # 12 V of base input: G_base·12 V on the tubes

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from . import __version__
-from .files import Terminated, check_writable, terminate_cleanly, write_atomic
+from .files import Terminated, check_writable, plain_json, terminate_cleanly, write_atomic
 from .plant import MAX_SENSOR_NOISE, PARAMETER_SETS, parameter_set
 from .scale import BACKENDS
 
@@ -28,6 +28,8 @@ __all__ = ["main"]
 
 MAX_SAMPLES = 20_000_000  # samples a simulate run may record (≈ 1 GB of response arrays)
 MAX_DURATION = 1000.0  # s of turntable time one simulate run may cover
+MIN_AMPLITUDE = 1e-3  # V of amplifier input: below a DAQ's least bit, and the figures' 0/0
+RAMP_RATIO_RANGE = (0.01, 0.999)  # ramp and flyback each at least 0.1 % of a period
 MAX_STEPS = 1e10  # fine integration steps (duration·ω_max/--dt-factor) of a full-model run
 
 
@@ -40,10 +42,10 @@ class _Parser(argparse.ArgumentParser):
 
 def _real(
     lo: float | None = None, hi: float | None = None, *, open_lo: bool = False,
-    nonzero: bool = False,
+    min_abs: float = 0.0,
 ):  # fmt: skip
-    """argparse type: a finite decimal number in [lo, hi] (lo excluded with ``open_lo``,
-    zero with ``nonzero``)."""
+    """argparse type: a finite decimal number in [lo, hi] (lo excluded with ``open_lo``)
+    whose magnitude is at least ``min_abs`` (> 0: zero refused too)."""
 
     def parse(text: str) -> float:
         try:
@@ -56,8 +58,8 @@ def _real(
             raise argparse.ArgumentTypeError(f"{text!r}: must be {'>' if open_lo else '>='} {lo:g}")
         if hi is not None and v > hi:
             raise argparse.ArgumentTypeError(f"{text!r}: must be <= {hi:g}")
-        if nonzero and v == 0.0:
-            raise argparse.ArgumentTypeError(f"{text!r}: must not be 0")
+        if abs(v) < min_abs:
+            raise argparse.ArgumentTypeError(f"{text!r}: its magnitude must be >= {min_abs:g}")
         return v
 
     return parse
@@ -123,6 +125,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     settle = args.settle if args.settle is not None else 0.0
     output_dt = args.output_dt if args.output_dt is not None else min(1e-5, 0.01 / drive.frequency)
     duration = drive.duration + settle  # s simulated
+    if output_dt > 1.0 / drive.frequency:  # the step figure reads every period's start
+        raise ValueError(
+            f"--output-dt={output_dt:g} s: more than one drive period ({1.0 / drive.frequency:g} "
+            "s at --frequency); the steps are read at each period's start"
+        )
     if duration > MAX_DURATION:
         raise ValueError(
             f"--periods/--cycles/--frequency/--settle: {duration:.6g} s to simulate, more than "
@@ -187,7 +194,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         "read_from": fig["source"],
         "excursion_um": fig["excursion"] * 1e6,
         **({"return_um": fig["return"] * 1e6,
-            "return_fraction": fig["return"] / fig["excursion"]} if two else {}),
+            "return_fraction": fig["return"] / fig["excursion"] if fig["excursion"] else None}
+           if two else {}),
         **out,
     }  # fmt: skip
     out["drive"] = {
@@ -207,7 +215,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         measured = thesis_step_sizes()["one_directional" if not two else "two_directional"]
         out["measured_step_um"] = measured * 1e6
     if args.json:
-        print(json.dumps(out, indent=2, default=float))
+        print(json.dumps(plain_json(out), indent=2, default=float, allow_nan=False))
     else:
         for k, v in out.items():
             if k == "steps_um":
@@ -224,12 +232,17 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from .bench import env_throughput, format_env_table, format_table, run_bench
 
     if args.env_only:
+        if args.duration is not None or args.quick:  # not silently ignored
+            raise ValueError("--duration/--quick: not with --env-only (it times env steps only)")
         res = env_throughput(num_envs=args.batch)
         text = format_env_table(res)
     else:
-        res = run_bench(duration=args.duration, batch=args.batch, quick=args.quick)
+        duration = args.duration if args.duration is not None else 1.0  # s
+        res = run_bench(duration=duration, batch=args.batch, quick=args.quick)
         text = format_table(res)
-    print(json.dumps(res, indent=2, default=float) if args.json else text)
+    if args.json:
+        text = json.dumps(plain_json(res), indent=2, default=float, allow_nan=False)
+    print(text)
     return 0
 
 
@@ -269,6 +282,8 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
             register_run(name, run)
         if names is not None:
             names += [s.partition("=")[0] for s in args.agent]
+    if args.backend == "ray" and args.workers is not None:
+        raise ValueError("--workers: for --backend processes (Ray uses the cluster's CPUs)")
     if args.backend is not None:
         kw.update(backend=args.backend, address=args.address, workers=args.workers)
     elif args.address is not None or args.workers is not None:
@@ -276,7 +291,7 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
     res = run_benchmark(names, progress=not args.json and args.backend is None, **kw)
     paths = write_outputs(res, args.out)
     if args.json:
-        print(json.dumps(res.to_json(), indent=1))
+        print(json.dumps(plain_json(res.to_json()), indent=1, allow_nan=False))
     else:
         print(res.leaderboard())
         print(f"{res.settings['wall_s']:.1f} s; files in {paths['json'].parent}")
@@ -321,11 +336,16 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if len(summary) > 1:
         raise ValueError(f"files: one summary file at a time, got {summary}")
     if summary:
+        if args.base is not None or args.global_points is not None:  # not silently ignored
+            raise ValueError(
+                "--base/--global-points: for measurement files (CSV); the summary-level fit "
+                "(TOML, --thesis) takes neither"
+            )
         res = calibrate_summary(summary[0], seed=args.seed, workers=args.workers)
     else:
         res = calibrate(
-            files, base=args.base, workers=args.workers, global_points=args.global_points,
-            seed=args.seed,
+            files, base=args.base or "real", workers=args.workers,
+            global_points=args.global_points or 64, seed=args.seed,
         )  # fmt: skip
     paths = write_report(res, args.report)
     print(
@@ -372,9 +392,9 @@ def _add_simulate(sub: Any) -> None:
     ps.add_argument("--axis", choices=["A", "B", "C", "Z"], default="B")
     ps.add_argument("--signal", choices=["one", "two"], default="one")
     ps.add_argument(
-        "--amplitude", type=_real(-10.0, 10.0, nonzero=True), default=2.0,
-        help="amplifier input [V] (x45), 0 < |A| <= 10; the sign is the direction (negative: "
-        "the reverse step)",
+        "--amplitude", type=_real(-10.0, 10.0, min_abs=MIN_AMPLITUDE), default=2.0,
+        help="amplifier input [V] (x45), 1 mV <= |A| <= 10 V; the sign is the direction "
+        "(negative: the reverse step)",
     )  # fmt: skip
     ps.add_argument(
         "--frequency",
@@ -388,8 +408,9 @@ def _add_simulate(sub: Any) -> None:
         help="forward-back cycles (--signal two; default 3: Fig. 4.6 is read on the last)",
     )  # fmt: skip
     ps.add_argument(
-        "--a", type=_real(0.0, 1.0, open_lo=True), default=None,
-        help="ramp ratio, 0 < a <= 1 (default: 0.95)",
+        "--a", type=_real(*RAMP_RATIO_RANGE), default=None,
+        help=f"ramp ratio a, the ramp's share of a period, {RAMP_RATIO_RANGE[0]:g} <= a <= "
+        f"{RAMP_RATIO_RANGE[1]:g} (default: 0.95)",
     )  # fmt: skip
     ps.add_argument(
         "--amplifier",
@@ -433,8 +454,8 @@ def _add_bench(sub: Any) -> None:
         "references, peak memory, compile time; PiezoTurntable-v0 env steps per second.",
     )
     pb.add_argument(
-        "--duration", type=_real(0.0, 60.0, open_lo=True), default=1.0,
-        help="simulated time [s], <= 60",
+        "--duration", type=_real(0.0, 60.0, open_lo=True), default=None,
+        help="simulated time [s], <= 60 (default 1)",
     )  # fmt: skip
     pb.add_argument("--batch", type=_int(1, 4096), default=64, help="turntables in the batched run")
     pb.add_argument("--quick", action="store_true", help="short references (smoke runs only)")
@@ -536,15 +557,17 @@ def _add_calibrate(sub: Any) -> None:
     pc.add_argument("--thesis", action="store_true", help="the thesis's chapter-4 figures")
     pc.add_argument("--report", required=True, help="output directory")
     pc.add_argument(
-        "--base", default="real", choices=["real", "thesis", "calibrated"],
-        help="parameter set the nominal factors scale (calibrated: the thesis rig's set)",
+        "--base", default=None, choices=["real", "thesis", "calibrated"],
+        help="parameter set the nominal factors scale (default real; calibrated: the thesis "
+        "rig's set); measurement files only",
     )  # fmt: skip
     pc.add_argument(
         "--workers", type=_int(1, 1024), default=None,
         help="processes of the global stage (figures: of the rig hypotheses)",
     )
     pc.add_argument(
-        "--global-points", type=_int(1, 100_000), default=64, help="Sobol points (global stage)"
+        "--global-points", type=_int(1, 100_000), default=None,
+        help="Sobol points of the global stage (default 64); measurement files only",
     )
     pc.add_argument(
         "--seed", type=_int(0, 2**63 - 1), default=0,

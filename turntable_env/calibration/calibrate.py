@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import threadpoolctl
 
-from ..files import output_directory
+from ..files import output_directory, plain_json
 from ..plant import calibrated_set_toml
 from .measurement import Measurement
 from .result import CalibrationResult
@@ -300,7 +300,8 @@ def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
 
 def _write_report_files(result: CalibrationResult, d: Path, final: Path) -> dict[str, str]:
     pj = d / "report.json"
-    pj.write_text(json.dumps(result.to_json(), indent=2))
+    # strict JSON: a figure that could not be computed (no line searched, say) is null
+    pj.write_text(json.dumps(plain_json(result.to_json()), indent=2, allow_nan=False))
     plot_residual(result, d / "residual.png")
     has_overlay = plot_overlay(result, d / "overlay.png")
     floor = result.diagnosis.get("noise_floor")

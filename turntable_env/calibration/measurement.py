@@ -121,8 +121,10 @@ class Measurement:
     def save(self, path: str | Path) -> Path:
         """Write in the format above (full float precision), atomically (a temporary file
         renamed into place); :func:`load_measurement` reads it back unchanged. ValueError
-        for what the loader would refuse: extra metadata that collides with a required key
-        or holds a line break, a non-finite sample."""
+        for what the loader would refuse, before anything is written: extra metadata that
+        collides with a required key or holds a line break, a non-finite sample, and every
+        check of the loader (the text is read back through it: an axis, a gain or a drive
+        out of its range, time that does not increase, too few samples, ...)."""
         p = Path(path)
         det = self.detector
         for k, v in self.meta.items():
@@ -150,12 +152,14 @@ class Measurement:
         lines = [f"# {k}: {v}\n" for k, v in meta.items()]
         lines.append(",".join(cols) + "\n")
         lines += [",".join(repr(float(x)) for x in row) + "\n" for row in table]
-        write_atomic(p, "".join(lines))
+        text = "".join(lines)
+        _parse(text, p)  # what the loader would refuse is refused here, the file unwritten
+        write_atomic(p, text)
         return p
 
 
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")  # ASCII decimal
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)  # \d: 0-9 only
 
 
 def _number(text: str) -> float | None:
@@ -188,8 +192,16 @@ def _read_text(p: Path) -> str:
 def load_measurement(path: str | Path) -> Measurement:
     """Read and validate a measurement file (module docstring)."""
     p = Path(path)
-    text = _read_text(p)
-    lines = text.splitlines()
+    return _parse(_read_text(p), p)
+
+
+def _parse(text: str, p: Path) -> Measurement:
+    """The measurement ``text`` holds, validated; errors name ``p`` and the line."""
+    # lines end at LF, CRLF or CR only: str.splitlines would also end one at a form feed,
+    # a vertical tab or U+2028 inside a cell, and every later line number would be off
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
     for k, line in enumerate(lines):
         if len(line) > MAX_LINE_CHARS:
             raise ValueError(f"{p}:{k + 1}: {len(line)} characters, more than {MAX_LINE_CHARS}")

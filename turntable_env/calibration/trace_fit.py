@@ -100,6 +100,7 @@ __all__ = [
     "TRACE_NOMINAL",
     "TraceProblem",
     "amplifier_finding",
+    "at_base_gain",
     "calibrate_traces",
     "identifiable_effects",
     "trace_comparison",
@@ -224,6 +225,31 @@ def check_information(m: Measurement) -> None:
             f"(needs {MIN_DETECTOR_RANGE:g} V and {MIN_SIGNAL_TO_NOISE:g}× the noise): it "
             "does not respond to the drive, nothing to calibrate"
         )
+
+
+def at_base_gain(m: Measurement, amplifier: Any) -> tuple[Measurement, list[str]]:
+    """``m`` with its drives as the base amplifier's input that gives the tubes what the
+    file's amplifier gave them, G_file·u = G_base·(k u) with k = G_file/G_base (the file's
+    ``amplifier_gain``; its dynamics are the fitted slew and current scales'), and the
+    warning that says so; ``m`` itself where the gains agree. A drive the base amplifier
+    would clip at its input limit (|k u| > u_max) is a ValueError naming the file."""
+    k = m.amplifier_gain / amplifier.gain
+    if math.isclose(k, 1.0, rel_tol=1e-12):
+        return m, []
+    name = Path(m.source).name or "trace"
+    peak = max(float(np.max(np.abs(v))) for v in m.drives.values()) * k
+    if peak > amplifier.input_limit:
+        raise ValueError(
+            f"{m.source}: amplifier_gain {m.amplifier_gain:g} with a drive of up to "
+            f"{peak / k:.4g} V gives the tubes {peak * amplifier.gain:.4g} V, beyond the base "
+            f"amplifier's {amplifier.input_limit * amplifier.gain:.4g} V (G = {amplifier.gain:g})"
+        )
+    drives = {c: v * k for c, v in m.drives.items()}
+    return replace(m, drives=drives), [
+        f"{name}: amplifier_gain {m.amplifier_gain:g} against the base amplifier's "
+        f"{amplifier.gain:g}: the drive is taken ×{k:.4g} as its input, so the tubes see the "
+        "file's gain; the amplifier's dynamics are the fitted slew and current scales"
+    ]
 
 
 def _prepare(m: Measurement) -> tuple[TraceData, list[str]]:
@@ -960,14 +986,15 @@ def calibrate_traces(
 
     warnings: list[str] = []
     traces = []
-    for f in files:
-        m = f if isinstance(f, Measurement) else load_measurement(f)
-        td, w = _prepare(m)
-        traces.append(td)
-        warnings += w
     base_plant = base if isinstance(base, Plant) else Plant(base, fidelity="reduced")
     if base_plant.fidelity != "reduced":
         base_plant = base_plant.replace(fidelity="reduced")
+    for f in files:
+        m = f if isinstance(f, Measurement) else load_measurement(f)
+        m, w = at_base_gain(m, base_plant.params.amplifier)
+        td, w2 = _prepare(m)
+        traces.append(td)
+        warnings += w + w2
     model = NominalModel(base_plant, tuple(nominal))
     problem = TraceProblem(traces, model)
     floor = float(np.sqrt(np.mean([td.floor**2 for td in traces])))

@@ -127,6 +127,12 @@ class TurntableTask:
             raise ValueError("options: give 'reference' or 'target_angle', not both")
         reference = _option_reference(opts.get("reference"), self.angle_range)
         knock = _option_knock(opts.get("knock"), cfg.control_interval, cfg.angle_limit)
+        lim = self.angle_range
+        # every option checked before anything changes: a refused reset leaves the episode
+        start_opt = (_option_angle("start_angle", opts["start_angle"], cfg.angle_limit)
+                     if "start_angle" in opts else None)  # fmt: skip
+        target_opt = (_option_angle("target_angle", opts["target_angle"], lim)
+                      if "target_angle" in opts else None)  # fmt: skip
         if plant is not None:
             if not isinstance(plant, Plant) or plant.fidelity != self.plant.fidelity:
                 raise ValueError(
@@ -141,17 +147,16 @@ class TurntableTask:
         if plant is not self.plants[b]:
             self.stepper.set_plant(b, plant)
             self.plants[b] = plant
-        lim = self.angle_range
         start = rng.uniform(-1.0, 1.0) * cfg.start_range * lim
         target = rng.uniform(-1.0, 1.0) * cfg.target_range * lim
         if cfg.move_range is not None:
             lo, hi = cfg.move_range
             move = math.exp(rng.uniform(math.log(lo), math.log(hi))) * rng.choice((-1.0, 1.0))
             start = target - move
-        if "start_angle" in opts:
-            start = _option_angle("start_angle", opts["start_angle"], cfg.angle_limit)
-        if "target_angle" in opts:
-            target = _option_angle("target_angle", opts["target_angle"], lim)
+        if start_opt is not None:
+            start = start_opt
+        if target_opt is not None:
+            target = target_opt
         fixed = reference is not None or "target_angle" in opts
         if not fixed and cfg.retarget_share > 0.0 and rng.uniform() < cfg.retarget_share:
             reference = retarget_legs(rng, target, cfg.retarget_legs, cfg.target_range * lim)

@@ -197,6 +197,7 @@ class PiezoTurntableEnv(gym.Env):
         self.observation_space = observation_space(self.task)
         self._renderer: Any = None
         self._window: Any = None  # (figure, image) of render_mode="human"
+        self._reset_done = False  # step() before the first reset is refused
 
     @property
     def observation_names(self) -> tuple[str, ...]:
@@ -213,7 +214,8 @@ class PiezoTurntableEnv(gym.Env):
         if seed is not None:  # gymnasium's own check raises its own error type
             check_int("seed", seed, 0)
         super().reset(seed=seed)
-        self.task.reset_row(0, self.np_random, options)
+        self.task.reset_row(0, self.np_random, options)  # refused options change nothing
+        self._reset_done = True
         t = self.task
         info = {
             "angle_rad": float(t.angle[0]),
@@ -226,6 +228,8 @@ class PiezoTurntableEnv(gym.Env):
         return t.observation()[0], info
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        if not self._reset_done:
+            raise gym.error.ResetNeeded("PiezoTurntable-v0: call reset() before step()")
         a = check_action(action, (5,))  # ValueError for anything but 5 finite reals
         res = self.task.step(a[None, :], self.np_random)
         info = {k: v[0].item() for k, v in res.info.items()}
