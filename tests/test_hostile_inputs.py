@@ -402,3 +402,18 @@ def test_messages_show_plain_numbers():
     with pytest.raises(ValueError) as e:
         check_positive("x", np.float64(-0.00495))
     assert "np.float64" not in str(e.value) and "-0.00495" in str(e.value)
+
+
+@pytest.mark.parametrize("model", ["full", "reduced"])
+def test_simulate_refuses_an_output_interval_that_would_exhaust_memory(model):
+    """The Python API bounds the recorded samples as the CLI does (a 1 ms run at 1 fs
+    asked numpy for 7.28 TiB): a ValueError naming output_dt, before any allocation."""
+    from turntable_env.drive import Waveform
+    from turntable_env.simulation import simulate, simulate_axes
+
+    w = Waveform(np.array([0.0, 1e-3]), np.array([0.0, 1.0]))
+    with pytest.raises(ValueError, match="output_dt=1e-15"):
+        if model == "full":
+            simulate("real", {"B": w}, duration=1e-3, output_dt=1e-15)
+        else:
+            simulate_axes(["real"], [w], duration=1e-3, output_dt=1e-15)

@@ -26,7 +26,6 @@ from .scale import BACKENDS
 
 __all__ = ["main"]
 
-MAX_SAMPLES = 20_000_000  # samples a simulate run may record (≈ 1 GB of response arrays)
 MAX_DURATION = 1000.0  # s of turntable time one simulate run may cover
 MIN_AMPLITUDE = 1e-3  # V of amplifier input: below a DAQ's least bit, and the figures' 0/0
 RAMP_RATIO_RANGE = (0.01, 0.999)  # ramp and flyback each at least 0.1 % of a period
@@ -104,7 +103,7 @@ def _cmd_params(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .model import SimulationError
     from .plant import as_plant
-    from .simulation import simulate, simulate_axes, stepping_drive
+    from .simulation import MAX_OUTPUT_SAMPLES, simulate, simulate_axes, stepping_drive
 
     if args.cycles is not None and args.signal != "two":
         raise ValueError(f"--cycles={args.cycles}: only with --signal two (forward-back cycles)")
@@ -135,10 +134,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"--periods/--cycles/--frequency/--settle: {duration:.6g} s to simulate, more than "
             f"{MAX_DURATION:g} s"
         )
-    if duration / output_dt > MAX_SAMPLES:
+    if duration / output_dt > MAX_OUTPUT_SAMPLES:
         raise ValueError(
             f"--output-dt={output_dt:g} s over {duration:g} s (drive and --settle) would record "
-            f"{duration / output_dt:.3g} samples, more than {MAX_SAMPLES:g}: raise --output-dt"
+            f"{duration / output_dt:.3g} samples, more than {MAX_OUTPUT_SAMPLES:g}: raise "
+            "--output-dt"
         )
     if args.model == "full":  # the 3-D model's fine step is dt-factor/ω_max
         from .plant.models import turntable_model

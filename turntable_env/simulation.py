@@ -24,6 +24,19 @@ from .reduced import REDUCED_AXES, AxisResponse, simulate_batch
 from .response import ENERGY_TERMS, TurntableResponse
 from .validation import check_nonnegative, check_positive
 
+MAX_OUTPUT_SAMPLES = 20_000_000  # samples one run may record (≈ 1 GB of response arrays)
+
+
+def check_output_samples(duration: float, output_dt: float, n_runs: int = 1) -> None:
+    """ValueError naming ``output_dt`` where ``n_runs`` runs over ``duration`` [s] would
+    record more than :data:`MAX_OUTPUT_SAMPLES` samples, before any array is allocated."""
+    n = check_positive("duration", duration) / check_positive("output_dt", output_dt) * n_runs
+    if n > MAX_OUTPUT_SAMPLES:
+        raise ValueError(
+            f"output_dt={output_dt:g} s over {duration:g} s would record {n:.3g} samples, "
+            f"more than {MAX_OUTPUT_SAMPLES:g}: raise output_dt"
+        )
+
 __all__ = [
     "AMPLIFIER_MODES",
     "TWO_DIRECTIONAL_CYCLES",
@@ -131,6 +144,7 @@ def simulate(
     if duration is None:
         duration = _drive_end(drives.values()) + settle
     dur = check_positive("duration", duration)
+    check_output_samples(dur, output_dt)
     mdl = model if model is not None else TurntableModel(ps)
     if mdl.params is not ps and model is not None:
         raise ValueError("model: was built for another parameter set")
@@ -212,6 +226,7 @@ def simulate_axes(
     check_nonnegative("settle", settle)
     if duration is None:
         duration = _drive_end(drives) + settle
+    check_output_samples(duration, output_dt, len(resolved))
     models = [reduced_model(p.params, axis, p.fidelity == "translation") for p in resolved]
     inputs: list[DriveSignal | Waveform] = []
     for p, m, d in zip(resolved, models, drives, strict=True):
