@@ -23,18 +23,27 @@ from controllers.base import Controller, ControllerContext
 from controllers.lab import LabBrief
 from controllers.shield import BlindShield
 
-from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig, make_interface
-from .train import _algos, frame_stack, run_config
+from .interface import (
+    AGENT_ENV_ID,
+    RAW,
+    RAW_ENV_ID,
+    InterfaceConfig,
+    interface_config,
+    make_interface,
+)
+from .train import ALGOS, _algos, frame_stack, run_config
 
-__all__ = ["AgentController", "interface_of", "load_agent"]
+__all__ = ["AgentController", "check_run_config", "interface_of", "load_agent"]
 
 
 def load_agent(run: str | Path) -> tuple[Any, Any, dict[str, Any]]:
     """(SB3 model, VecNormalize with its statistics, effective config) of a run directory.
 
-    Raises ValueError naming the missing file."""
+    Raises ValueError naming the missing file, or config.yml and what is wrong in it
+    (:func:`check_run_config`), before the model is loaded."""
     d = Path(run)
     cfg = run_config(d, f"agent {d}")
+    check_run_config(cfg, f"agent {d}: config.yml")
     algo = cfg["run"]["algo"]
     model = _algos()[algo].load(d / "model.zip", device="cpu")
     with (d / "vecnormalize.pkl").open("rb") as fh:
@@ -43,18 +52,56 @@ def load_agent(run: str | Path) -> tuple[Any, Any, dict[str, Any]]:
     return model, vecnorm, cfg
 
 
+def check_run_config(cfg: dict[str, Any], path: str = "config.yml") -> None:
+    """ValueError naming ``path`` (a run's config.yml as :func:`~agents.train.run_config`
+    read it; :func:`load_agent` gives ``"agent DIR: config.yml"``) and what is wrong,
+    unless what :class:`AgentController` reads of it is there and valid: ``run.algo``, the
+    run's entry (``run.env_id``'s; ``PiezoTurntable-v0`` for a run before the env ids),
+    its ``frame_stack`` and interface (:func:`interface_of`)."""
+    run = cfg["run"]
+    algo = run.get("algo")
+    if not isinstance(algo, str) or algo not in ALGOS:
+        raise ValueError(f"{path}: run.algo={algo!r}: must be one of {', '.join(ALGOS)}")
+    env_id = run.get("env_id")
+    if env_id is not None and env_id not in (AGENT_ENV_ID, RAW_ENV_ID):
+        raise ValueError(
+            f"{path}: run.env_id={env_id!r}: must be {AGENT_ENV_ID!r} or {RAW_ENV_ID!r}"
+        )
+    entry_id = env_id or RAW_ENV_ID  # where a run before the env ids keeps its entry
+    if not isinstance(cfg.get(entry_id), dict):
+        why = f"run.env_id={env_id!r}" if env_id else "no run.env_id: a run before the env ids"
+        raise ValueError(
+            f"{path}: no {entry_id!r} entry mapping ({why}); top-level keys: "
+            f"{sorted(map(str, cfg))}"
+        )
+    entry = cfg[entry_id]
+    try:
+        frame_stack(entry)
+        interface_of(cfg)
+    except ValueError as e:
+        raise ValueError(f"{path}: {str(e).removeprefix('config.yml: ')}") from None
+
+
 def interface_of(cfg: dict[str, Any]) -> InterfaceConfig | str:
     """The interface a run was trained through, from its config.yml: ``"raw"`` for
     ``PiezoTurntable-v0``; the ``interface`` env kwarg for ``PiezoTurntableAgent-v0``; runs
-    made before the env ids (no ``run.env_id``) kept it at the entry's top level."""
+    made before the env ids (no ``run.env_id``) kept it at the entry's top level.
+    ValueError for a missing entry or a bad interface (:func:`interface_config`)."""
     env_id = cfg["run"].get("env_id")
     if env_id is None:
-        return InterfaceConfig(**cfg[RAW_ENV_ID].get("interface", {}))
+        entry = cfg.get(RAW_ENV_ID)
+        if not isinstance(entry, dict):
+            raise ValueError(f"config.yml: no {RAW_ENV_ID!r} entry (a run with no run.env_id)")
+        return interface_config(entry.get("interface"), f"{RAW_ENV_ID}.interface")
     if env_id == RAW_ENV_ID:
         return RAW
     if env_id != AGENT_ENV_ID:
         raise ValueError(f"config.yml: run.env_id={env_id!r} unknown")
-    return InterfaceConfig(**cfg[env_id]["env_kwargs"].get("interface", {}))
+    entry = cfg.get(env_id)
+    kwargs = entry.get("env_kwargs", {}) if isinstance(entry, dict) else None
+    if not isinstance(kwargs, dict):
+        raise ValueError(f"config.yml: {env_id}.env_kwargs: must be a mapping")
+    return interface_config(kwargs.get("interface"), f"{env_id}.env_kwargs.interface")
 
 
 class AgentController(Controller):

@@ -44,7 +44,9 @@ identifier, a residual agent's base, or None), which its caller passes to ``obse
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -53,7 +55,16 @@ import numpy as np
 
 from controllers.base import SATURATION_FRACTION, ControllerContext
 from controllers.lab import LabBrief
-from turntable_env.envs.config import OBS, OBSERVATION_NAMES, check_action
+from turntable_env.envs.config import (
+    A_MAX,
+    A_MIN,
+    F_MAX,
+    MAX_CONTROL_INTERVAL,
+    OBS,
+    OBSERVATION_NAMES,
+    check_action,
+)
+from turntable_env.validation import check_finite, check_positive, describe
 
 from .identification import StepIdentifier
 from .residual import ResidualInterface, check_residual
@@ -66,6 +77,7 @@ __all__ = [
     "AgentWrapper",
     "InterfaceConfig",
     "RawInterface",
+    "interface_config",
     "make_agent_env",
     "make_interface",
 ]
@@ -96,19 +108,41 @@ class InterfaceConfig:
     action_cost: float = 0.0
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.deadzone < 1.0:
-            raise ValueError(f"deadzone={self.deadzone!r}: must be in [0, 1)")
-        if not 0.0 < self.amplitude_min <= self.amplitude_max:
+        # every field a finite real number within the range its use gives it, here (the
+        # amplifier's input limit and the control interval, which bound amplitude_max,
+        # offset_step and max_steps further, when the plant is known: AgentInterface)
+        if not 0.0 <= check_finite("deadzone", self.deadzone) < 1.0:
+            raise ValueError(f"deadzone={describe(self.deadzone)}: must be in [0, 1)")
+        lo = check_positive("amplitude_min", self.amplitude_min)
+        if check_positive("amplitude_max", self.amplitude_max) < lo:
             raise ValueError(
-                f"amplitude_min={self.amplitude_min!r}, amplitude_max={self.amplitude_max!r}: "
-                "need 0 < min <= max"
+                f"amplitude_min={describe(self.amplitude_min)}, "
+                f"amplitude_max={describe(self.amplitude_max)}: need 0 < min <= max"
             )
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps={self.max_steps!r}: must be a positive integer")
-        if self.offset_step <= 0.0:
-            raise ValueError(f"offset_step={self.offset_step!r}: must be > 0")
+        m = check_finite("max_steps", self.max_steps)
+        if m != int(m) or m < 1:
+            raise ValueError(f"max_steps={describe(self.max_steps)}: must be a positive integer")
+        most = F_MAX * MAX_CONTROL_INTERVAL  # the generator's 2 kHz over the longest interval
+        if m > most:
+            raise ValueError(
+                f"max_steps={describe(self.max_steps)}: must be <= {most:g} "
+                f"({F_MAX:g} Hz over at most {MAX_CONTROL_INTERVAL:g} s)"
+            )
+        check_positive("offset_step", self.offset_step)
+        if not A_MIN <= check_finite("ramp_ratio", self.ramp_ratio) <= A_MAX:
+            raise ValueError(
+                f"ramp_ratio={describe(self.ramp_ratio)}: must be in [{A_MIN}, {A_MAX}] "
+                "(the env's ramp_ratio action range)"
+            )
+        if not 0.0 <= check_finite("slew_adaptation", self.slew_adaptation) <= 1.0:
+            raise ValueError(
+                f"slew_adaptation={describe(self.slew_adaptation)}: must be in [0, 1] "
+                "(the env's slew_adaptation action range; 0: plain sawtooth)"
+            )
         if not isinstance(self.identify, bool):
             raise ValueError(f"identify={self.identify!r}: must be true or false")
+        if self.base is not None and not isinstance(self.base, str):
+            raise ValueError(f"base={describe(self.base)}: must be a base controller's name")
         if self.base is not None:
             check_residual(self.base, self.scale_max, self.action_cost)
             if self.identify:
@@ -128,9 +162,20 @@ class AgentInterface:
         self.config = config or InterfaceConfig()
         width = 8 + (StepIdentifier.n_features if self.config.identify else 0)
         self.observation_space = gym.spaces.Box(-3.0, 3.0, (width,), np.float32)
-        if self.config.max_steps / ctx.control_interval > 2000.0 + 1e-9:
+        if self.config.max_steps / ctx.control_interval > F_MAX + 1e-9:
             raise ValueError(
                 f"max_steps={self.config.max_steps!r}: above 2 kHz at Δt = {ctx.control_interval}"
+            )
+        # amplitudes the amplifier's input takes (±u_max), offset steps up to a full swing
+        if self.config.amplitude_max > ctx.input_limit:
+            raise ValueError(
+                f"amplitude_max={self.config.amplitude_max!r}: must be <= the amplifier's "
+                f"input limit, {ctx.input_limit:g} V"
+            )
+        if self.config.offset_step > 2.0 * ctx.input_limit:
+            raise ValueError(
+                f"offset_step={self.config.offset_step!r}: must be <= {2.0 * ctx.input_limit:g} V "
+                "(a full swing of the amplifier's input, ±u_max)"
             )
         self._log_norm = math.log1p(ctx.angle_range / ctx.tolerance)
 
@@ -254,12 +299,40 @@ class RawInterface:
         return check_action(action, (5,)).astype(np.float32)
 
 
+def interface_config(value: Any, name: str = "interface") -> InterfaceConfig:
+    """An :class:`InterfaceConfig` from ``value``: None (the defaults), an InterfaceConfig,
+    or a mapping of its fields; anything else, or an unknown key, is a ValueError naming
+    ``name`` and the key or the type (a field's bad value: its own ValueError, after
+    ``name``)."""
+    if value is None:
+        return InterfaceConfig()
+    if isinstance(value, InterfaceConfig):
+        return value
+    if not isinstance(value, Mapping):
+        raise ValueError(
+            f"{name}={describe(value)}: must be a mapping of InterfaceConfig fields, "
+            f"not a {type(value).__name__}"
+        )
+    known = [f.name for f in dataclasses.fields(InterfaceConfig)]
+    unknown = [k for k in value if k not in known]
+    if unknown:
+        raise ValueError(
+            f"{name}: unknown key {describe(unknown[0])} (the fields: {', '.join(known)})"
+        )
+    try:
+        return InterfaceConfig(**value)
+    except ValueError as e:  # a field's value: where it was given, e.g. in a config.yml
+        raise ValueError(f"{name}: {e}") from None
+
+
 def make_interface(
-    ctx: ControllerContext, config: InterfaceConfig | str | None = None
+    ctx: ControllerContext, config: InterfaceConfig | Mapping[str, Any] | str | None = None
 ) -> AgentInterface | RawInterface | ResidualInterface:
     """:class:`RawInterface` for ``config == RAW``; a residual agent's
     (:class:`~agents.residual.ResidualInterface`) for a config with a ``base``; else
-    :class:`AgentInterface`."""
+    :class:`AgentInterface` (a mapping: :func:`interface_config`'s)."""
+    if isinstance(config, Mapping):
+        config = interface_config(config)
     if isinstance(config, str):
         if config != RAW:
             raise ValueError(f"interface={config!r}: an InterfaceConfig, None or {RAW!r}")
@@ -271,14 +344,16 @@ def make_interface(
     return AgentInterface(ctx, config)
 
 
-def make_agent_env(interface: dict[str, Any] | None = None, **env_kwargs: Any) -> gym.Env:
+def make_agent_env(
+    interface: Mapping[str, Any] | InterfaceConfig | None = None, **env_kwargs: Any
+) -> gym.Env:
     """``PiezoTurntableAgent-v0``: ``PiezoTurntable-v0`` (``env_kwargs``) seen through
     :class:`AgentInterface` with ``interface`` (:class:`InterfaceConfig` fields): the
     8 features and the 3-D structured action the shipped agents use (with a ``base``, a
     residual agent's 10 features and 1-D action: :mod:`agents.residual`)."""
     from turntable_env.envs import PiezoTurntableEnv
 
-    cfg = InterfaceConfig(**(interface or {}))
+    cfg = interface_config(interface)  # checked before the env is built
     return AgentWrapper(PiezoTurntableEnv(**env_kwargs), cfg)
 
 

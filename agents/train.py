@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, InterfaceConfig
+from .interface import AGENT_ENV_ID, RAW, RAW_ENV_ID, interface_config
 
 __all__ = [
     "ALGOS",
@@ -231,7 +231,7 @@ def make_vec_env(
     kwargs = dict(cfg["env_kwargs"])
     steps = int(kwargs.pop("max_episode_steps", 100))
     iface = kwargs.pop("interface", None)
-    interface = RAW if env_id == RAW_ENV_ID else InterfaceConfig(**(iface or {}))
+    interface = RAW if env_id == RAW_ENV_ID else interface_config(iface)
     env = NativeVecEnv(n_envs, steps, interface, domains, **kwargs)
     env.seed(seed)
     return VecMonitor(env)
@@ -367,12 +367,32 @@ RUN_FILES = ("model.zip", "vecnormalize.pkl", "config.yml")  # what a run direct
 
 def run_config(run: str | Path, label: str) -> dict[str, Any]:
     """A run directory's config.yml, after checking it holds :data:`RUN_FILES`
-    (ValueError ``"<label>: <file> missing"``)."""
+    (ValueError ``"<label>: <file> missing"``), is YAML and a mapping with a ``run``
+    mapping (ValueError naming the file and what is wrong)."""
     d = Path(run)
     for name in RUN_FILES:
         if not (d / name).is_file():
             raise ValueError(f"{label}: {name} missing")
-    return yaml.safe_load((d / "config.yml").read_text(encoding="utf-8"))
+    path = "config.yml"
+    try:
+        cfg = yaml.safe_load((d / path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise ValueError(f"{label}: {path}: not UTF-8 text") from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        what = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise ValueError(f"{label}: {path}: not valid YAML ({what}{where})") from None
+    if not isinstance(cfg, dict):
+        kind = "empty" if cfg is None else f"a {type(cfg).__name__}"
+        raise ValueError(
+            f"{label}: {path}: must be a mapping of the run's entry and 'run', not {kind}"
+        )
+    if not isinstance(cfg.get("run"), dict):
+        raise ValueError(
+            f"{label}: {path}: no 'run' mapping (top-level keys: {sorted(map(str, cfg))})"
+        )
+    return cfg
 
 
 def _trained_run(run: str | Path, algo: str, env_id: str) -> Path:

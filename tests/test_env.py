@@ -156,6 +156,14 @@ def test_out_of_range_action_is_clipped():
         ({"retarget_legs": (5, 3)}, "retarget_legs"),
         ({"retarget_legs": (1.5, 3)}, "retarget_legs"),
         ({"retarget_legs": "ab"}, "retarget_legs"),
+        # bounded at make: a leg beyond the reference's 1000 intervals (10**30: numpy's
+        # "high is out of bounds for int64" at reset), a reward weight that overflows
+        ({"retarget_legs": (1, 10**30), "retarget_share": 1.0}, r"retarget_legs=\(1, 10+\)"),
+        ({"retarget_legs": (1, 1001)}, "retarget_legs"),
+        ({"energy_weight": 1e308}, r"energy_weight=1e\+308"),
+        ({"energy_weight": 1.1e6}, "energy_weight"),
+        ({"success_bonus": 1e308}, r"success_bonus=1e\+308"),
+        ({"success_bonus": 1.1e6}, "success_bonus"),
     ],
 )
 def test_bad_kwargs_raise_naming_field(kwargs, field):

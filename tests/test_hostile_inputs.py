@@ -417,3 +417,142 @@ def test_simulate_refuses_an_output_interval_that_would_exhaust_memory(model):
             simulate("real", {"B": w}, duration=1e-3, output_dt=1e-15)
         else:
             simulate_axes(["real"], [w], duration=1e-3, output_dt=1e-15)
+
+
+# --- 10. every config checked at make, naming the field: never a TypeError at make or a
+# --- failure (or a silent NaN) at the first step -------------------------------------------
+_NAN, _INF = float("nan"), float("inf")
+
+
+@pytest.mark.parametrize(
+    ("interface", "needle"),
+    [
+        ({"bogus": 1}, "unknown key 'bogus'"),
+        ([1, 2], r"interface=\[1, 2\]: must be a mapping"),
+        ("raw", "interface='raw'"),
+        ({"max_steps": _INF}, "max_steps=inf"),
+        ({"max_steps": _NAN}, "max_steps=nan"),
+        ({"max_steps": 2.5}, "max_steps=2.5"),
+        ({"max_steps": 10**400}, "max_steps"),
+        ({"deadzone": "0.2"}, "deadzone='0.2'"),
+        ({"amplitude_max": 100.0}, "amplitude_max=100.0"),  # above the amplifier's 10 V input
+        ({"amplitude_max": _INF}, "amplitude_max=inf"),
+        ({"amplitude_min": _NAN}, "amplitude_min=nan"),
+        ({"offset_step": _NAN}, "offset_step=nan"),
+        ({"offset_step": _INF}, "offset_step=inf"),
+        ({"offset_step": 25.0}, "offset_step=25.0"),  # beyond a full ±10 V swing
+        ({"ramp_ratio": _NAN}, "ramp_ratio=nan"),
+        ({"ramp_ratio": 2}, "ramp_ratio=2"),
+        ({"ramp_ratio": -1}, "ramp_ratio=-1"),
+        ({"ramp_ratio": 0.4}, "ramp_ratio=0.4"),  # below the action range's 0.5
+        ({"slew_adaptation": _INF}, "slew_adaptation=inf"),
+        ({"slew_adaptation": _NAN}, "slew_adaptation=nan"),  # was taken as 0, silently
+        ({"slew_adaptation": -5}, "slew_adaptation=-5"),  # likewise
+        ({"slew_adaptation": 1.5}, "slew_adaptation=1.5"),
+        ({"base": ["fuzzy"]}, "base"),
+    ],
+)
+def test_agent_env_refuses_a_bad_interface_at_make(interface, needle):
+    import agents  # noqa: F401  (registers PiezoTurntableAgent-v0)
+
+    with pytest.raises(ValueError, match=needle):
+        gym.make("PiezoTurntableAgent-v0", interface=interface)
+
+
+@pytest.mark.parametrize(
+    "interface",
+    [
+        {"amplitude_max": 10.0, "max_steps": 20.0},  # an integral float, as YAML may give it
+        {"ramp_ratio": 0.5, "slew_adaptation": 0.0, "offset_step": 20.0},
+        {"ramp_ratio": 0.99, "slew_adaptation": 1.0, "amplitude_min": 10.0},
+    ],
+)
+def test_agent_env_takes_the_interface_ranges_ends_and_steps_finitely(interface):
+    import agents  # noqa: F401
+
+    env = gym.make("PiezoTurntableAgent-v0", interface=interface)
+    env.reset(seed=0)
+    for a in ([1.0, 1.0, 1.0], [-1.0, -1.0, -1.0], [0.5, 0.0, 0.0]):
+        obs, r, *_ = env.step(np.array(a, dtype=np.float32))
+        assert math.isfinite(r) and np.isfinite(obs).all()
+
+
+def test_the_largest_reward_weights_keep_the_reward_finite():
+    env = gym.make("PiezoTurntable-v0", energy_weight=1e6, success_bonus=1e6, tolerance=1.0)
+    env.reset(seed=0)
+    for _ in range(3):  # full amplitude at 2 kHz: the most energy an interval takes
+        _, r, *_ = env.step(np.array([1.0, 1.0, 1.0, 1.0, 0.0]))
+        assert math.isfinite(r)
+
+
+def test_retarget_legs_up_to_the_reference_length_reset():
+    env = gym.make("PiezoTurntable-v0", retarget_legs=(1, 1000), retarget_share=1.0)
+    env.reset(seed=0)
+
+
+@pytest.mark.parametrize("num_envs", [10**6, 65537])
+def test_num_envs_is_bounded_before_anything_is_allocated(num_envs):
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=f"num_envs={num_envs}: must be <= 65536"):
+        gym.make_vec(
+            "PiezoTurntable-v0", num_envs=num_envs, vectorization_mode="vector_entry_point"
+        )
+    assert time.perf_counter() - t0 < 5.0  # refused, not built (10**6: MemoryError after 16 s)
+
+
+def _agent_run(tmp_path: Path, text: str | bytes) -> Path:
+    """A copy of the shipped PPO agent's run directory with ``text`` as its config.yml."""
+    d = tmp_path / "run"
+    d.mkdir()
+    for name in ("model.zip", "vecnormalize.pkl"):
+        (d / name).write_bytes((ROOT / "agents/pretrained/ppo" / name).read_bytes())
+    cfg = d / "config.yml"
+    cfg.write_bytes(text) if isinstance(text, bytes) else cfg.write_text(text, encoding="utf-8")
+    return d
+
+
+def _shipped_ppo_config() -> str:
+    return (ROOT / "agents/pretrained/ppo/config.yml").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        (lambda t: "junk: [\n", "not valid YAML"),
+        (lambda t: "[1, 2]\n", "not a list"),
+        (lambda t: "", "not empty"),
+        (lambda t: b"\xff\xfe\x00junk", "not UTF-8"),
+        (lambda t: t.replace("run:\n", "runs:\n"), "no 'run' mapping"),
+        (lambda t: t.replace("PiezoTurntable-v0:", "Bogus-v0:"), "no 'PiezoTurntable-v0' entry"),
+        (lambda t: t.replace("algo: ppo", "algo: a2c"), "run.algo='a2c'"),
+        (lambda t: t.replace("  seed: 0\n", "  seed: 0\n  env_id: Bogus-v0\n"), "run.env_id"),
+        (lambda t: t.replace("max_steps: 20", "max_steps: .nan"), "max_steps=nan"),
+        (lambda t: t.replace("max_steps: 20", "maxsteps: 20"), "unknown key 'maxsteps'"),
+        (lambda t: t.replace("  interface:\n", "  interface: [1]\n  x:\n"), "interface=[1]:"),
+        (lambda t: t.replace("n_envs: 16", "n_envs: 16\n  frame_stack: 0"), "frame_stack=0"),
+    ],
+)
+def test_a_bad_agent_run_config_is_refused_before_the_benchmark(change, needle, tmp_path, capsys):
+    """``turntable benchmark --agent NAME=DIR``: a config.yml that does not parse, is not a
+    mapping, or lacks (or spoils) what the agent is built from is refused when the run is
+    read, exit 2 with one line naming the file: not a traceback, not a KeyError in the
+    benchmark's first seconds."""
+    d = _agent_run(tmp_path, change(_shipped_ppo_config()))
+    t0 = time.perf_counter()
+    rc = main(["benchmark", "--agent", f"bad_run={d}", "--quick", "--out", str(tmp_path / "o")])
+    _one_line_exit_2(capsys, rc, "config.yml", needle)
+    assert time.perf_counter() - t0 < 30.0  # refused when read, not once the benchmark ran
+    assert not (tmp_path / "o").exists()
+
+
+def test_every_shipped_run_config_passes_the_check():
+    from agents import pretrained
+    from agents.controller import check_run_config, interface_of
+    from agents.train import run_config
+
+    runs = pretrained()
+    assert {"ppo", "sac", "ppo_residual"} <= set(runs)
+    for d in runs.values():
+        cfg = run_config(d, str(d))
+        check_run_config(cfg)
+        interface_of(cfg)

@@ -19,11 +19,13 @@ import numpy as np
 
 from ..params import ParameterSet
 from ..plant import DEFAULT_RANDOMIZATION, FIDELITIES, NAMED_PLANTS, PARAMETER_SETS, Plant
-from ..validation import check_nonnegative, check_positive
+from ..validation import check_nonnegative, check_positive, describe
 
 __all__ = [
     "ACTION_NAMES",
     "DEFAULT_RANDOMIZATION",
+    "MAX_NUM_ENVS",
+    "MAX_REWARD_WEIGHT",
     "OBS",
     "OBSERVATION_NAMES",
     "OBSERVATION_NAMES_Y",
@@ -161,6 +163,13 @@ def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
 
 MAX_CONTROL_INTERVAL = 10.0  # s: one env step at most (a frozen env below one grid step)
 RETARGET_HORIZON = 1000  # control intervals of a retargeting episode's legs (the last holds)
+# a reward term's weight (energy_weight, success_bonus) at most: the energy term is
+# w·E/E_ref, E/E_ref (in full-amplitude periods) of order 10⁴ at most in an interval
+# (2 kHz × 10 s), so no reward can overflow; 10⁶ is far beyond any useful weight (0.01, 1)
+MAX_REWARD_WEIGHT = 1e6
+# turntables of one vector env at most, checked before anything is allocated: each takes
+# ~120 kB (state, plant, generator), so 2¹⁶ is ~8 GB, more than any machine here trains on
+MAX_NUM_ENVS = 65536
 
 
 def _pair(name: str, value: Any) -> tuple[Any, Any]:
@@ -211,7 +220,8 @@ class EnvConfig:
         terminate_on_success: end the episode when the tolerance is reached (True, default);
             False keeps it running to the time limit, so a controller must also hold the
             target (the controller benchmark measures settling this way).
-        energy_weight: weight of the electrical-energy cost in the reward [-].
+        energy_weight: weight of the electrical-energy cost in the reward [-], 0 …
+            :data:`MAX_REWARD_WEIGHT`.
         start_range: start angles are drawn uniformly within ±start_range·θ_lin, θ_lin the
             detector's linear angle range [-].
         target_range: target angles likewise, within ±target_range·θ_lin [-].
@@ -223,7 +233,7 @@ class EnvConfig:
             −ln(1 + d/tol)/ln(1 + θ_lin/tol), which resolves every decade from the
             tolerance up (d = |θ* − θ|, tol = ``tolerance``).
         success_bonus: reward added in every interval that ends within ``tolerance`` [-]
-            (0: none; a training aid for holding the target).
+            (0: none; a training aid for holding the target), 0 … :data:`MAX_REWARD_WEIGHT`.
         retarget_share: share of episodes whose target jumps [-] (0, the default: every
             target fixed): such an episode holds each target for a leg of
             ``retarget_legs`` control intervals (integers drawn uniformly, both ends
@@ -232,7 +242,8 @@ class EnvConfig:
             training meets a controller holding one target when the next is commanded.
             The legs are a ``reference`` (reset option) of :data:`RETARGET_HORIZON`
             intervals; an episode given a reference or a target keeps it.
-        retarget_legs: (shortest, longest) leg [control intervals], 1 <= low <= high.
+        retarget_legs: (shortest, longest) leg [control intervals], 1 <= low <= high <=
+            :data:`RETARGET_HORIZON`.
         angle_limit: |θ| beyond which the episode is truncated (the table leaves the
             small-angle workspace the model covers) [rad].
     """
@@ -278,7 +289,12 @@ class EnvConfig:
         check_positive("tolerance", self.tolerance)
         if not isinstance(self.terminate_on_success, bool):
             raise ValueError(f"terminate_on_success={self.terminate_on_success!r}: must be a bool")
-        check_nonnegative("energy_weight", self.energy_weight)
+        for name in ("energy_weight", "success_bonus"):
+            if check_nonnegative(name, getattr(self, name)) > MAX_REWARD_WEIGHT:
+                raise ValueError(
+                    f"{name}={describe(getattr(self, name))}: must be <= {MAX_REWARD_WEIGHT:g} "
+                    "(a reward weight)"
+                )
         for name in ("start_range", "target_range"):
             v = check_nonnegative(name, getattr(self, name))
             if v > 1.0:
@@ -289,15 +305,17 @@ class EnvConfig:
             if lo > hi or hi >= self.angle_limit:
                 raise ValueError(f"move_range={self.move_range!r}: need low <= high < angle_limit")
             object.__setattr__(self, "move_range", (lo, hi))
-        check_nonnegative("success_bonus", self.success_bonus)
         share = check_nonnegative("retarget_share", self.retarget_share)
         if share > 1.0:
             raise ValueError(f"retarget_share={share!r}: must be <= 1 (a share of episodes)")
         legs = _pair("retarget_legs", self.retarget_legs)
         if not all(isinstance(x, int | np.integer) and not isinstance(x, bool) for x in legs):
             raise ValueError(f"retarget_legs={self.retarget_legs!r}: must be two integers")
-        if not 1 <= legs[0] <= legs[1]:
-            raise ValueError(f"retarget_legs={self.retarget_legs!r}: need 1 <= low <= high")
+        if not 1 <= legs[0] <= legs[1] <= RETARGET_HORIZON:
+            raise ValueError(
+                f"retarget_legs={self.retarget_legs!r}: need 1 <= low <= high <= "
+                f"{RETARGET_HORIZON} (the reference's intervals)"
+            )
         object.__setattr__(self, "retarget_legs", (int(legs[0]), int(legs[1])))
         if self.reward not in ("linear", "log"):
             raise ValueError(f"reward={self.reward!r}: must be 'linear' or 'log'")

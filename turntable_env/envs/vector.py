@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..validation import check_int
-from .config import make_config
+from .config import MAX_NUM_ENVS, make_config
 from .core import TurntableTask
 from .piezo_turntable import action_space, observation_space
 
@@ -42,7 +42,7 @@ class PiezoTurntableVectorEnv(VectorEnv):
     resets only the masked ones.
 
     Args:
-        num_envs: number of turntables N.
+        num_envs: number of turntables N, 1 … :data:`~.config.MAX_NUM_ENVS` (65536).
         max_episode_steps: time limit in steps (None: no limit).
         render_mode: None or ``"rgb_array"`` (a tuple of N frames).
         **kwargs: :class:`~turntable_env.envs.config.EnvConfig` arguments.
@@ -63,6 +63,8 @@ class PiezoTurntableVectorEnv(VectorEnv):
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r}: must be a positive integer")
+        if num_envs > MAX_NUM_ENVS:  # before anything is allocated (~120 kB a turntable)
+            raise ValueError(f"num_envs={num_envs!r}: must be <= {MAX_NUM_ENVS}")
         if max_episode_steps is not None:
             check_int("max_episode_steps", max_episode_steps, 1)
         if render_mode not in (None, "rgb_array"):
