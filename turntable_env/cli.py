@@ -103,7 +103,7 @@ def _cmd_params(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .model import SimulationError
     from .plant import as_plant
-    from .simulation import MAX_OUTPUT_SAMPLES, simulate, simulate_axes, stepping_drive
+    from .simulation import check_output_samples, simulate, simulate_axes, stepping_drive
 
     if args.cycles is not None and args.signal != "two":
         raise ValueError(f"--cycles={args.cycles}: only with --signal two (forward-back cycles)")
@@ -134,12 +134,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"--periods/--cycles/--frequency/--settle: {duration:.6g} s to simulate, more than "
             f"{MAX_DURATION:g} s"
         )
-    if duration / output_dt > MAX_OUTPUT_SAMPLES:
-        raise ValueError(
-            f"--output-dt={output_dt:g} s over {duration:g} s (drive and --settle) would record "
-            f"{duration / output_dt:.3g} samples, more than {MAX_OUTPUT_SAMPLES:g}: raise "
-            "--output-dt"
-        )
+    check_output_samples(duration, output_dt, name="--output-dt")  # drive and --settle
     if args.model == "full":  # the 3-D model's fine step is dt-factor/ω_max
         from .plant.models import turntable_model
 

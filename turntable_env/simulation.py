@@ -27,19 +27,24 @@ from .validation import check_nonnegative, check_positive
 MAX_OUTPUT_SAMPLES = 20_000_000  # samples one run may record (≈ 1 GB of response arrays)
 
 
-def check_output_samples(duration: float, output_dt: float, n_runs: int = 1) -> None:
-    """ValueError naming ``output_dt`` where ``n_runs`` runs over ``duration`` [s] would
-    record more than :data:`MAX_OUTPUT_SAMPLES` samples, before any array is allocated."""
-    n = check_positive("duration", duration) / check_positive("output_dt", output_dt) * n_runs
+def check_output_samples(
+    duration: float, output_dt: float, n_runs: int = 1, name: str = "output_dt"
+) -> None:
+    """ValueError naming ``name`` (the sample interval's, ``output_dt`` [s]) where ``n_runs``
+    runs over ``duration`` [s] would record more than :data:`MAX_OUTPUT_SAMPLES` samples,
+    before any array is allocated."""
+    n = check_positive("duration", duration) / check_positive(name, output_dt) * n_runs
     if n > MAX_OUTPUT_SAMPLES:
         raise ValueError(
-            f"output_dt={output_dt:g} s over {duration:g} s would record {n:.3g} samples, "
-            f"more than {MAX_OUTPUT_SAMPLES:g}: raise output_dt"
+            f"{name}={output_dt:g} s over {duration:g} s would record {n:.3g} samples, "
+            f"more than {MAX_OUTPUT_SAMPLES:g}: raise {name}"
         )
 
 __all__ = [
     "AMPLIFIER_MODES",
+    "MAX_OUTPUT_SAMPLES",
     "TWO_DIRECTIONAL_CYCLES",
+    "check_output_samples",
     "cycle_minima",
     "simulate",
     "simulate_axes",
