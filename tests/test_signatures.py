@@ -262,6 +262,40 @@ def test_direction_pairs_weigh_alike(alpha, rests):
         assert s["nats"] > SIGNIFICANT_NATS and loo > SIGNIFICANT_NATS
 
 
+def test_three_pairs_are_weighed_as_the_search_weighs_them():
+    """Three direction pairs, the first with a hundredth of the others' noise, all missed
+    by the current model. A candidate that brings the two noisier pairs ten times closer
+    and leaves the quiet one three times further off lowers the search's objective
+    (the pairs weighed by noise plus the common misfit variance) and must gain in the
+    scores too. Until stop 70 a group of fewer than n_free + 3 features was scored on the
+    bare noise, so the quiet pair alone decided: the third independent plant's friction
+    asymmetry, its objective lowered from 3.00 to 0.19, was scored −90 005.5 nats."""
+    names = tuple(f"pair {k}" for k in range(3))
+    data = Features(names, ("direction",) * 3, np.zeros(3), np.array([1e-3, 0.1, 0.1]))
+    current = data._replace(value=np.array([0.01, 1.0, 1.0]))
+    cand = data._replace(value=np.array([0.03, 0.1, 0.1]))
+    s = group_scores(data, current, cand)["direction"]
+    bare = float(np.sum((current.value / data.noise) ** 2 - (cand.value / data.noise) ** 2))
+    assert bare < 0  # on the bare noise the quiet pair would call it worse
+    assert s["scored"] and s["misfit_sd"] > 0
+    assert s["rss_b"] == pytest.approx(2.0)  # τ² from the richer model's n − 1 dof
+    assert s["nats"] > SIGNIFICANT_NATS
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_one_or_two_settings_are_not_scored(n):
+    """One or two direction pairs cannot tell a constant asymmetry from one setting's
+    misfit, nor be checked with a pair left out: they gain 0 nats, however large the
+    change (the third plant's clean trace, one pair, gave friction asymmetry 22 593 nats
+    on its own geometric direction asymmetry at stop 69)."""
+    names = tuple(f"pair {k}" for k in range(n))
+    data = Features(names, ("direction",) * n, np.full(n, -0.035), np.full(n, 3e-4))
+    current = data._replace(value=np.zeros(n))
+    s = group_scores(data, current, data)["direction"]
+    assert not s["scored"] and s["nats"] == 0.0 and s["rss_a"] > 1e4
+    assert leave_one_out(data, current, data, ("direction",)) == (0.0, "")
+
+
 @pytest.mark.parametrize(
     ("residual", "noise", "dof", "tau2"),
     [
@@ -323,7 +357,7 @@ def test_leave_one_out_finds_a_gain_that_rests_on_one_feature(model, rests):
     else:
         assert loo > SIGNIFICANT_NATS
     # the scan shapes are not one quantity repeated (a detector's cubic shows in the widest
-    # scan): a gain there is kept whole, as a single y slope's is
+    # scan): a gain there is kept whole; a single direction pair is not scored (0 both ways)
     shape = data._replace(groups=("scan_shape",) * 5)
     for feats, group in ((shape, "scan_shape"), (data.subset(np.arange(5) == 4), "direction")):
         a, b = current.subset(np.isin(data.names, feats.names)), cand.subset(

@@ -54,6 +54,7 @@ from ..effects import CATALOGUE
 from .signatures import (
     EFFECT_GROUPS,
     REPEATED_GROUPS,
+    REPEATED_MIN,
     SIGNATURE_GROUPS,
     Features,
     SignatureLayout,
@@ -105,7 +106,7 @@ TIE_NATS = 2.0  # a lead under this over the runner-up is a tie (likelihood rati
 SUPPORT_NATS = TIE_NATS
 LINE_P_VALUE = 1e-3  # false-alarm probability of a spectral line over the whole search
 POWELL_EVALS = 40  # objective evaluations of the bounded search per candidate
-JACKKNIFE_MIN = 3  # features a group needs for its leave-one-out check
+JACKKNIFE_MIN = REPEATED_MIN  # features a group needs for its leave-one-out check
 # groups whose features repeat one quantity over the protocol's settings, so an effect's
 # signature must show in more than one of them: the direction pairs (a friction level
 # changes every setting's ratio). Not the scan shapes (a detector's cubic shows in the

@@ -64,6 +64,8 @@ pairs) the misfit is a common variance τ² added to each feature's noise varian
 a factor on it: the misfit of a model of another structure is of one size at every setting,
 where the detector noise of a steady step falls with the samples averaged, so a factor
 would weigh the pair with most samples many times the others and a gain would rest on it.
+Such a group is scored only with :data:`REPEATED_MIN` settings or more (one or two cannot
+tell an effect's signature from one setting's misfit); with fewer it gains 0 nats.
 """
 
 from __future__ import annotations
@@ -82,6 +84,7 @@ __all__ = [
     "GROUPS",
     "NOMINAL_GROUPS",
     "REPEATED_GROUPS",
+    "REPEATED_MIN",
     "SIGNATURE_GROUPS",
     "Features",
     "SignatureLayout",
@@ -99,6 +102,10 @@ GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "line", "y")
 # the groups of one quantity repeated over the protocol's settings (one unit, one misfit
 # size): a model's misfit there is a variance common to every feature (:func:`group_scores`)
 REPEATED_GROUPS = ("direction",)
+# settings a repeated group needs to be scored at all: with fewer, one setting's misfit
+# (which a model of another structure leaves somewhere) cannot be told from an effect's
+# signature, nor can any feature be left out (:func:`group_scores`)
+REPEATED_MIN = 3
 # the groups no effect is needed for: the nominal model's own (stroke, friction, gain)
 NOMINAL_GROUPS = ("steps", "scan")
 # the groups an effect's signature lies in: decisions are scored on these
@@ -498,28 +505,38 @@ def group_scores(
     Whitened residuals z = (data − model)/noise; RSS_a, RSS_b; the variance scale
     s² = max(1, RSS_b/(n − n_free)) when the group has at least
     ``n_free`` + 3 features, else 1 (an F-test's variance from the richer model: a group
-    both models miss by far is judged by that misfit, not by the detector noise); in a
-    group of :data:`REPEATED_GROUPS` with that many features the residuals are whitened
-    by √(noise² + τ²) instead, τ² the richer model's common misfit variance
-    (:func:`misfit_variance` with n − n_free degrees of freedom; ``misfit_sd`` = τ), and
-    s² = 1; ``delta`` = (RSS_a − RSS_b)/s² (χ² with ``n_free`` degrees of freedom under
-    "b adds nothing") and ``nats`` = delta/2."""
+    both models miss by far is judged by that misfit, not by the detector noise).
+
+    A group of :data:`REPEATED_GROUPS` (one quantity over the protocol's settings) is
+    whitened by √(noise² + τ²) instead, τ² the richer model's common misfit variance
+    (:func:`misfit_variance` with max(1, n − n_free) degrees of freedom; ``misfit_sd`` =
+    τ), s² = 1, whenever it has :data:`REPEATED_MIN` features or more — the rule the
+    candidates' search weighs them by (:meth:`.identify.SignatureSearch._weights`), so a
+    search that improves its objective is not scored by another one (stop 70: with three
+    pairs, the third plant's friction asymmetry lowered its objective from 3.00 to 0.19
+    and was scored −90 005.5 nats on the bare noise of its most precise pair). With fewer
+    features it scores 0 (``scored`` False): one or two settings cannot tell an effect's
+    signature from one setting's misfit, nor be checked with a feature left out.
+    ``delta`` = (RSS_a − RSS_b)/s² (χ² with ``n_free`` degrees of freedom under "b adds
+    nothing") and ``nats`` = delta/2."""
     out = {}
     for g in GROUPS:
         m = data.group(g)
         n = int(m.sum())
         if n == 0:
             continue
-        enough = n >= n_free + 3
+        repeated = g in REPEATED_GROUPS
+        scored = not repeated or n >= REPEATED_MIN
         sd = data.noise[m]
         tau2 = 0.0
-        if enough and g in REPEATED_GROUPS:
-            tau2 = misfit_variance(data.value[m] - model_b.value[m], sd, n - n_free)
+        if repeated and scored:
+            tau2 = misfit_variance(data.value[m] - model_b.value[m], sd, max(1, n - n_free))
             sd = np.sqrt(sd**2 + tau2)
         za = (data.value[m] - model_a.value[m]) / sd
         zb = (data.value[m] - model_b.value[m]) / sd
         ra, rb = float(za @ za), float(zb @ zb)
-        s2 = max(1.0, rb / (n - n_free)) if enough and g not in REPEATED_GROUPS else 1.0
+        s2 = max(1.0, rb / (n - n_free)) if n >= n_free + 3 and not repeated else 1.0
+        delta = (ra - rb) / s2 if scored else 0.0
         out[g] = {"n": n, "rss_a": ra, "rss_b": rb, "scale": s2, "misfit_sd": math.sqrt(tau2),
-                  "delta": (ra - rb) / s2, "nats": 0.5 * (ra - rb) / s2}  # fmt: skip
+                  "delta": delta, "nats": 0.5 * delta, "scored": scored}  # fmt: skip
     return out
