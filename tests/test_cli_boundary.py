@@ -79,6 +79,10 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["virtual-lab", "--out", "/tmp"], "--out"),
         (["calibrate", "--thesis", "--report", NOT_A_DIR], "--report"),
         (["calibrate", "missing.csv", "--report", "rep"], "missing.csv"),
+        # a control character in a name is written escaped: still one line
+        (["calibrate", "miss\ning.csv", "--report", "rep"], "miss\\ning.csv"),
+        (["simulate", "--amplitude", "1\n2"], "--amplitude"),
+        (["calibrate", "--thesis", "--report", "/etc/hostname/\x1b[2J"], "\\x1b[2J"),
         (["calibrate", "--global-points", "0", "--thesis"], "--global-points"),
         (["report", "--out", NOT_A_DIR], "--out"),
         (["params", "--set", "lunar"], "--set"),

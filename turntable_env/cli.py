@@ -32,11 +32,18 @@ RAMP_RATIO_RANGE = (0.01, 0.999)  # ramp and flyback each at least 0.1 % of a pe
 MAX_STEPS = 1e10  # fine integration steps (duration·ω_max/--dt-factor) of a full-model run
 
 
+def one_line(text: object) -> str:
+    """``text`` as one printable line: a control character (a newline in a file name, a
+    tab, an escape) written as Python writes it in a string literal (\\n, \\t, \\x1b), so
+    an error is one line on stderr whatever the input it names."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with one line on stderr and exit code 2 for a bad command line."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
 
 
 def _real(
@@ -167,7 +174,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             out = {"model": "full", **r.summary()}
             out["mean_abs_step_um"] = out.pop("step_um")
     except SimulationError as exc:
-        print(f"turntable: error: {exc}", file=sys.stderr)
+        print(f"turntable: error: {one_line(exc)}", file=sys.stderr)
         return 3
     two = drive.pattern == "two"
     fig = r.figure_step(drive.n_periods, two)  # from the angle where the detector saturates
@@ -609,14 +616,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("turntable: terminated", file=sys.stderr)
         return 143
     except ValueError as exc:
-        print(f"turntable: error: {exc}", file=sys.stderr)
+        print(f"turntable: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # `turntable params --json | head`: the reader has gone
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"turntable: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        print(f"turntable: error: {one_line(f'{where}{exc.strerror or exc}')}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("turntable: interrupted", file=sys.stderr)
