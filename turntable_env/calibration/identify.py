@@ -403,6 +403,10 @@ class SignatureSearch:
                          "refit decides)")  # fmt: skip
         if size < 1.0:
             notes.append(f"changes the trace by {size:.2f}× the noise floor only")
+        for g in declared:
+            if g in scores and not scores[g]["scored"]:
+                notes.append(f"{g}: {scores[g]['n']} setting(s), not scored (fewer than "
+                             f"{REPEATED_MIN} cannot tell it from one setting's misfit)")
         level = significance_nats(len(free))
         if gain >= level > loo:
             notes.append(f"its gain rests on one feature: {loo:.1f} nats without {weakest}")
