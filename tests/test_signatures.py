@@ -5,6 +5,7 @@ margins."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -214,6 +215,26 @@ def test_y_slope_is_the_tangent_of_the_misalignment(proto):
     x = _position(t, u, segs, bursts)
     _lay, f = _features(proto, x, math.tan(0.05) * x)
     assert _group(f, "y")[0] == pytest.approx(math.tan(0.05), rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("ramp_ratios", "pairs"),
+    [
+        ((math.nan,) * 4, [(0, 1), (2, 3)]),  # not read: paired by amplitude, frequency
+        ((0.97, 0.99, 0.985, 0.99), [(2, 1)]),  # 0.97 against 0.99: two samples apart
+        ((0.99, 0.99, 0.99, 0.981), [(0, 1), (2, 3)]),  # within one sample of flyback
+        ((0.99, 0.99, 0.99, 0.975), [(0, 1)]),  # more than one
+    ],
+)
+def test_opposite_bursts_pair_only_at_one_ramp_ratio(proto, ramp_ratios, pairs):
+    """A direction pair compares one setting both ways: bursts whose ramp ratios are read
+    a sample interval of flyback or more apart are two settings (the third plant's
+    protocol mixed a = 0.97 and 0.99 at 200 Hz into −68 % of 'asymmetry')."""
+    t, u, segs, _b = proto
+    it = iter(ramp_ratios)
+    segs = [replace(s, ramp_ratio=next(it), flyback_resolution=0.01) if s.kind == "steps"
+            else s for s in segs]  # fmt: skip
+    assert SignatureLayout(t, u, segs, SIGMA).pairs == pairs
 
 
 def test_group_scores_is_an_f_test():

@@ -40,6 +40,49 @@ def test_single_sample_drops_are_read_as_steps_with_their_timing_uncertainty(lsb
     assert before == pytest.approx(2.0, abs=0.05) and after == pytest.approx(0.0, abs=0.01)
 
 
+def _linear_flyback_sawtooth(f, a, periods, fs=20e3, amp=3.0, hold=0.0201234, sign=1.0):
+    """A sawtooth whose flyback falls linearly over (1 − a)/f, sampled at fs with the
+    flybacks at an arbitrary phase of the samples (as a generator's clock runs), between
+    two holds; ``sign`` −1 runs it backwards (ramp down, fly back up)."""
+    t = np.arange(0.0, 2 * hold + periods / f, 1.0 / fs)
+    ph = (t - hold) * f
+    on = (ph >= 0) & (ph < periods)
+    x = ph % 1.0
+    u = np.where(x < a, x / a, (1.0 - x) / (1.0 - a)) * amp
+    return t, np.where(on, sign * u, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("f", "a", "periods"),
+    [
+        (200.0, 0.99, 4),  # a flyback of one sample interval
+        (200.0, 0.97, 4),  # three: the third independent plant mixes these two at 200 Hz
+        (200.0, 0.90, 3),
+        (100.0, 0.95, 5),
+        (2000.0, 0.99, 20),  # a tenth of a sample: read as one interval
+        (200.0, 0.6, 4),  # resolved: read as a ramp flyback from the slower half
+        (100.0, 0.99, 1),  # one period: its flyback of two samples is one flyback
+    ],
+)
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_bursts_ramp_ratio_is_read_within_one_sample_of_flyback(f, a, periods, sign):
+    """The ramp ratio a as read from a sampled drive: within one sample interval × f of
+    the generator's (to a tenth of that where the flyback holds a whole sample, ≥ two
+    intervals), the direction, frequency and amplitude right (the amplitude to the ramp's
+    rise over a sample: the peak falls between samples), also for a single period."""
+    t, u = _linear_flyback_sawtooth(f, a, periods, sign=sign)
+    steps = [s for s in segment_trace(read_drive(t, u), t[-1]) if s.kind == "steps"]
+    assert len(steps) == 1, steps
+    s = steps[0]
+    assert s.flyback_resolution == pytest.approx(s.frequency / 20e3)
+    assert abs(s.ramp_ratio - a) <= s.flyback_resolution + 1e-9, (s.ramp_ratio, a)
+    if (1.0 - a) / f >= 2.0 / 20e3 and s.flyback != "ramp":
+        assert s.ramp_ratio == pytest.approx(a, abs=0.1 * s.flyback_resolution)
+    assert s.direction == sign
+    assert s.amplitude == pytest.approx(3.0, rel=0.01 + f / 20e3 / a)
+    assert s.frequency == pytest.approx(f, rel=0.05) and s.periods == periods
+
+
 def test_declared_recording_is_honoured_and_a_bad_one_is_named():
     t, u = _sampled_sawtooth()
     assert read_drive(t, u, {"drive_recording": "breakpoints"}).recording == "breakpoints"

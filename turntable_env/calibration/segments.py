@@ -195,6 +195,14 @@ class Segment:
             ``"ramp"`` (a resolved slow flyback) or ``""``.
         periods: sawtooth periods in a burst.
         portion: ``"fit"`` or ``"heldout"``.
+        ramp_ratio: a burst's ramp ratio a [-] as read (the share of a period not in its
+            flyback: 1 − the median flyback's duration × frequency, a jump read from
+            samples lasting one sample interval; the slower half's share of a period
+            for resolved flybacks); nan otherwise. Not part of :attr:`condition`: two
+            readings within a sample interval of flyback cannot be told apart (see
+            :attr:`flyback_resolution`).
+        flyback_resolution: how far apart two bursts' ``ramp_ratio`` may be read for one
+            setting [-]: one sample interval × frequency (0 for breakpoints).
     """
 
     start: float
@@ -206,6 +214,8 @@ class Segment:
     flyback: str = ""
     periods: int = 0
     portion: Literal["fit", "heldout"] = "fit"
+    ramp_ratio: float = math.nan
+    flyback_resolution: float = 0.0
 
     @property
     def condition(self) -> str:
@@ -244,10 +254,22 @@ def _quiet_runs(t: np.ndarray, u: np.ndarray) -> list[tuple[float, float]]:
     return runs
 
 
+def _flyback_duration(group: list[float], t: np.ndarray, u: np.ndarray, jump_s: float) -> float:
+    """How long a flyback read as the jumps ``group`` [s] lasts [s]: ``jump_s`` (one sample
+    interval) × its whole drop over its largest jump's. A sampled linear flyback of D ≥ 2
+    intervals has a sample wholly inside it, so D is read exactly; a shorter one reads
+    between one and two intervals (how the drop falls on the samples); 0 for breakpoints."""
+    j = np.asarray(group)
+    drops = np.interp(j - 1e-8, t, u) - np.interp(j + 2e-9, t, u)
+    big = float(np.max(np.abs(drops)))
+    return jump_s * abs(float(np.sum(drops))) / big if big > 0.0 else jump_s
+
+
 def _describe_active(
-    t0: float, t1: float, t: np.ndarray, u: np.ndarray, jumps: np.ndarray
+    t0: float, t1: float, t: np.ndarray, u: np.ndarray, jumps: np.ndarray, jump_s: float
 ) -> Segment:
-    """Kind and condition of an active stretch [t0, t1] of the drive."""
+    """Kind and condition of an active stretch [t0, t1] of the drive (``jump_s``: how
+    long a jump read from samples lasts [s], the sample interval; 0 for breakpoints)."""
     sel = (t >= t0) & (t <= t1)
     ts, us = t[sel], u[sel]
     js = jumps[(jumps > t0) & (jumps <= t1)]
@@ -255,8 +277,10 @@ def _describe_active(
     if js.size >= 1:
         # merge jumps of one flyback (overshoot then return), then the period
         gaps = np.diff(js)
-        # the period from the long gaps (an overshooting flyback adds a short one)
-        period = float(np.median(gaps[gaps > 0.3 * gaps.max()])) if gaps.size else (t1 - t0)
+        # the period from the long gaps (an overshooting flyback adds a short one; one read
+        # over several samples, a jump per sample): a single period has none
+        far = gaps[gaps > 1.5 * jump_s]
+        period = float(np.median(far[far > 0.3 * far.max()])) if far.size else (t1 - t0)
         groups = [[js[0]]]
         for a, g in zip(js[1:], gaps, strict=True):
             if g < FLYBACK_MERGE * period:
@@ -271,9 +295,12 @@ def _describe_active(
         direction = 1 if drop > 0 else -1
         amplitude = abs(drop)
         overshoot = any(len(g) > 1 for g in groups)
+        freq = 1.0 / period if period > 0 else 0.0
+        fly = float(np.median([_flyback_duration(g, t, u, jump_s) for g in groups]))
         return Segment(
-            t0, t1, "steps", direction, round(amplitude, 3), 1.0 / period if period > 0 else 0.0,
+            t0, t1, "steps", direction, round(amplitude, 3), freq,
             "overshoot" if overshoot else "jump", len(groups),
+            ramp_ratio=max(0.0, 1.0 - fly * freq), flyback_resolution=jump_s * freq,
         )  # fmt: skip
     # no jumps: a scan if monotonic, else a burst with resolved (ramp) flybacks
     du = np.diff(us)
@@ -294,9 +321,12 @@ def _describe_active(
     up_time = float(np.sum(np.diff(ts)[du > 0]))
     dn_time = float(np.sum(np.diff(ts)[du < 0]))
     direction = 1 if up_time >= dn_time else -1
+    freq = 1.0 / period if period > 0 else 0.0
     return Segment(
-        t0, t1, "steps", direction, round(amp, 3), 1.0 / period if period > 0 else 0.0,
+        t0, t1, "steps", direction, round(amp, 3), freq,
         "ramp", max(round((t1 - t0) / period), 1) if period > 0 else 1,
+        ramp_ratio=max(up_time, dn_time) / (up_time + dn_time) if up_time + dn_time > 0
+        else math.nan, flyback_resolution=jump_s * freq,
     )  # fmt: skip
 
 
@@ -306,15 +336,16 @@ def segment_trace(reading: DriveReading, t_end: float | None = None) -> list[Seg
     t, u = reading.time, reading.level
     t_end = float(t[-1]) if t_end is None else float(t_end)
     quiet = _quiet_runs(t, u)
+    jump_s = reading.sample_interval if reading.recording == "sampled" else 0.0
     segs: list[Segment] = []
     cursor = float(t[0])
     for q0, q1 in quiet:
         if q0 > cursor + 1e-12:
-            segs.append(_describe_active(cursor, q0, t, u, reading.jumps))
+            segs.append(_describe_active(cursor, q0, t, u, reading.jumps, jump_s))
         segs.append(Segment(q0, q1, "hold"))
         cursor = q1
     if t_end > cursor + 1e-12:
-        segs.append(_describe_active(cursor, t_end, t, u, reading.jumps))
+        segs.append(_describe_active(cursor, t_end, t, u, reading.jumps, jump_s))
     return [s for s in segs if s.end > s.start]
 
 

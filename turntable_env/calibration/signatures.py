@@ -165,6 +165,8 @@ class _Burst:
     label: str
     direction: int
     setting: tuple[float, float, str]  # amplitude [V], frequency [Hz], flyback
+    ramp_ratio: float  # a [-] as read (Segment.ramp_ratio), nan when not read
+    resolution: float  # how far apart a reading of one a may fall [-]
     # the steady step: two blocks of whole periods after the first (None: fewer than 3
     # periods, or a block outside the record)
     early: _Span | None = None
@@ -191,6 +193,18 @@ class _Scan:
     label: str
     lo: float  # drive range [V]
     hi: float
+
+
+def _same_ramp(a: _Burst, b: _Burst) -> bool:
+    """Whether two bursts' ramp ratios may be one: read less than the coarser reading's
+    resolution (one sample interval of flyback) apart, or either not read. A ramp ratio
+    of 0.97 and one of 0.99 at 200 Hz, sampled at 20 kHz, are two settings (three
+    samples of flyback against one; the third independent plant's protocol mixes them,
+    and there the slower flyback reverses the steps): an asymmetry read across them is
+    the ramp ratio's, not friction's."""
+    if not (math.isfinite(a.ramp_ratio) and math.isfinite(b.ramp_ratio)):
+        return True
+    return abs(a.ramp_ratio - b.ramp_ratio) < max(a.resolution, b.resolution, 1e-6)
 
 
 def _window(t: np.ndarray, t0: float, t1: float) -> tuple[int, int]:
@@ -291,7 +305,7 @@ class SignatureLayout:
                 self.bursts.append(
                     _Burst(pre, post, periods, f"{s0.condition} at {s0.start:.3f} s",
                            s0.direction, (round(s0.amplitude, 1), round(s0.frequency), s0.flyback),
-                           early, late)
+                           s0.ramp_ratio, s0.flyback_resolution, early, late)
                 )  # fmt: skip
             elif s0.kind == "scan":
                 w = _window(t, s0.start, s1.end)
@@ -311,7 +325,8 @@ class SignatureLayout:
                 continue
             for j in range(i + 1, len(self.bursts)):
                 b = self.bursts[j]
-                if j not in used and b.setting == a.setting and b.direction == -a.direction:
+                if (j not in used and b.setting == a.setting and b.direction == -a.direction
+                        and _same_ramp(a, b)):  # fmt: skip
                     self.pairs.append((i, j) if a.direction > 0 else (j, i))
                     used |= {i, j}
                     break
