@@ -237,6 +237,22 @@ def test_opposite_bursts_pair_only_at_one_ramp_ratio(proto, ramp_ratios, pairs):
     assert SignatureLayout(t, u, segs, SIGMA).pairs == pairs
 
 
+@pytest.mark.parametrize("burst_between", [False, True])
+def test_no_scan_loop_is_read_across_a_burst(proto, burst_between):
+    """The loop of two opposite scans is the later branch less the earlier at equal
+    drive; a burst between them adds its net step to that difference (the third plant's
+    protocol scans between bursts: a "loop" of 5.27 gains on its clean trace, taken for
+    piezo hysteresis). Only scans with holds between them are compared."""
+    t, u, segs, _b = proto
+    if burst_between:  # the hold between the up and the down scan: hold, burst, hold
+        segs = [*segs[:2], Segment(0.15, 0.16, "hold"),
+                Segment(0.16, 0.18, "steps", 1, 2.0, 500.0, "jump", 10),
+                Segment(0.18, 0.2, "hold"), *segs[3:]]  # fmt: skip
+    names = SignatureLayout(t, u, segs, SIGMA).measure(_position(*proto)).names
+    loops = [n for n in names if n.startswith("scan loop")]
+    assert len(loops) == (0 if burst_between else 1), loops
+
+
 def test_group_scores_is_an_f_test():
     data = Features(("a", "b", "c", "d", "e"), ("steps",) * 5, np.zeros(5), np.ones(5))
     off = Features(data.names, data.groups, np.full(5, 3.0), np.ones(5))

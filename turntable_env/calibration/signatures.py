@@ -193,6 +193,8 @@ class _Scan:
     label: str
     lo: float  # drive range [V]
     hi: float
+    # the table stepped since the scan before (a burst between them): no loop across them
+    after_steps: bool = False
 
 
 def _same_ramp(a: _Burst, b: _Burst) -> bool:
@@ -270,8 +272,10 @@ class SignatureLayout:
                 runs[-1].append(s)
             else:
                 runs.append([s])
+        stepped = False  # a burst since the last scan kept
         for k, run in enumerate(runs):
             s0, s1 = run[0], run[-1]
+            stepped |= s0.kind == "steps"
             if s0.kind == "hold" and s1.end - s0.start >= MIN_HOLD_S:
                 a, b = s0.start + SETTLE_S, s1.end
                 self.holds.append(
@@ -316,7 +320,9 @@ class SignatureLayout:
                 if hi - lo < 1e-3:
                     continue
                 xi = (2.0 * us - (hi + lo)) / (hi - lo)
-                self.scans.append(_Scan(w, xi, s0.direction, f"scan {s0.start:.3f} s", lo, hi))
+                self.scans.append(_Scan(w, xi, s0.direction, f"scan {s0.start:.3f} s", lo, hi,
+                                        stepped))  # fmt: skip
+                stepped = False
         # opposite bursts of one setting, in time order, each in one pair at most
         self.pairs: list[tuple[int, int]] = []
         used: set[int] = set()
@@ -468,9 +474,11 @@ class SignatureLayout:
                 float(sd[2]) / abs(gain))  # fmt: skip
             add(f"scan cubic / gain, {s.label}", "scan_shape", float(coef[3]) / gain,
                 float(sd[3]) / abs(gain))  # fmt: skip
-            if prev is not None and prev[0].direction == -s.direction:
+            if prev is not None and prev[0].direction == -s.direction and not s.after_steps:
                 # the loop: the later branch minus the earlier at equal drive over their
-                # common range, signed so a lagging loop is positive, over the gain
+                # common range, signed so a lagging loop is positive, over the gain; not
+                # across a burst, whose net step would read as a loop (the third plant's
+                # protocol scans between bursts: 5.27 gains of "loop" on its clean trace)
                 p, pc = prev
                 lo, hi = max(p.lo, s.lo), min(p.hi, s.hi)
                 if hi - lo > 0.2 * (s.hi - s.lo):
