@@ -66,10 +66,16 @@ from turntable_env.calibration.trace_fit import Z_TRACE
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path", "amplifier_lag"}
 
 
+def _num(x: float | None, default: float = math.nan) -> float:
+    """A report.json number: null (how strict JSON writes a NaN or an infinity, since
+    stop 69) or absent read as ``default``."""
+    return default if x is None else float(x)
+
+
 def _searched(rnd: dict) -> list[dict]:
     """A round's candidates whose signature search ran (scored, with an objective)."""
     return [c for c in rnd["candidates"] if c.get("total_nats") is not None
-            and not math.isnan(c.get("objective", math.nan))]  # fmt: skip
+            and not math.isnan(_num(c.get("objective")))]  # fmt: skip
 
 
 def rounds(report: dict) -> list[dict]:
@@ -90,7 +96,7 @@ def rounds(report: dict) -> list[dict]:
             "k": len(free_parameters(lead["effect"])),
             "total": lead["total_nats"],
             "declared": lead["declared_nats"],
-            "size": lead.get("size_over_floor", math.nan),
+            "size": _num(lead.get("size_over_floor")),
             "significant": lead["significant"],
             "level": lead.get("significance_nats", SIGNIFICANT_NATS),  # the report's rule
             "lead": lead["total_nats"] - max(others) if others else math.inf,
@@ -120,7 +126,7 @@ def _rule_margins(c: dict) -> dict[str, float]:
     loo = c.get("declared_nats_leave_one_out", own)
     level = c.get("significance_nats") or significance_nats(len(free_parameters(c["effect"])))
     out = {"own": own - level, "all": tot - level,
-           "size": c.get("size_over_floor", math.nan) - 1.0}  # fmt: skip
+           "size": _num(c.get("size_over_floor")) - 1.0}  # fmt: skip
     if loo is not None and not math.isnan(loo) and loo != own:
         out["loo"] = loo - level
     return out
@@ -176,7 +182,7 @@ def margins(report: dict) -> list[dict]:
         if named:
             c = next(c for c in cands if c["effect"] == named)
             m = _rule_margins(c)
-            if math.isfinite(dec.get("margin_nats", math.inf)):
+            if math.isfinite(_num(dec.get("margin_nats"), math.inf)):
                 m["lead"] = dec["margin_nats"] - TIE_NATS
             test = rnd.get("trace_test")
             if test:
@@ -258,7 +264,7 @@ def _ring_table(reports: list[tuple[str, dict, dict]]) -> None:
             continue
         print(
             f"| {label} | {g['ratio']:.2f} | {g['frequency_Hz']:.0f} | "
-            f"{g.get('data_ring_Hz', math.nan):.0f} | {g.get('model_ring_Hz', math.nan):.0f} | "
+            f"{_num(g.get('data_ring_Hz')):.0f} | {_num(g.get('model_ring_Hz')):.0f} | "
             f"{'yes' if g['ratio'] > 2.0 else 'no'} |"
         )
 

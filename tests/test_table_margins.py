@@ -88,3 +88,19 @@ def test_a_rejection_by_the_trace_near_its_bar_is_thin(tr):
            "trace_test": {"z": -2.59}}  # fmt: skip
     (r,) = tr.margins(_report(rnd))
     assert r["margins"]["z"] == pytest.approx(-2.59 + Z_TRACE) and r["thin"] == ["z"]
+
+
+def test_a_strict_json_report_reads_its_nulls_as_not_computed(tr):
+    """report.json writes NaN and infinities as null (stop 69): a candidate that was not
+    searched (objective null) is left out, a lead over no runner-up (null) is none, and a
+    null size is not a number, not a crash."""
+    named = {**_cand("piezo_creep", 12.0, 12.0, None), "significant": True}
+    unrun = {**_cand("vibration", 0.0, 0.0, 0.0), "objective": None, "significant": False}
+    rnd = {"round": 1, "candidates": [named, unrun],
+           "decision": {"named": "piezo_creep", "margin_nats": None},
+           "trace_test": {"z": 1.0}}  # fmt: skip
+    (r,) = tr.margins(_report(rnd))
+    assert r["effect"] == "piezo_creep" and "lead" not in r["margins"]
+    assert math.isnan(r["margins"]["size"])
+    (row,) = tr.rounds(_report(rnd))
+    assert row["m"] == 1 and math.isnan(row["size"])
