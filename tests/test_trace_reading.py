@@ -83,6 +83,46 @@ def test_a_bursts_ramp_ratio_is_read_within_one_sample_of_flyback(f, a, periods,
     assert s.frequency == pytest.approx(f, rel=0.05) and s.periods == periods
 
 
+@pytest.mark.parametrize(
+    ("fs", "f", "a", "periods"),
+    [
+        (10e3, 2000.0, 0.98, 4),  # 5 samples a period: the flyback 4 ramp samples' size
+        (10e3, 2000.0, 0.98, 12),
+        (10e3, 1250.0, 0.99, 6),  # 8 samples a period
+        (20e3, 4000.0, 0.99, 10),  # 5 again, at 20 kHz
+    ],
+)
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_sawtooth_of_few_samples_per_period_is_read_as_its_flybacks(fs, f, a, periods, sign):
+    """A sampled sawtooth of 5–8 samples a period (a 2 kHz burst on a 10 kHz DAQ, the
+    third independent plant's axis-A trace): each flyback is one sample's change against
+    both neighbours' sense, only 4–7 times a ramp sample — read as a step, one per
+    period, not as a slow flyback over a sample interval (stop 71: a 2 kHz burst of 4
+    periods was read as one period at 513 Hz)."""
+    t, u = _linear_flyback_sawtooth(f, a, periods, fs=fs, sign=sign)
+    r = read_drive(t, u)
+    assert r.recording == "sampled" and r.jumps.size == periods
+    steps = [s for s in segment_trace(r, t[-1]) if s.kind == "steps"]
+    assert len(steps) == 1, steps
+    s = steps[0]
+    assert s.flyback != "ramp" and s.periods == periods and s.direction == sign
+    assert s.frequency == pytest.approx(f, rel=0.02)
+
+
+@pytest.mark.parametrize(
+    ("f", "a"),
+    [(500.0, 0.5), (2000.0, 0.5), (500.0, 0.75), (1000.0, 0.6)],
+)
+def test_a_resolved_flyback_stays_a_ramp_on_a_slow_daq(f, a):
+    """The sawtooth rule reads no jump where the flyback spans several samples of one
+    size (a triangle, a = 0.75 at 20 samples a period): those flybacks are resolved and
+    the drive is read as it was sampled."""
+    t, u = _linear_flyback_sawtooth(f, a, 6, fs=10e3)
+    r = read_drive(t, u)
+    inside = r.jumps[(r.jumps > 0.0201234 + 0.5 / f) & (r.jumps < 0.0201234 + 5.5 / f)]
+    assert inside.size == 0, inside
+
+
 def test_declared_recording_is_honoured_and_a_bad_one_is_named():
     t, u = _sampled_sawtooth()
     assert read_drive(t, u, {"drive_recording": "breakpoints"}).recording == "breakpoints"

@@ -7,8 +7,13 @@ a step that the amplifier shapes (§4.1.2, Fig. 4.2) — falls between two sampl
 :func:`read_drive` finds such single-sample drops and rises and turns each into a step at
 the middle of its sample interval (timing uncertainty ± half an interval): read as
 piecewise linear, a 2 V drop over 50 µs is a slow flyback after which the model barely
-steps. A file may declare its recording with the metadata key ``drive_recording``
-(``breakpoints`` or ``sampled``); otherwise it is detected.
+steps. A single-sample change is a step where it is several times its neighbours'
+typical change, or, in a sawtooth of few samples per period (a 2 kHz burst on a 10 kHz
+DAQ: five samples, the flyback four ramp samples' size), where it runs against both
+neighbours' sense at :data:`SAWTOOTH_RATIO` times their size; a flyback spread over
+several samples of one size (a triangle, a resolved ramp) is neither. A file may declare
+its recording with the metadata key ``drive_recording`` (``breakpoints`` or
+``sampled``); otherwise it is detected.
 
 :func:`segment_trace` cuts the drive into **segments** — ``hold`` (constant input),
 ``scan`` (monotonic ramp without jumps) and ``steps`` (a burst of sawtooth periods) —
@@ -40,6 +45,7 @@ RECORDINGS = ("breakpoints", "sampled")
 JUMP_GAP = 1e-3  # a sample interval under this fraction of the median one is a jump [-]
 JUMP_RATIO = 6.0  # a single-sample change this many times the local typical one is a step
 JUMP_MIN = 0.05  # V, smallest input change read as a step
+SAWTOOTH_RATIO = 2.5  # a change against both neighbours this many times their size is a step
 QUIET_MIN = 2e-3  # s, shortest constant stretch that separates two segments
 QUIET_TOL = 0.02  # V, input variation still read as constant (DAQ resolution, noise)
 FLYBACK_MERGE = 0.2  # jumps closer than this fraction of the burst period form one flyback
@@ -107,11 +113,18 @@ def read_drive(
     # a single-sample change much larger than its neighbours' typical change
     typical = _local_typical(du)
     lsb = _resolution(u)
-    single = (
-        ~explicit
-        & (np.abs(du) > max(JUMP_MIN, 3.0 * lsb))
-        & (np.abs(du) > JUMP_RATIO * np.maximum(typical, lsb))
+    big = ~explicit & (np.abs(du) > max(JUMP_MIN, 3.0 * lsb))
+    # a sawtooth's flyback between two of its ramp's samples: against both neighbours'
+    # sense and SAWTOOTH_RATIO times their size (a sawtooth of few samples per period,
+    # whose ramp samples make the local typical change large: 5 samples per period read
+    # a flyback of 4 ramp samples' size)
+    prev = np.concatenate([[0.0], du[:-1]])
+    nxt = np.concatenate([du[1:], [0.0]])
+    reversed_ = (du * prev <= 0.0) & (du * nxt <= 0.0) & ((prev != 0.0) | (nxt != 0.0))
+    sawtooth = reversed_ & (
+        np.abs(du) > SAWTOOTH_RATIO * np.maximum(np.maximum(np.abs(prev), np.abs(nxt)), lsb)
     )
+    single = big & ((np.abs(du) > JUMP_RATIO * np.maximum(typical, lsb)) | sawtooth)
     if declared is not None:
         recording = declared
     elif explicit.any():
