@@ -1,0 +1,79 @@
+"""How the calibrator reads each trace's drive (issue 31, stop 71): a fingerprint per file,
+to compare two commits' readings.
+
+For every trace: the recording (breakpoints or sampled), the number of jumps read, the
+number of segments and a digest of the model's drive (the reading's times, levels and
+jumps, rounded to 1 ps and 1 nV) and of the segments' conditions. Run it at two commits
+and compare the outputs: a file whose line differs is read differently, and every other
+file's calibration input is unchanged. ``--segments`` prints each file's non-hold
+segments (start, end [s], condition, periods, ramp ratio read) as well.
+
+    python experiments/drive_reading.py [--segments] [TRACE.csv ...]
+
+Default traces: every CSV of the three independent plants' trace sets
+(experiments/results/independent_traces, second_plant_traces and third_plant_traces,
+written by the traces scripts). Stop 71's sawtooth rule (``segments.SAWTOOTH_RATIO``)
+changed the lines of the second plant's ``axis_A_10kHz.csv`` and the third plant's
+``clean_axis_A_10kHz.csv`` alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from turntable_env.calibration.measurement import load_measurement
+from turntable_env.calibration.segments import DriveReading, Segment, read_drive, segment_trace
+
+RESULTS = Path("experiments/results")
+TRACE_SETS = ("independent_traces", "second_plant_traces", "third_plant_traces")
+
+
+def fingerprint(reading: DriveReading, segments: list[Segment]) -> str:
+    """A 12-hex-digit digest of the model's drive (times to 1 ps, levels to 1 nV, jumps)
+    and of the segments' conditions and periods."""
+    h = hashlib.sha1()
+    h.update(np.round(reading.time, 12).tobytes())
+    h.update(np.round(reading.level, 9).tobytes())
+    h.update(np.round(reading.jumps, 12).tobytes())
+    h.update(repr([(s.condition, s.periods) for s in segments]).encode())
+    return h.hexdigest()[:12]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="drive_reading", description=__doc__.splitlines()[0])
+    ap.add_argument("--segments", action="store_true", help="print each file's segments")
+    ap.add_argument("traces", nargs="*", help="trace CSVs (default: the three plants' sets)")
+    args = ap.parse_args(argv)
+    paths = [Path(p) for p in args.traces] or sorted(
+        p for d in TRACE_SETS for p in (RESULTS / d).glob("*.csv")
+    )
+    if not paths:
+        print("drive_reading: no traces (write them with experiments/*_traces.py)",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    for path in paths:
+        try:
+            m = load_measurement(path)
+        except (OSError, ValueError) as exc:
+            print(f"drive_reading: {exc}", file=sys.stderr)
+            return 2
+        reading = read_drive(m.time, m.drives[m.axis], m.meta)
+        segs = segment_trace(reading, float(m.time[-1]))
+        name = f"{path.parent.name}/{path.name}"
+        print(f"{name:48s} {reading.recording:11s} jumps {reading.jumps.size:4d} "
+              f"segments {len(segs):3d} {fingerprint(reading, segs)}")  # fmt: skip
+        if args.segments:
+            for s in segs:
+                if s.kind != "hold":
+                    print(f"    {s.start:8.4f} {s.end:8.4f}  {s.condition}  x{s.periods}  "
+                          f"a {s.ramp_ratio:.3f}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
