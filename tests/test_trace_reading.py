@@ -123,6 +123,39 @@ def test_a_resolved_flyback_stays_a_ramp_on_a_slow_daq(f, a):
     assert inside.size == 0, inside
 
 
+@pytest.mark.parametrize(
+    ("fs", "f", "a", "periods", "phase"),
+    [
+        (10e3, 500.0, 0.75, 24, 0.37),  # the third independent plant's axis-A burst
+        (10e3, 500.0, 0.75, 3, 0.71),
+        (10e3, 200.0, 0.9, 12, 0.0),  # five samples of flyback, the last into the hold
+        (10e3, 1000.0, 0.9, 12, 0.37),  # a flyback of one sample, falling on two
+        (20e3, 1000.0, 0.75, 12, 0.37),
+        (20e3, 2000.0, 0.9, 12, 0.0),
+        (25e3, 2000.0, 0.9, 12, 0.0),  # 1.25 samples: one flyback a jump, the next not
+    ],
+)
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_burst_whose_flybacks_are_partly_resolved_keeps_its_periods(
+    fs, f, a, periods, phase, sign
+):
+    """A burst whose flybacks span one to five samples, so that only some of them (or only
+    the last, into the hold) are read as jumps, is described by the flybacks its drive's
+    sense shows: its periods, frequency and direction as generated (stop 72: the third
+    plant's 24-period −2 V, 500 Hz, a = 0.75 burst at 10 kHz was read as one period of
+    −0.4 V at 21 Hz). Its amplitude is read within 30 %: a flyback read as a jump leaves
+    out the part of its drop that falls on the samples beside it (2.22 V of 3 V at
+    1 kHz, a = 0.9, on a 10 kHz DAQ)."""
+    hold = 0.0201234 + phase / fs  # the generator's clock at a phase of the DAQ's
+    t, u = _linear_flyback_sawtooth(f, a, periods, fs=fs, hold=hold, sign=sign)
+    steps = [s for s in segment_trace(read_drive(t, u), t[-1]) if s.kind == "steps"]
+    assert len(steps) == 1, steps
+    s = steps[0]
+    assert s.periods == periods and s.direction == sign, s
+    assert s.frequency == pytest.approx(f, rel=0.02)
+    assert s.amplitude == pytest.approx(3.0, rel=0.3)
+
+
 def test_declared_recording_is_honoured_and_a_bad_one_is_named():
     t, u = _sampled_sawtooth()
     assert read_drive(t, u, {"drive_recording": "breakpoints"}).recording == "breakpoints"

@@ -17,7 +17,11 @@ its recording with the metadata key ``drive_recording`` (``breakpoints`` or
 
 :func:`segment_trace` cuts the drive into **segments** — ``hold`` (constant input),
 ``scan`` (monotonic ramp without jumps) and ``steps`` (a burst of sawtooth periods) —
-and gives each its drive condition (kind, direction, amplitude, frequency, flyback). Its
+and gives each its drive condition (kind, direction, amplitude, frequency, flyback): a
+burst by its jumps where they mark every flyback, else by the flybacks its drive's sense
+shows (runs against the ramp; a flyback of one to a few samples is read as a jump at one
+phase of the DAQ's clock and over samples at another, and the last one into a hold alone
+can be a jump), else, with no jumps, by its turning points. Its
 segments are then split into a fit and a held-out portion **interleaved by condition**:
 every condition's occurrences alternate between the portions, and a condition that occurs
 once is cut in two (a burst at a period boundary), so the held-out error measures
@@ -278,11 +282,41 @@ def _flyback_duration(group: list[float], t: np.ndarray, u: np.ndarray, jump_s: 
     return jump_s * abs(float(np.sum(drops))) / big if big > 0.0 else jump_s
 
 
+def _flyback_runs(ts: np.ndarray, us: np.ndarray) -> tuple[int, list[tuple[float, float, float]]]:
+    """A burst's flybacks read from the drive's sense alone: maximal runs of changes
+    against the ramp's sense (the sense the drive spends the longer time in; a flat stretch
+    does not end a run) that drop by at least a quarter of the burst's span and
+    :data:`JUMP_MIN` [V]. A jump read from samples is such a run of 1 ns, a resolved or
+    partly resolved flyback one of several samples, so both count. (the ramp's sense ±1,
+    [(start [s], end [s], drop [V])] per flyback)."""
+    du, dt = np.diff(us), np.diff(ts)
+    sense = 1 if dt[du > 1e-9].sum() >= dt[du < -1e-9].sum() else -1
+    floor = max(JUMP_MIN, 0.25 * float(np.ptp(us))) if us.size else JUMP_MIN
+    runs: list[tuple[float, float, float]] = []
+    start, end, drop = math.nan, math.nan, 0.0
+    for k, d in enumerate(du * sense):
+        if d < -1e-9:
+            if drop == 0.0:
+                start = float(ts[k])
+            drop -= d
+            end = float(ts[k + 1])
+        elif d > 1e-9:  # the ramp again: the run, if any, has ended
+            if drop >= floor:
+                runs.append((start, end, drop))
+            drop = 0.0
+    if drop >= floor:
+        runs.append((start, end, drop))
+    return sense, runs
+
+
 def _describe_active(
     t0: float, t1: float, t: np.ndarray, u: np.ndarray, jumps: np.ndarray, jump_s: float
 ) -> Segment:
     """Kind and condition of an active stretch [t0, t1] of the drive (``jump_s``: how
-    long a jump read from samples lasts [s], the sample interval; 0 for breakpoints)."""
+    long a jump read from samples lasts [s], the sample interval; 0 for breakpoints).
+    A burst is described by its jumps where they mark all its flybacks, else (some or all
+    of its flybacks resolved over samples: a partly resolved flyback falls on one sample
+    or on two as the generator's clock drifts past the DAQ's) by its turning points."""
     sel = (t >= t0) & (t <= t1)
     ts, us = t[sel], u[sel]
     js = jumps[(jumps > t0) & (jumps <= t1)]
@@ -300,29 +334,72 @@ def _describe_active(
                 groups[-1].append(a)
             else:
                 groups.append([a])
-        starts = np.array([g[0] for g in groups])
-        period = float(np.median(np.diff(starts))) if starts.size > 1 else (t1 - t0)
-        before = np.interp(starts - 1e-8, t, u)
-        after = np.interp(np.array([g[-1] for g in groups]) + 2e-9, t, u)
-        drop = float(np.median(before - after))
-        direction = 1 if drop > 0 else -1
-        amplitude = abs(drop)
-        overshoot = any(len(g) > 1 for g in groups)
-        freq = 1.0 / period if period > 0 else 0.0
-        fly = float(np.median([_flyback_duration(g, t, u, jump_s) for g in groups]))
-        return Segment(
-            t0, t1, "steps", direction, round(amplitude, 3), freq,
-            "overshoot" if overshoot else "jump", len(groups),
-            ramp_ratio=max(0.0, 1.0 - fly * freq), flyback_resolution=jump_s * freq,
-        )  # fmt: skip
-    # no jumps: a scan if monotonic, else a burst with resolved (ramp) flybacks
+        # where the jumps, all flybacks of one ramp's sense, are fewer than the flybacks
+        # the drive's sense shows, the others are resolved over samples (a burst read by
+        # its jumps alone would be its last flyback's sample into the hold: one period)
+        sense, runs = _flyback_runs(ts, us)
+        drops = [np.interp(g[0] - 1e-8, t, u) - np.interp(g[-1] + 2e-9, t, u) for g in groups]
+        if len(groups) >= len(runs) or any(d * sense <= 0.0 for d in drops):
+            return _describe_by_jumps(t0, t1, t, u, groups, jump_s)
+        return _describe_by_runs(t0, t1, sense, runs, jump_s)
+    ends = (u_start, float(np.interp(t1, t, u)))
+    return _describe_by_turns(t0, t1, ts, us, ends, jump_s)
+
+
+def _describe_by_jumps(
+    t0: float, t1: float, t: np.ndarray, u: np.ndarray, groups: list[list[float]],
+    jump_s: float,
+) -> Segment:  # fmt: skip
+    """A burst whose every flyback is read as a jump or a group of them (one flyback)."""
+    starts = np.array([g[0] for g in groups])
+    period = float(np.median(np.diff(starts))) if starts.size > 1 else (t1 - t0)
+    before = np.interp(starts - 1e-8, t, u)
+    after = np.interp(np.array([g[-1] for g in groups]) + 2e-9, t, u)
+    drop = float(np.median(before - after))
+    direction = 1 if drop > 0 else -1
+    amplitude = abs(drop)
+    overshoot = any(len(g) > 1 for g in groups)
+    freq = 1.0 / period if period > 0 else 0.0
+    fly = float(np.median([_flyback_duration(g, t, u, jump_s) for g in groups]))
+    return Segment(
+        t0, t1, "steps", direction, round(amplitude, 3), freq,
+        "overshoot" if overshoot else "jump", len(groups),
+        ramp_ratio=max(0.0, 1.0 - fly * freq), flyback_resolution=jump_s * freq,
+    )  # fmt: skip
+
+
+def _describe_by_runs(
+    t0: float, t1: float, sense: int, runs: list[tuple[float, float, float]], jump_s: float
+) -> Segment:
+    """A burst whose jumps mark only some of its flybacks (the others resolved over a few
+    samples): described by its flyback runs (:func:`_flyback_runs`), labelled ``ramp``."""
+    starts = np.array([r[0] for r in runs])
+    # the mean spacing: a run starts on a sample, so at 12.5 samples a period the
+    # spacings are 12 and 13 samples and their median is one of them
+    period = float(starts[-1] - starts[0]) / (starts.size - 1) if starts.size > 1 else t1 - t0
+    freq = 1.0 / period if period > 0 else 0.0
+    fly = float(np.median([max(r[1] - r[0], jump_s) for r in runs]))
+    return Segment(
+        t0, t1, "steps", sense, round(float(np.median([r[2] for r in runs])), 3), freq,
+        "ramp", len(runs), ramp_ratio=max(0.0, 1.0 - fly * freq),
+        flyback_resolution=jump_s * freq,
+    )  # fmt: skip
+
+
+def _describe_by_turns(
+    t0: float, t1: float, ts: np.ndarray, us: np.ndarray, ends: tuple[float, float],
+    jump_s: float,
+) -> Segment:  # fmt: skip
+    """A stretch by its turning points: a scan if monotonic, else a burst whose flybacks
+    (some or all resolved) are the faster half of each period. ``ends``: the input at t0
+    and t1 [V]."""
+    u_start, u_end = ends
     du = np.diff(us)
     sig = np.sign(du[np.abs(du) > 1e-9])
     turns = int(np.sum(sig[1:] != sig[:-1])) if sig.size > 1 else 0
     if turns <= 2:
-        end = float(np.interp(t1, t, u))
         return Segment(
-            t0, t1, "scan", int(np.sign(end - u_start)) or 1, round(abs(end - u_start), 3)
+            t0, t1, "scan", int(np.sign(u_end - u_start)) or 1, round(abs(u_end - u_start), 3)
         )
     # periodic triangle: its up/down turning points
     k = np.flatnonzero(sig[1:] != sig[:-1])
