@@ -14,7 +14,10 @@ Default traces: every CSV of the three independent plants' trace sets
 (experiments/results/independent_traces, second_plant_traces and third_plant_traces,
 written by the traces scripts). Stop 71's sawtooth rule (``segments.SAWTOOTH_RATIO``)
 changed the lines of the second plant's ``axis_A_10kHz.csv`` and the third plant's
-``clean_axis_A_10kHz.csv`` alone.
+``clean_axis_A_10kHz.csv`` alone; stop 72's description of bursts whose jumps mark only
+some of their flybacks changed the latter's line alone (its segments, not its drive), and
+its reading of flybacks the samples resolve (``segments.RESOLVED_SAMPLES``: linear, not a
+staircase of jumps) the third plant's 13 lines alone.
 """
 
 from __future__ import annotations
