@@ -86,6 +86,14 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["calibrate", "--global-points", "0", "--thesis"], "--global-points"),
         (["report", "--out", NOT_A_DIR], "--out"),
         (["params", "--set", "lunar"], "--set"),
+        # numbers as a file's cells take them: plain ASCII decimals (stop 72's audit: these
+        # ran, 1_0 as ten workers or 10 V)
+        (["calibrate", "--thesis", "--workers", "1_0", "--report", "rep"], "--workers"),
+        (["calibrate", "--thesis", "--workers", "\uff11", "--report", "rep"], "--workers"),
+        (["simulate", "--amplitude", "1_0"], "--amplitude"),
+        (["simulate", "--amplitude", "\u0665"], "--amplitude"),  # an Arabic-Indic five
+        (["virtual-lab", "--effects", "piezo_creep=0_0", "--out", "v.csv"], "piezo_creep"),
+        (["virtual-lab", "--effects", "piezo_creep.=0.02", "--out", "v.csv"], "after the dot"),
     ],
 )
 def test_bad_values_exit_2_with_one_line_naming_the_option(argv, names, capsys, tmp_path,
@@ -148,3 +156,37 @@ def test_a_failing_report_leaves_the_directory_untouched(tmp_path, monkeypatch):
     assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, "report.json"])
     assert (out / "report.json").read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["rep"]  # no temporary left
+
+
+@pytest.mark.parametrize(
+    ("argv", "inside"),
+    [
+        (["calibrate", "rep/data.csv", "--report", "rep"], "rep/data.csv"),
+        (["calibrate", "rep/sub/data.csv", "--report", "rep"], "rep/sub/data.csv"),
+        (["calibrate", "rep/data.csv", "--report", "./rep/"], "rep/data.csv"),
+        (["benchmark", "--agent", "mine=rep/run", "--out", "rep"], "rep/run"),
+    ],
+)
+def test_an_output_that_holds_an_input_is_refused_and_the_input_kept(
+    argv, inside, capsys, tmp_path, monkeypatch
+):
+    """An earlier report directory is replaced whole: a run that reads a file inside it
+    (the measurement copied into its own report, an agent's run saved under the
+    benchmark's --out) would delete its own input. Refused, exit 2, one line naming the
+    option and the input, and the input still there (stop 72's hostile-input audit:
+    `calibrate rep/data.csv --report rep` exited 0 with the file gone)."""
+    monkeypatch.chdir(tmp_path)
+    rep = tmp_path / "rep"
+    (rep / "sub").mkdir(parents=True)
+    (rep / MARKER).write_text("")  # an earlier output of this project
+    src = tmp_path / inside
+    if src.suffix:
+        src.write_text("t_s,drive_B_V,detector_V\n")
+    else:
+        src.mkdir()
+    code, _out, err = _run(argv, capsys)
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert argv[-2] in lines[0] and inside in lines[0], lines[0]
+    assert src.exists()

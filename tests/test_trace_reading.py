@@ -335,3 +335,20 @@ def test_a_files_amplifier_gain_reaches_the_tubes(gain):
     loud = replace(lab, drives={"B": 6.0 * np.ones_like(t) * amp.gain / gain * 2.0})
     with pytest.raises(ValueError, match=r"lab: amplifier_gain .* beyond the base amplifier"):
         at_base_gain(loud, amp)  # 12 V of base input: G_base·12 V on the tubes
+
+
+def test_a_drive_too_small_for_the_tubes_is_refused_in_the_files_own_terms():
+    """A drive that moves nothing is refused before any work, and where the file's
+    ``amplifier_gain`` is not the base's the message quotes the file's own span and gain
+    beside the base amplifier's input (stop 72's audit: 0.36 V at gain 1 was reported as
+    "spans 0.008 V", a number the file does not hold)."""
+    from turntable_env.calibration.measurement import Measurement
+    from turntable_env.detector import Detector
+
+    t, u = _sampled_sawtooth(amp=0.36)
+    noise = np.random.default_rng(0).normal(0.0, 1e-3, t.size)
+    det = np.cumsum(np.abs(np.diff(u, prepend=0.0))) * 1e-2 + noise
+    m = Measurement("B", 1.0, Detector(), t, {"B": u}, det, source="lab.csv")
+    with pytest.raises(ValueError, match=r"lab\.csv: .* spans 0\.36 V at amplifier_gain 1, "
+                                         r"0\.008 V as the base amplifier's input"):  # fmt: skip
+        calibrate([m], global_points=1, workers=1)

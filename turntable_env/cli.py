@@ -15,6 +15,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 from collections.abc import Sequence
 from typing import Any, NoReturn
@@ -23,6 +24,7 @@ from . import __version__
 from .files import Terminated, check_writable, plain_json, terminate_cleanly, write_atomic
 from .plant import MAX_SENSOR_NOISE, PARAMETER_SETS, parameter_set
 from .scale import BACKENDS
+from .validation import parse_decimal
 
 __all__ = ["main"]
 
@@ -54,10 +56,9 @@ def _real(
     whose magnitude is at least ``min_abs`` (> 0: zero refused too)."""
 
     def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        v = parse_decimal(text)
+        if v is None:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number (plain decimals: 1.5e-3)")
         if not math.isfinite(v):
             raise argparse.ArgumentTypeError(f"{text!r}: must be finite")
         if lo is not None and (v < lo or (open_lo and v == lo)):
@@ -75,10 +76,10 @@ def _int(lo: int, hi: int):
     """argparse type: an integer in [lo, hi]."""
 
     def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        x = parse_decimal(text)
+        if x is None or not re.fullmatch(r"\s*[+-]?[0-9]+\s*", text):
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer (plain decimals: 12)")
+        v = int(text)
         if not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f"{text!r}: must lie in {lo}…{hi}")
         return v
@@ -263,7 +264,8 @@ def _cmd_benchmark(args: argparse.Namespace) -> int:
             raise ValueError(f"{option}={x!r}: {twice[0]!r} given twice")
         return names
 
-    check_writable("--out", args.out, directory=True)
+    runs = [spec.partition("=")[2] for spec in args.agent or []]
+    check_writable("--out", args.out, directory=True, reads=[r for r in runs if r])
     kw: dict[str, object] = dict(QUICK) if args.quick else {}
     if args.seeds is not None:
         kw["seeds"] = args.seeds
@@ -322,8 +324,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from .calibration.summary import calibrate_summary
     from .calibration.thesis_data import THESIS_DATA_FILE
 
-    check_writable("--report", args.report, directory=True)
     files = list(args.files) + ([str(THESIS_DATA_FILE)] if args.thesis else [])
+    check_writable("--report", args.report, directory=True, reads=files)
     if not files:
         raise ValueError("files: give measurement files (CSV), a summary file (TOML) or --thesis")
     seen: dict[str, str] = {}

@@ -74,7 +74,7 @@ from numba import njit
 
 from .kernel_cache import CACHE
 from .params import ParameterSet
-from .validation import check_finite
+from .validation import check_finite, parse_decimal
 
 __all__ = [
     "CATALOGUE",
@@ -312,7 +312,9 @@ def parse_effects(spec: str) -> dict[str, dict[str, float]]:
         if not item:
             raise ValueError(f"--effects={spec!r}: an empty entry between commas")
         key, sep, val = item.partition("=")
-        name, _, param = key.partition(".")
+        name, dot, param = key.partition(".")
+        if dot and not param:
+            raise ValueError(f"--effects: {item!r}: no parameter name after the dot")
         if name not in CATALOGUE:
             raise ValueError(
                 f"--effects: {name!r} is not in the catalogue ({', '.join(CATALOGUE)})"
@@ -325,10 +327,11 @@ def parse_effects(spec: str) -> dict[str, dict[str, float]]:
             raw.setdefault(name, CATALOGUE[name].defaults())
             continue
         entry = raw.setdefault(name, CATALOGUE[name].neutral())
-        try:
-            x = float(val)
-        except ValueError:
-            raise ValueError(f"--effects: {item!r}: {val!r} is not a number") from None
+        x = parse_decimal(val)
+        if x is None:
+            raise ValueError(
+                f"--effects: {item!r}: {val!r} is not a number (plain decimals: 1.5e-3)"
+            )
         entry[param or CATALOGUE[name].parameters[0].name] = x
     return check_effects(raw)
 

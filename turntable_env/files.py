@@ -17,8 +17,9 @@ report). SIGTERM is turned into the same clean-up as Ctrl-C
 (:func:`terminate_cleanly`).
 
 :func:`check_writable` refuses, before any work starts, an output path whose directory does
-not exist or cannot be written, or that names something other than what will be written
-(ValueError naming the option and the path).
+not exist or cannot be written, that names something other than what will be written, or
+that is or holds a file the run reads (a report directory replaced whole would delete the
+measurement copied into it) (ValueError naming the option and the path).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import shutil
 import signal
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -94,12 +95,24 @@ def write_target(name: str, path: str | Path) -> Path:
     return target
 
 
-def check_writable(name: str, path: str | Path, *, directory: bool = False) -> Path:
+def check_writable(
+    name: str, path: str | Path, *, directory: bool = False, reads: Sequence[str | Path] = ()
+) -> Path:
     """``path`` as a Path if a file (``directory=False``) or a directory can be written
-    there; ValueError naming ``name`` otherwise (module docstring)."""
+    there; ValueError naming ``name`` otherwise (module docstring). ``reads``: the files
+    and directories the run reads; an output directory that holds one of them (or an
+    output file that is one) is refused, since it is replaced whole."""
     if not str(path).strip():
         raise ValueError(f"{name}={str(path)!r}: empty path")
     p = Path(path)
+    out = Path(os.path.realpath(p))
+    for r in reads:
+        src = Path(os.path.realpath(r))
+        if src == out or (directory and out in src.parents):
+            raise ValueError(
+                f"{name}={str(p)!r}: {'holds' if src != out else 'is'} {str(r)!r}, which this "
+                f"run reads; the output is replaced whole: give another {name}"
+            )
     if directory:
         if p.is_symlink() or (p.exists() and not p.is_dir()):
             raise ValueError(f"{name}={str(p)!r}: exists and is not a directory")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from collections.abc import Iterable
 
 import numpy as np
@@ -24,6 +25,7 @@ __all__ = [
     "check_sums_to_one",
     "check_time_array",
     "describe",
+    "parse_decimal",
 ]
 
 
@@ -37,6 +39,16 @@ def describe(value: object) -> str:
 
 
 _describe = describe
+
+_DECIMAL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)  # \d: 0-9 only
+
+
+def parse_decimal(text: str) -> float | None:
+    """A plain ASCII decimal number (``1.5e-3``; surrounding blanks allowed), or None:
+    Python's ``float`` and ``int`` also take ``1_0``, full-width and other scripts' digits,
+    ``nan`` and ``inf``, which a file's cell and a command-line option both refuse."""
+    t = text.strip()
+    return float(t) if _DECIMAL.fullmatch(t) else None
 
 
 def check_finite(name: str, value: float) -> float:

@@ -45,6 +45,7 @@ import numpy as np
 from ..detector import Detector
 from ..files import write_atomic
 from ..inputs import read_input
+from ..validation import parse_decimal
 from .segments import RECORDINGS
 
 __all__ = ["AXES", "Measurement", "load_measurement"]
@@ -159,14 +160,7 @@ class Measurement:
 
 
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)  # \d: 0-9 only
-
-
-def _number(text: str) -> float | None:
-    """A plain ASCII decimal number (``float`` would also take ``1_0`` and full-width digits);
-    None when ``text`` is not one."""
-    t = text.strip()
-    return float(t) if _NUMBER.fullmatch(t) else None
+_number = parse_decimal  # a plain ASCII decimal, or None
 
 
 def _meta_float(path: Path, line: int, key: str, text: str) -> float:

@@ -195,12 +195,14 @@ MIN_DETECTOR_RANGE = 1e-6  # V: below any photodiode amplifier's resolution
 MIN_SIGNAL_TO_NOISE = 10.0  # detector range over its noise floor (first differences)
 
 
-def check_information(m: Measurement) -> None:
+def check_information(m: Measurement, input_scale: float = 1.0) -> None:
     """Refuse a trace that cannot inform a fit, before any work (ValueError naming the file
     and the number): a median sampling interval outside :data:`SAMPLING_RANGE` (a time
     column in milliseconds, say), a watched axis whose drive spans less than
-    :data:`MIN_DRIVE_RANGE`, or a detector that spans less than :data:`MIN_DETECTOR_RANGE`
-    or less than :data:`MIN_SIGNAL_TO_NOISE` times its noise."""
+    :data:`MIN_DRIVE_RANGE` as the base amplifier's input, or a detector that spans less
+    than :data:`MIN_DETECTOR_RANGE` or less than :data:`MIN_SIGNAL_TO_NOISE` times its
+    noise. ``input_scale``: the factor :func:`at_base_gain` took the file's drive by (the
+    message quotes the file's own span and gain)."""
     name = m.source or "trace"
     dt = float(np.median(np.diff(m.time)))
     lo, hi = SAMPLING_RANGE
@@ -212,9 +214,14 @@ def check_information(m: Measurement) -> None:
     drive = m.drives[m.axis]
     span = float(np.ptp(drive))
     if not span >= MIN_DRIVE_RANGE:
+        scaled = "" if input_scale == 1.0 else (
+            f" at amplifier_gain {m.amplifier_gain:g}, {span:.3g} V as the base amplifier's "
+            "input"
+        )  # fmt: skip
         raise ValueError(
-            f"{name}: the drive of axis {m.axis} spans {span:.3g} V (less than "
-            f"{MIN_DRIVE_RANGE:g} V): it does not move the turntable, nothing to calibrate"
+            f"{name}: the drive of axis {m.axis} spans {span / input_scale:.3g} V{scaled} "
+            f"(less than {MIN_DRIVE_RANGE:g} V): it does not move the turntable, nothing to "
+            "calibrate"
         )
     det = m.detector_v
     det_span = float(np.ptp(det))
@@ -252,14 +259,14 @@ def at_base_gain(m: Measurement, amplifier: Any) -> tuple[Measurement, list[str]
     ]
 
 
-def _prepare(m: Measurement) -> tuple[TraceData, list[str]]:
+def _prepare(m: Measurement, input_scale: float = 1.0) -> tuple[TraceData, list[str]]:
     warnings: list[str] = []
     if m.axis not in ("A", "B", "C"):
         raise ValueError(
             f"{m.source}: axis {m.axis!r}: the per-axis model calibrates A, B and C (the "
             "Z axis needs the full 3-D model; run it with `turntable simulate --axis Z`)"
         )
-    check_information(m)
+    check_information(m, input_scale)
     reading = read_drive(m.time, m.drives[m.axis], m.meta)
     warnings += [f"{Path(m.source).name or 'trace'}: {w}" for w in reading.warnings]
     segs = split_portions(segment_trace(reading, float(m.time[-1])))
@@ -992,7 +999,8 @@ def calibrate_traces(
     for f in files:
         m = f if isinstance(f, Measurement) else load_measurement(f)
         m, w = at_base_gain(m, base_plant.params.amplifier)
-        td, w2 = _prepare(m)
+        k = m.amplifier_gain / base_plant.params.amplifier.gain if w else 1.0  # taken ×k
+        td, w2 = _prepare(m, k)
         traces.append(td)
         warnings += w + w2
     model = NominalModel(base_plant, tuple(nominal))
