@@ -343,9 +343,10 @@ def _describe_active(
 ) -> Segment:
     """Kind and condition of an active stretch [t0, t1] of the drive (``jump_s``: how
     long a jump read from samples lasts [s], the sample interval; 0 for breakpoints).
-    A burst is described by its jumps where they mark all its flybacks, else (some or all
-    of its flybacks resolved over samples: a partly resolved flyback falls on one sample
-    or on two as the generator's clock drifts past the DAQ's) by its turning points."""
+    A burst is described by its jumps where they mark all its flybacks, else (some of its
+    flybacks resolved over samples: a partly resolved flyback falls on one sample or on
+    two as the generator's clock drifts past the DAQ's) by its flyback runs; a stretch
+    without jumps by its turning points."""
     sel = (t >= t0) & (t <= t1)
     ts, us = t[sel], u[sel]
     js = jumps[(jumps > t0) & (jumps <= t1)]
