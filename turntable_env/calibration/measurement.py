@@ -160,12 +160,11 @@ class Measurement:
 
 
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
-_number = parse_decimal  # a plain ASCII decimal, or None
 
 
 def _meta_float(path: Path, line: int, key: str, text: str) -> float:
     lo, hi, unit = META_RANGES[key]
-    v = _number(text)
+    v = parse_decimal(text)
     if v is None:
         raise ValueError(f"{path}:{line}: metadata {key!r} = {text!r} is not a number")
     if not (math.isfinite(v) and lo <= v <= hi):
@@ -261,7 +260,7 @@ def _parse(text: str, p: Path) -> Measurement:
             raise ValueError(f"{p}:{j + 1}: {len(cells)} cells, the header has {len(header)}")
         row = []
         for name, cell in zip(header, cells, strict=True):
-            v = _number(cell)
+            v = parse_decimal(cell)
             if v is None and _NONFINITE.fullmatch(cell.strip()):
                 raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
             if v is None:
