@@ -76,8 +76,7 @@ def _int(lo: int, hi: int):
     """argparse type: an integer in [lo, hi]."""
 
     def parse(text: str) -> int:
-        x = parse_decimal(text)
-        if x is None or not re.fullmatch(r"\s*[+-]?[0-9]+\s*", text):
+        if not re.fullmatch(r"\s*[+-]?[0-9]+\s*", text):  # ASCII digits: int() takes more
             raise argparse.ArgumentTypeError(f"{text!r} is not an integer (plain decimals: 12)")
         v = int(text)
         if not lo <= v <= hi:
