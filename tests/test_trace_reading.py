@@ -146,8 +146,7 @@ def test_a_burst_whose_flybacks_are_partly_resolved_keeps_its_periods(
     sense shows: its periods, frequency and direction as generated (stop 72: the third
     plant's 24-period −2 V, 500 Hz, a = 0.75 burst at 10 kHz was read as one period of
     −0.4 V at 21 Hz). Its amplitude is read within 30 %: a flyback read as a jump leaves
-    out the part of its drop that falls on the samples beside it (2.22 V of 3 V at
-    1 kHz, a = 0.9, on a 10 kHz DAQ)."""
+    out the part of its drop that falls on the samples beside it."""
     hold = 0.0201234 + phase / fs  # the generator's clock at a phase of the DAQ's
     t, u = _linear_flyback_sawtooth(f, a, periods, fs=fs, hold=hold, sign=sign)
     steps = [s for s in segment_trace(read_drive(t, u), t[-1]) if s.kind == "steps"]
