@@ -139,7 +139,16 @@ class ControllerContext:
     def lab_observation(self, obs: np.ndarray) -> np.ndarray:
         """``obs`` (…, 8) with ``measured_angle_rad`` converted from the Eq. 4.1 reading to
         the table angle [rad] with the rig's calibration (the same array for the nominal
-        rig, a copy otherwise); with a y channel (…, 9) that reading too."""
+        rig, a copy otherwise); with a y channel (…, 9) that reading too. ValueError for an
+        observation that is not a finite real array of that width (a NaN reading would
+        otherwise become a NaN action)."""
+        a = np.asarray(obs)
+        if (a.ndim == 0 or a.shape[-1] not in (OBS_Y, OBS_Y + 1) or a.dtype.kind not in "fiu"
+                or not np.isfinite(a).all()):  # fmt: skip
+            raise ValueError(
+                f"obs: shape {a.shape}, dtype {a.dtype}: an observation is a finite real array "
+                f"of {OBS_Y} values ({OBS_Y + 1} with the y channel), got {_brief(a)}"
+            )
         det = self.detector
         if det.tilt_factor == 1.0 and det.gain == 1.0:
             return obs
@@ -163,6 +172,15 @@ class ControllerContext:
     @property
     def pid_gains(self) -> PIDGains:
         return _scan_design(self.params, self.axis, self.control_interval)[1]
+
+
+def _brief(a: np.ndarray) -> str:
+    """A short text of an observation for an error message: its values, or the first bad one."""
+    if a.dtype.kind not in "fiu":
+        return repr(a.tolist())[:80]
+    bad = np.flatnonzero(~np.isfinite(a.reshape(-1)))
+    flat = a.reshape(-1)
+    return f"{float(flat[bad[0]])!r} at flat index {bad[0]}" if bad.size else repr(a.tolist())[:80]
 
 
 @functools.lru_cache(maxsize=16)

@@ -198,12 +198,13 @@ def adapted_hold_core(v_start, v_end, k, gain, tau, rate, ideal, a=0.0, tf=1.0, 
         return _hold_numerical(v_start, v_end, u_over, gain, tau, rate, a, tf, to)
     dist = gain * abs(v_start - v_end)  # output travel to the end value [V]
     e0 = gain * abs(v_start - u_over)  # initial error [V]
+    left = dist * k  # e0 − dist [V], the error left at the end value, exact for any k > 0
     if e0 > rate * tau:
         d_lin = e0 - rate * tau
         if dist <= d_lin:
             return dist / rate
-        return d_lin / rate + tau * math.log(rate * tau / (e0 - dist))
-    return tau * math.log(e0 / (e0 - dist))
+        return d_lin / rate + tau * math.log(rate * tau / left)
+    return tau * math.log1p(1.0 / k)  # τ·ln(e0/(e0 − dist)), e0/left = (1 + k)/k
 
 
 @njit(cache=CACHE)

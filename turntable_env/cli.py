@@ -28,10 +28,8 @@ from .validation import parse_decimal
 
 __all__ = ["main"]
 
-MAX_DURATION = 1000.0  # s of turntable time one simulate run may cover
 MIN_AMPLITUDE = 1e-3  # V of amplifier input: below a DAQ's least bit, and the figures' 0/0
 RAMP_RATIO_RANGE = (0.01, 0.999)  # ramp and flyback each at least 0.1 % of a period
-MAX_STEPS = 1e10  # fine integration steps (duration·ω_max/--dt-factor) of a full-model run
 
 
 def one_line(text: object) -> str:
@@ -110,7 +108,14 @@ def _cmd_params(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .model import SimulationError
     from .plant import as_plant
-    from .simulation import check_output_samples, simulate, simulate_axes, stepping_drive
+    from .simulation import (
+        MAX_DURATION,
+        MAX_STEPS,
+        check_output_samples,
+        simulate,
+        simulate_axes,
+        stepping_drive,
+    )
 
     if args.cycles is not None and args.signal != "two":
         raise ValueError(f"--cycles={args.cycles}: only with --signal two (forward-back cycles)")

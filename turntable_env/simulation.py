@@ -24,6 +24,8 @@ from .reduced import REDUCED_AXES, AxisResponse, simulate_batch
 from .response import ENERGY_TERMS, TurntableResponse
 from .validation import check_nonnegative, check_positive
 
+MAX_DURATION = 1000.0  # s of turntable time one simulate run may cover
+MAX_STEPS = 1e10  # fine integration steps (duration·ω_max/dt_factor, or duration/dt) of a 3-D run
 MAX_OUTPUT_SAMPLES = 20_000_000  # samples one run may record (≈ 1 GB of response arrays)
 
 
@@ -42,7 +44,9 @@ def check_output_samples(
 
 __all__ = [
     "AMPLIFIER_MODES",
+    "MAX_DURATION",
     "MAX_OUTPUT_SAMPLES",
+    "MAX_STEPS",
     "TWO_DIRECTIONAL_CYCLES",
     "check_output_samples",
     "cycle_minima",
@@ -149,10 +153,23 @@ def simulate(
     if duration is None:
         duration = _drive_end(drives.values()) + settle
     dur = check_positive("duration", duration)
+    if dur > MAX_DURATION:
+        raise ValueError(f"duration={dur!r}: more than {MAX_DURATION:g} s of turntable time")
     check_output_samples(dur, output_dt)
+    if model is not None and not isinstance(model, TurntableModel):
+        raise ValueError(f"model={type(model).__name__}: must be a TurntableModel (or None)")
     mdl = model if model is not None else TurntableModel(ps)
     if mdl.params is not ps and model is not None:
         raise ValueError("model: was built for another parameter set")
+    if dt is not None:
+        step = check_positive("dt", dt)  # s
+    else:
+        step = check_positive("dt_factor", dt_factor) / mdl.omega_max  # s
+    if dur / step > MAX_STEPS:  # refused before the run, which would not end for hours
+        raise ValueError(
+            f"dt={dt!r}, dt_factor={dt_factor!r}: {dur / step:.3g} integration steps over "
+            f"{dur:g} s (ω_max = {mdl.omega_max:.4g} rad/s), more than {MAX_STEPS:g}"
+        )
     given = drives  # the drive as commanded (its periods give the step detection)
     if bool(input_active(pl.effect_row)):  # the piezo's input stage on each channel's input
         drives = {k: _input_staged(w, pl, dur) for k, w in mdl.drive_waveforms(drives).items()}

@@ -35,11 +35,11 @@ import numpy as np
 from ..drive import StepSetting
 from ..params import ParameterSet
 from ..plant import Plant, output_capacitance
-from ..validation import check_nonnegative
-from .measurement import Measurement
+from ..validation import check_int, check_nonnegative
+from .measurement import INPUT_LIMIT, MAX_SAMPLES, Measurement
 from .trace import simulate_trace
 
-__all__ = ["PROTOCOLS", "protocol_blocks", "protocol_drive", "run_virtual_lab"]
+__all__ = ["PROTOCOLS", "check_protocol", "protocol_blocks", "protocol_drive", "run_virtual_lab"]
 
 Block = tuple[Any, ...]
 _STANDARD: list[Block] = [
@@ -105,6 +105,73 @@ PROTOCOLS: dict[str, list[Block]] = {
 }
 
 
+MAX_PROTOCOL_S = 100.0  # s, the longest protocol (the thesis's are under 3 s)
+SAMPLE_DT_RANGE = (1e-7, 1e-2)  # s, the detector's sample interval
+MAX_PROTOCOL_PERIODS = 1_000_000  # stepping periods of one block
+
+
+def _number(where: str, v: Any, lo: float, hi: float) -> float:
+    """A real number in [lo, hi] (bool refused); ValueError naming ``where`` otherwise."""
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+        raise ValueError(f"{where}={v!r}: must be a number")
+    if not (np.isfinite(v) and lo <= v <= hi):
+        raise ValueError(f"{where}={v!r}: must lie in {lo:g}…{hi:g}")
+    return float(v)
+
+
+def check_protocol(protocol: str | Sequence[Block], sample_dt: float = 5e-5) -> list[Block]:
+    """The protocol's blocks, each checked (module docstring's forms: amplitudes within the
+    amplifier input's ±10 V, 1 Hz–100 kHz, 0.01 ≤ a ≤ 0.999, k in 0…10, whole periods) with
+    ``sample_dt`` and the whole length bounded (:data:`MAX_PROTOCOL_S`,
+    :data:`SAMPLE_DT_RANGE`), before anything is allocated; ValueError naming the block."""
+    if isinstance(protocol, str):
+        if protocol not in PROTOCOLS:
+            raise ValueError(f"protocol={protocol!r}: choose from {', '.join(PROTOCOLS)}")
+        blocks = PROTOCOLS[protocol]
+    elif isinstance(protocol, Sequence) and protocol:
+        blocks = list(protocol)
+    else:
+        raise ValueError(f"protocol={protocol!r}: a name or a non-empty list of blocks")
+    _number("sample_dt", sample_dt, *SAMPLE_DT_RANGE)
+    total = 0.0
+    for i, blk in enumerate(blocks):
+        w = f"protocol[{i}]"
+        if not isinstance(blk, tuple | list) or not blk:
+            raise ValueError(f"{w}={blk!r}: a tuple (kind, ...)")
+        kind, n_args = blk[0], {"hold": 2, "scan": 3, "steps": 6}.get(blk[0]) if isinstance(
+            blk[0], str) else None  # fmt: skip
+        if n_args is None or not (len(blk) == n_args or (kind == "steps" and len(blk) == 7)):
+            raise ValueError(
+                f"{w}={blk!r}: ('hold', s), ('scan', V, s) or ('steps', V, Hz, periods, a, k"
+                "[, 'step'])"
+            )
+        if kind == "hold":
+            total += _number(f"{w} seconds", blk[1], 0.0, MAX_PROTOCOL_S)
+        elif kind == "scan":
+            _number(f"{w} level", blk[1], -INPUT_LIMIT, INPUT_LIMIT)
+            total += _number(f"{w} seconds", blk[2], 0.0, MAX_PROTOCOL_S)
+        else:
+            _number(f"{w} amplitude", blk[1], -INPUT_LIMIT, INPUT_LIMIT)
+            f = _number(f"{w} frequency", blk[2], 1.0, 1e5)
+            n = blk[3]
+            if isinstance(n, bool) or not isinstance(n, int | np.integer) or not (
+                    1 <= n <= MAX_PROTOCOL_PERIODS):  # fmt: skip
+                raise ValueError(f"{w} periods={n!r}: an integer in 1…{MAX_PROTOCOL_PERIODS}")
+            _number(f"{w} a", blk[4], 0.01, 0.999)
+            _number(f"{w} k", blk[5], 0.0, 10.0)
+            if len(blk) == 7 and blk[6] != "step":
+                raise ValueError(f"{w}: the seventh element is 'step' or absent, got {blk[6]!r}")
+            total += int(n) / f
+        if total > MAX_PROTOCOL_S:
+            raise ValueError(f"protocol: {total:.6g} s up to {w}, more than {MAX_PROTOCOL_S:g} s")
+    if total / sample_dt > MAX_SAMPLES:
+        raise ValueError(
+            f"sample_dt={sample_dt!r}: {total / sample_dt:.3g} samples over {total:.6g} s, more "
+            f"than a measurement file holds ({MAX_SAMPLES})"
+        )
+    return blocks
+
+
 def _duration(blk: Block) -> float:
     if blk[0] == "steps":
         return blk[3] / blk[2]
@@ -124,10 +191,9 @@ def protocol_blocks(protocol: str | Sequence[Block]) -> list[tuple[float, float,
 def protocol_drive(
     protocol: str | Sequence[Block], params: ParameterSet, axis: str, sample_dt: float = 5e-5
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(time [s], amplifier input [V]) samples of a protocol (module docstring)."""
-    blocks = PROTOCOLS[protocol] if isinstance(protocol, str) else list(protocol)
-    if isinstance(protocol, str) and protocol not in PROTOCOLS:
-        raise ValueError(f"protocol={protocol!r}: choose from {', '.join(PROTOCOLS)}")
+    """(time [s], amplifier input [V]) samples of a protocol (module docstring;
+    :func:`check_protocol`)."""
+    blocks = check_protocol(protocol, sample_dt)
     amp = params.amplifier
     c_load = None
     tt: list[float] = [0.0]
@@ -198,6 +264,12 @@ def run_virtual_lab(
         noise_std: detector noise standard deviation [V] (the plant's ``sensor_noise``).
         seed: of the noise generator.
     """
+    check_protocol(protocol, sample_dt)  # before the plant is built
+    seed = check_int("seed", seed, 0)
+    if plant is not None and not isinstance(plant, Plant):
+        raise ValueError(f"plant={type(plant).__name__}: must be a Plant (or None)")
+    if effects is not None and not isinstance(effects, Mapping):
+        raise ValueError(f"effects={effects!r}: must be a mapping name → parameters")
     base = plant if plant is not None else Plant(params if params is not None else "real")
     p = base.replace(
         effects={**base.effects, **(effects or {})},

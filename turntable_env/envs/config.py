@@ -88,9 +88,15 @@ class ActionScaling:
 
     input_limit: float = 10.0  # V
 
+    def __post_init__(self) -> None:
+        if not (isinstance(self.input_limit, int | float) and math.isfinite(self.input_limit)
+                and self.input_limit > 0.0):  # fmt: skip
+            raise ValueError(f"input_limit={self.input_limit!r}: must be a finite number > 0 V")
+
     def decode(self, action: np.ndarray) -> tuple[float, float, float, float, float]:
-        """(amplitude [V], frequency [Hz], a [-], k [-], offset [V]) of one clipped action."""
-        a0, a1, a2, a3, a4 = (float(x) for x in action)
+        """(amplitude [V], frequency [Hz], a [-], k [-], offset [V]) of one action, clipped to
+        [-1, 1] (:func:`check_action`: ValueError for anything but 5 finite real numbers)."""
+        a0, a1, a2, a3, a4 = (float(x) for x in check_action(action, (len(ACTION_NAMES),)))
         return (
             a0 * self.input_limit,
             F_MIN * (F_MAX / F_MIN) ** (0.5 * (a1 + 1.0)),
@@ -100,8 +106,13 @@ class ActionScaling:
         )
 
     def decode_batch(self, actions: np.ndarray) -> np.ndarray:
-        """(N, 5) settings of N clipped actions, as :meth:`decode` row by row."""
+        """(N, 5) settings of N clipped actions, as :meth:`decode` row by row (ValueError for
+        another shape or a value that is not finite)."""
         a = np.asarray(actions, dtype=float)
+        if a.ndim != 2 or a.shape[1] != len(ACTION_NAMES) or not np.isfinite(a).all():
+            raise ValueError(
+                f"actions: shape {a.shape}: must be (N, {len(ACTION_NAMES)}) finite numbers"
+            )
         out = np.empty_like(a)
         out[:, 0] = a[:, 0] * self.input_limit
         out[:, 1] = F_MIN * (F_MAX / F_MIN) ** (0.5 * (a[:, 1] + 1.0))
@@ -113,7 +124,15 @@ class ActionScaling:
     def encode(
         self, amplitude: float, frequency: float, a: float, k: float = 0.0, offset: float = 0.0
     ) -> np.ndarray:
-        """The action (float32) that decodes to this setting (inverse of :meth:`decode`)."""
+        """The action (float32) that decodes to this setting (inverse of :meth:`decode`);
+        ValueError for a value that is not a finite real number, or a frequency ≤ 0 Hz."""
+        named = {"amplitude": amplitude, "frequency": frequency, "a": a, "k": k, "offset": offset}
+        for name, v in named.items():
+            if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) \
+                    or not math.isfinite(v):
+                raise ValueError(f"{name}={v!r}: must be a finite real number")
+        if frequency <= 0.0:
+            raise ValueError(f"frequency={frequency!r}: must be > 0 Hz")
         x = np.array(
             [
                 amplitude / self.input_limit,
@@ -161,6 +180,7 @@ def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     return np.clip(a, -1.0, 1.0)
 
 
+MIN_TOLERANCE = 1e-12  # rad, the smallest success tolerance (the detector's noise is ~1e-7)
 MAX_CONTROL_INTERVAL = 10.0  # s: one env step at most (a frozen env below one grid step)
 RETARGET_HORIZON = 1000  # control intervals of a retargeting episode's legs (the last holds)
 # a reward term's weight (energy_weight, success_bonus) at most: the energy term is
@@ -168,8 +188,9 @@ RETARGET_HORIZON = 1000  # control intervals of a retargeting episode's legs (th
 # (2 kHz × 10 s), so no reward can overflow; 10⁶ is far beyond any useful weight (0.01, 1)
 MAX_REWARD_WEIGHT = 1e6
 # turntables of one vector env at most, checked before anything is allocated: each takes
-# ~120 kB (state, plant, generator), so 2¹⁶ is ~8 GB, more than any machine here trains on
-MAX_NUM_ENVS = 65536
+# ~62 kB in the stepper's arrays alone (state, plant, generator), so 2¹³ is ~0.5 GB, more
+# than any machine here trains on
+MAX_NUM_ENVS = 8192
 
 
 def _pair(name: str, value: Any) -> tuple[Any, Any]:
@@ -286,7 +307,11 @@ class EnvConfig:
             raise ValueError(f"noise={self.noise!r}: must be a bool")
         if not isinstance(self.detector_y, bool):
             raise ValueError(f"detector_y={self.detector_y!r}: must be a bool")
-        check_positive("tolerance", self.tolerance)
+        if check_positive("tolerance", self.tolerance) < MIN_TOLERANCE:
+            raise ValueError(
+                f"tolerance={self.tolerance!r}: must be >= {MIN_TOLERANCE:g} rad (far below "
+                "the detector's noise; a smaller one overflows the log reward)"
+            )
         if not isinstance(self.terminate_on_success, bool):
             raise ValueError(f"terminate_on_success={self.terminate_on_success!r}: must be a bool")
         for name in ("energy_weight", "success_bonus"):

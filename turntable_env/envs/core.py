@@ -82,6 +82,19 @@ class TurntableTask:
         amp = ps.amplifier
         self.detector = ps.detector
         self.angle_range = self.detector.angle_range  # rad, θ_lin
+        # the workspace holds every start and target a reset draws; a tolerance is a
+        # distance within the detector's range (beyond it every episode succeeds at once)
+        reach = max(config.start_range, config.target_range) * self.angle_range
+        if config.angle_limit <= reach:
+            raise ValueError(
+                f"angle_limit={config.angle_limit!r}: must exceed the reset's reach {reach:.3g} "
+                "rad (start_range, target_range × the detector's range)"
+            )
+        if config.tolerance >= self.angle_range:
+            raise ValueError(
+                f"tolerance={config.tolerance!r}: must be below the detector's range "
+                f"{self.angle_range:.3g} rad"
+            )
         self.c_load = load_capacitance(ps, config.axis)  # F, channel load
         self.e_ref = self.c_load * (amp.gain * amp.input_limit) ** 2  # J, one full period
         # per-turntable state

@@ -212,7 +212,7 @@ class PiezoTurntableEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         if seed is not None:  # gymnasium's own check raises its own error type
-            check_int("seed", seed, 0)
+            seed = check_int("seed", seed, 0)  # a numpy integer as a Python one
         super().reset(seed=seed)
         self.task.reset_row(0, self.np_random, options)  # refused options change nothing
         self._reset_done = True

@@ -42,7 +42,7 @@ class PiezoTurntableVectorEnv(VectorEnv):
     resets only the masked ones.
 
     Args:
-        num_envs: number of turntables N, 1 … :data:`~.config.MAX_NUM_ENVS` (65536).
+        num_envs: number of turntables N, 1 … :data:`~.config.MAX_NUM_ENVS` (8192).
         max_episode_steps: time limit in steps (None: no limit).
         render_mode: None or ``"rgb_array"`` (a tuple of N frames).
         **kwargs: :class:`~turntable_env.envs.config.EnvConfig` arguments.
@@ -63,7 +63,7 @@ class PiezoTurntableVectorEnv(VectorEnv):
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r}: must be a positive integer")
-        if num_envs > MAX_NUM_ENVS:  # before anything is allocated (~120 kB a turntable)
+        if num_envs > MAX_NUM_ENVS:  # before anything is allocated (~62 kB a turntable)
             raise ValueError(f"num_envs={num_envs!r}: must be <= {MAX_NUM_ENVS}")
         if max_episode_steps is not None:
             check_int("max_episode_steps", max_episode_steps, 1)

@@ -34,18 +34,26 @@ CALIBRATED_FILE = Path(__file__).resolve().parent.parent / "data" / "calibrated.
 NAMED_PLANTS: dict[str, Path] = {"calibrated": CALIBRATED_FILE}
 
 
-def _toml_value(v: Any) -> str:
+def _toml_value(v: Any, key: str = "") -> str:
+    """One TOML value; ValueError for a number that is not finite or a type TOML's writer
+    here does not know (a plant's fields are text, booleans, numbers and lists of them)."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
         return json.dumps(v, ensure_ascii=False)
-    return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, int | float):
+        if not math.isfinite(v):
+            raise ValueError(f"{key}={v!r}: must be finite")
+        return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x, key) for x in v) + "]"
+    raise ValueError(f"{key}={v!r}: not a value a plant file holds")
 
 
 def _toml_tables(prefix: str, data: Mapping[str, Any], out: list[str]) -> None:
     scalars = {k: v for k, v in data.items() if not isinstance(v, Mapping) and v is not None}
     out.append(f"[{prefix}]")
-    out += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
+    out += [f"{k} = {_toml_value(v, f'{prefix}.{k}')}" for k, v in scalars.items()]
     out.append("")
     for k, v in data.items():
         if isinstance(v, Mapping):
@@ -54,7 +62,14 @@ def _toml_tables(prefix: str, data: Mapping[str, Any], out: list[str]) -> None:
 
 def plant_toml(plant: Mapping[str, Any], source: str, name: str = "calibrated") -> str:
     """The file of a named plant (``data/calibrated.toml``): ``plant`` is
-    :meth:`~turntable_env.plant.Plant.to_dict`'s output, ``source`` where it came from."""
+    :meth:`~turntable_env.plant.Plant.to_dict`'s output, ``source`` where it came from.
+    ValueError for a ``name`` or ``source`` that is not one line of text (both are written
+    into comment lines: a line break there would write keys into the file)."""
+    for field_name, text in (("name", name), ("source", source)):
+        if not isinstance(text, str) or not text.strip() or not text.isprintable():
+            raise ValueError(f"{field_name}={text!r}: must be one line of printable text")
+    if not isinstance(plant, Mapping):
+        raise ValueError(f"plant={type(plant).__name__}: must be a dictionary (Plant.to_dict)")
     lines = [
         f"# The parameter set {name!r}: the plant {source} found.",
         "# Read by turntable_env.plant.parameter_set(" + repr(name) + ") and",

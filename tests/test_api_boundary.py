@@ -1,0 +1,190 @@
+"""The Python API's boundary (stop 73, from a hostile-input audit of the env and the
+library): bad input is a ValueError naming the field before any work, a valid input near
+its edge gives a finite result, and no written file can carry injected keys."""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+import tracemalloc
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import turntable_env  # noqa: F401  (registers the envs)
+from controllers import LabBrief, make
+from turntable_env.amplifier import Amplifier
+from turntable_env.calibration.virtual_lab import PROTOCOLS, check_protocol, protocol_drive
+from turntable_env.drive import DriveSignal
+from turntable_env.envs.config import ActionScaling
+from turntable_env.params import get_parameter_set
+from turntable_env.plant import Plant, calibrated_set_toml
+from turntable_env.plant.store import plant_toml
+from turntable_env.simulation import MAX_STEPS, simulate
+
+NAN = float("nan")
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = gym.make("PiezoTurntable-v0")
+    obs, _ = e.reset(seed=0)
+    return e, obs
+
+
+@pytest.mark.parametrize("k", [1e-300, 1e-17, 1e-16, 1e-9])
+def test_a_tiny_slew_adaptation_holds_long_but_finite(k):
+    """Eq. of Fig. 4.3's adapted hold: the error left at the end value is G·|Δu|·k, so the
+    hold time τ·ln((1 + k)/k) grows without bound as k → 0 but is finite for any k > 0
+    (it was 0/0 below k ≈ 1e-16: a ZeroDivisionError on a valid action)."""
+    amp = Amplifier()
+    for c_load in (0.0, 1e-8):  # the first-order stage alone, and under the current limit
+        t_k = amp.adapted_hold_time(1.0, 0.0, k, c_load)
+        t_more = amp.adapted_hold_time(1.0, 0.0, 10.0 * k, c_load)
+        assert math.isfinite(t_k) and t_k > t_more > 0.0
+        if c_load == 0.0:  # unloaded: the first-order stage's law exactly
+            assert t_k == pytest.approx(amp.tau * math.log1p(1.0 / k), rel=1e-12)
+
+
+def test_the_env_steps_with_a_tiny_slew_adaptation(env):
+    e, _ = env
+    for k in (1e-17, 1e-16):
+        obs, reward, *_ = e.step(np.array([1.0, 0.0, 0.0, k, 0.0], dtype=np.float32))
+        assert np.isfinite(obs).all() and math.isfinite(reward)
+
+
+@pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop", "scan_pid"])
+@pytest.mark.parametrize(
+    "bad", [np.full(8, NAN), np.full(8, np.inf), np.zeros(3), np.array(["a"] * 8), None]
+)
+def test_a_controller_refuses_an_observation_that_is_not_a_finite_reading(env, name, bad):
+    e, obs = env
+    c = make(name, e)
+    c.reset(obs, LabBrief(2e-4))
+    with pytest.raises(ValueError, match="obs: shape"):
+        c.act(bad)
+    with pytest.raises(ValueError, match="obs: shape"):
+        c.reset(bad, LabBrief(2e-4))
+    assert np.isfinite(c.act(obs)).all()
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda s: s.decode(np.full(5, NAN)),
+        lambda s: s.decode(np.zeros(4)),
+        lambda s: s.decode_batch(np.full((2, 5), NAN)),
+        lambda s: s.decode_batch(np.zeros(5)),
+        lambda s: s.encode(NAN, 100.0, 0.9),
+        lambda s: s.encode(1.0, 100.0, NAN),
+        lambda s: s.encode(1.0, 0.0, 0.9),
+        lambda s: s.encode("1", 100.0, 0.9),
+    ],
+)
+def test_action_scaling_refuses_what_is_not_a_finite_setting(call):
+    with pytest.raises(ValueError):
+        call(ActionScaling())
+
+
+@pytest.mark.parametrize("limit", [NAN, -1.0, 0.0, math.inf])
+def test_action_scaling_needs_a_positive_input_limit(limit):
+    with pytest.raises(ValueError, match="input_limit"):
+        ActionScaling(input_limit=limit)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"tolerance": 5e-324}, "tolerance"),
+        ({"tolerance": 1e-13}, "tolerance"),
+        ({"tolerance": 1.0}, "tolerance"),  # beyond the detector's range: done at once
+        ({"angle_limit": 1e-9}, "angle_limit"),  # the reset's starts lie beyond it
+    ],
+)
+def test_env_options_that_make_every_episode_end_at_once_are_refused(kwargs, field):
+    with pytest.raises(ValueError, match=field):
+        gym.make("PiezoTurntable-v0", **kwargs)
+
+
+def test_the_log_reward_is_finite_at_the_smallest_tolerance():
+    e = gym.make("PiezoTurntable-v0", reward="log", tolerance=1e-12)
+    e.reset(seed=0, options={"start_angle": -4e-4, "target_angle": 5e-4})
+    _, reward, *_ = e.step(np.array([1.0, 1.0, 0.0, 0.0, 0.0], dtype=np.float32))
+    assert math.isfinite(reward)
+
+
+def test_a_numpy_integer_seed_is_a_seed(env):
+    e, _ = env
+    a, _ = e.reset(seed=np.int64(3))
+    b, _ = e.reset(seed=3)
+    assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize(
+    ("source", "name"),
+    [
+        ("x\n[plant.effects.piezo_creep]\ngamma = 0.05 #", "calibrated"),
+        ("src", "x\nbogus = 1"),
+        ("src", 5),
+        ("", "calibrated"),
+    ],
+)
+def test_a_plant_file_cannot_carry_injected_lines(source, name):
+    with pytest.raises(ValueError, match="one line of printable text"):
+        calibrated_set_toml(Plant("calibrated"), source, name)
+
+
+def test_a_plant_file_round_trips_and_refuses_a_value_that_is_not_finite():
+    text = calibrated_set_toml(Plant("calibrated"), "a test")
+    assert tomllib.loads(text)["set"] == {"name": "calibrated", "source": "a test"}
+    with pytest.raises(ValueError, match=r"plant\.sensor_noise=nan"):
+        plant_toml({"base": "real", "sensor_noise": NAN}, "s")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [({"dt": 1e-15}, "dt"), ({"dt_factor": 1e-12}, "dt_factor")],
+)
+def test_a_3d_run_of_more_than_max_steps_is_refused_before_it_starts(kwargs, field):
+    d = DriveSignal(frequency=1000.0, n_periods=1)
+    with pytest.raises(ValueError, match=f"{field}=.*more than {re.escape(f'{MAX_STEPS:g}')}"):
+        simulate("real", d, 1e-3, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("protocol", "sample_dt", "needle"),
+    [
+        ("bogus", 5e-5, "choose from"),
+        (5, 5e-5, "a name or a non-empty list"),
+        ([], 5e-5, "a name or a non-empty list"),
+        ([("hold", 1e6)], 5e-5, r"protocol\[0\] seconds"),
+        ([("hold", -1.0)], 5e-5, r"protocol\[0\] seconds"),
+        ([("hold", "x")], 5e-5, "must be a number"),
+        ([("hold",)], 5e-5, r"protocol\[0\]="),
+        ([("steps", 1.0, 100.0, 10**9, 0.95, 0.0)], 5e-5, "periods"),
+        ([("steps", 11.0, 100.0, 3, 0.95, 0.0)], 5e-5, "amplitude"),
+        ([("steps", 1.0, 100.0, 3, 1.5, 0.0)], 5e-5, r"protocol\[0\] a="),
+        ([("hold", 1.0)], 0.0, "sample_dt"),
+        ([("hold", 1.0)], NAN, "sample_dt"),
+        ([("hold", 50.0), ("hold", 60.0)], 5e-5, r"more than 100 s"),
+        ([("hold", 90.0)], 1e-5, "more than a measurement file holds"),
+    ],
+)
+def test_a_virtual_lab_protocol_is_checked_before_anything_is_allocated(
+    protocol, sample_dt, needle
+):
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=needle):
+            protocol_drive(protocol, get_parameter_set("real"), "B", sample_dt)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 * 2**20
+
+
+@pytest.mark.parametrize("name", sorted(PROTOCOLS))
+def test_the_shipped_protocols_pass_their_own_check(name):
+    assert check_protocol(name) == PROTOCOLS[name]
