@@ -146,7 +146,9 @@ def design_scan_pid(
 ) -> PIDGains:
     """PID gains that maximise the crossover of L = C·P with PM ≥ ``phase_margin`` [deg]
     and min|1 + L| ≥ ``stability_margin`` (0.6: sensitivity peak ≤ 1.67, which also
-    guarantees GM ≥ 1/(1 − 0.6) = 2.5 and PM ≥ 35°).
+    guarantees GM ≥ 1/(1 − 0.6) = 2.5 and PM ≥ 35°); ValueError naming the plant's
+    slowest poles where no PID meets them (the thesis's scaled set: a 6 Hz mode at
+    |z| = 0.996 on the 10 ms interval).
 
     Args:
         plant: discrete SISO plant, offset [V] → angle [rad] (``scan_plant(...)[0, 0]``).
@@ -204,11 +206,23 @@ def design_scan_pid(
     m, noise = loop_margins(loop), _noise_gain(loop)
     pm, sm = m["phase_margin_deg"], m["stability_margin"]
     if pm < phase_margin - 0.5 or sm < stability_margin - 0.01:
-        raise RuntimeError(f"design_scan_pid: margins not met (PM {pm:.1f} deg, SM {sm:.2f})")
+        raise ValueError(
+            f"plant: no PID meets PM >= {phase_margin:g} deg and min|1 + L| >= "
+            f"{stability_margin:g} on it (best: PM {pm:.1f} deg, SM {sm:.2f}); its poles "
+            f"{_slowest_poles(plant)} (a lightly damped mode near the crossover needs a "
+            "notch, not a PID)"
+        )
     return PIDGains(
         float(g.kp), float(g.ki), float(g.kd), g.dt, pm, m["gain_margin"], sm,
         m["crossover_rad_s"], noise, k,
     )  # fmt: skip
+
+
+def _slowest_poles(plant: ct.LTI) -> str:
+    """The discrete plant's two poles nearest the unit circle, as z = |z|∠θ text."""
+    z = sorted(np.atleast_1d(ct.poles(plant)), key=lambda p: -abs(p))[:2]
+    return ", ".join(f"|z| {abs(p):.4f} at {abs(np.angle(p)) / plant.dt / (2 * np.pi):.3g} Hz"
+                     for p in z)  # fmt: skip
 
 
 class ScanPID:

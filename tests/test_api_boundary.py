@@ -188,3 +188,48 @@ def test_a_virtual_lab_protocol_is_checked_before_anything_is_allocated(
 @pytest.mark.parametrize("name", sorted(PROTOCOLS))
 def test_the_shipped_protocols_pass_their_own_check(name):
     assert check_protocol(name) == PROTOCOLS[name]
+
+
+def test_a_plant_no_pid_can_hold_is_named_not_a_runtime_error():
+    """The thesis's scaled set carries a 6 Hz mode at |z| = 0.996 on the 10 ms interval:
+    no PID meets the scan loop's margins, and the controllers say so."""
+    e = gym.make("PiezoTurntable-v0", params="thesis")
+    with pytest.raises(ValueError, match=r"no PID meets .* 6\.03 Hz"):
+        make("fuzzy", e)
+
+
+@pytest.mark.parametrize(
+    "factors",
+    [{"tube_damping": 0.0}, {"friction": -1.0}, {"preload": NAN}, {"stribeck_velocity": "x"},
+     {"friction": True}, None, ["friction"]],
+)  # fmt: skip
+def test_with_factors_refuses_what_is_not_a_positive_factor(factors):
+    with pytest.raises(ValueError, match="factors"):
+        get_parameter_set("real").with_factors(factors)
+
+
+@pytest.mark.parametrize("angle", [10**400, "0.01", True, NAN])
+def test_a_reset_angle_that_is_not_a_float_is_refused(env, angle):
+    e, _ = env
+    with pytest.raises(ValueError, match="start_angle"):
+        e.reset(seed=0, options={"start_angle": angle})
+
+
+@pytest.mark.parametrize(
+    ("args", "kwargs", "needle"),
+    [
+        ("x.csv", {}, "files="),  # a string is not a list of files
+        ([], {}, "files="),
+        ([5], {}, r"files\[0\]"),
+        (["x.csv"], {"starts": True}, "starts="),
+        (["x.csv"], {"global_points": 10**12}, "global_points="),
+        (["x.csv"], {"min_improvement": "x"}, "min_improvement="),
+        (["x.csv"], {"workers": "2"}, "workers="),
+        (["x.csv"], {"candidates": "piezo_creep"}, "candidates"),
+    ],
+)
+def test_calibrate_refuses_its_arguments_before_reading_a_file(args, kwargs, needle):
+    from turntable_env.calibration.calibrate import calibrate
+
+    with pytest.raises(ValueError, match=needle):
+        calibrate(args, progress=None, **kwargs)  # x.csv does not exist: never read

@@ -29,6 +29,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import numbers
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
@@ -472,7 +473,14 @@ class ParameterSet:
         * ``amplifier``: slew rate per input volt and current limit (:meth:`Amplifier.scaled`);
           ``amplifier_slew`` and ``amplifier_current`` each alone, on top of it.
 
-        Factors of 1 (or none) return the set unchanged."""
+        Factors of 1 (or none) return the set unchanged. ValueError for a factor that is
+        not a finite number > 0, or an unknown name."""
+        if not isinstance(factors, Mapping):
+            raise ValueError(f"factors={factors!r}: must be a mapping name → factor")
+        for k, v in factors.items():
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (
+                    math.isfinite(v) and v > 0.0):  # fmt: skip
+                raise ValueError(f"factors[{k!r}]={v!r}: must be a finite number > 0")
         unknown = set(factors) - set(SET_FACTORS)
         if unknown:
             raise ValueError(f"factors: unknown {sorted(unknown)} ({', '.join(SET_FACTORS)})")

@@ -131,6 +131,7 @@ AMPLIFIER_SCALES = {"amplifier_slew": "slew_scale", "amplifier_current": "curren
 AMPLIFIER_SIGMAS = 3.0  # a scale named only this many standard errors from the datasheet …
 # … and outside the datasheet unit's scatter (the randomisation's ±10 %, plant.value)
 GLOBAL_BOX = 2.5  # Sobol design over ±GLOBAL_BOX prior σ
+MAX_GLOBAL_POINTS = 100_000  # a global stage's points at most (the CLI's --global-points bound)
 # the second stage's slower amplifiers: ln-factors of slew and current drawn over this range
 # (× 0.05 … × 0.5 of the base's), beyond the first design's box (× 0.17 at −2.5 σ): a lab's
 # unit and cabling are not the datasheet's HVA 900, and a current limit into a larger load
@@ -973,12 +974,21 @@ def calibrate_traces(
             ``amplifier_dynamics`` is searched as an effect again.
     """
     t0 = time.perf_counter()
-    if not 0.0 <= min_improvement < 1.0:
+    if isinstance(files, str | bytes | Path) or not isinstance(files, Sequence) or not files:
+        raise ValueError(f"files={files!r}: must be a non-empty list of files or Measurements")
+    for k, f in enumerate(files):
+        if not isinstance(f, str | Path | Measurement):
+            raise ValueError(f"files[{k}]={f!r}: must be a path or a Measurement")
+    if isinstance(min_improvement, bool) or not isinstance(min_improvement, int | float) \
+            or not 0.0 <= min_improvement < 1.0:  # fmt: skip
         raise ValueError(f"min_improvement={min_improvement!r}: must be in [0, 1)")
-    for name, v, lo in (("global_points", global_points, 0), ("starts", starts, 1),
-                        ("hops", hops, 0), ("max_effects", max_effects, 0)):  # fmt: skip
-        if not isinstance(v, int) or v < lo:
-            raise ValueError(f"{name}={v!r}: must be an integer ≥ {lo}")
+    for name, v, lo, hi in (("global_points", global_points, 0, MAX_GLOBAL_POINTS),
+                            ("starts", starts, 1, MAX_GLOBAL_POINTS), ("hops", hops, 0, 1000),
+                            ("max_effects", max_effects, 0, len(CATALOGUE))):  # fmt: skip
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ValueError(f"{name}={v!r}: must be an integer in {lo}…{hi}")
+    if isinstance(candidates, str) or isinstance(nominal, str):
+        raise ValueError("candidates, nominal: lists of names, not one string")
     known = {p.name: p for p in NOMINAL_PARAMETERS}
     for n in nominal:
         if n not in known:
@@ -988,8 +998,8 @@ def calibrate_traces(
         if n not in CATALOGUE:
             raise ValueError(f"candidates: unknown effect {n!r} ({', '.join(CATALOGUE)})")
     n_workers = workers if workers is not None else len(os.sched_getaffinity(0))
-    if n_workers < 1:
-        raise ValueError(f"workers={workers!r}: must be ≥ 1")
+    if isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1:
+        raise ValueError(f"workers={workers!r}: must be an integer ≥ 1")
     say = progress or (lambda _msg: None)
     bar = None
     if progress is not None:

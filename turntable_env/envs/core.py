@@ -347,7 +347,7 @@ def _option_angle(name: str, value: Any, limit: float) -> float:
         raise ValueError(f"options[{name!r}]={value!r}: must be a real number")
     try:
         x = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # 10**400: not a float either
         raise ValueError(f"options[{name!r}]={value!r}: must be a real number") from None
     if not math.isfinite(x) or abs(x) > limit:
         raise ValueError(
