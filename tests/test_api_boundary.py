@@ -233,3 +233,42 @@ def test_calibrate_refuses_its_arguments_before_reading_a_file(args, kwargs, nee
 
     with pytest.raises(ValueError, match=needle):
         calibrate(args, progress=None, **kwargs)  # x.csv does not exist: never read
+
+
+@pytest.mark.parametrize(
+    ("call", "needle"),
+    [
+        (lambda st: st.advance(np.array([[1.0, 0.0, 0.95, 0.0, 0.0]]), 0.01), "settings"),
+        (lambda st: st.advance(np.array([[1.0, 1e12, 0.95, 0.0, 0.0]]), 0.01), "settings"),
+        (lambda st: st.advance(np.array([[1.0, 100.0, 1.5, 0.0, 0.0]]), 0.01), "settings"),
+        (lambda st: st.advance(np.full((1, 5), NAN), 0.01), "settings"),
+        (lambda st: st.advance(np.zeros(5), 0.01), "shape"),
+        (lambda st: st.advance(np.array([[1.0, 100.0, 0.9, 0.0, 0.0]]), -1.0), "interval"),
+        (lambda st: st.advance(np.array([[1.0, 100.0, 0.9, 0.0, 0.0]]), NAN), "interval"),
+        (lambda st: st.reset(5, 0.0), "b="),
+        (lambda st: st.reset(1.5, 0.0), "b="),
+        (lambda st: st.reset(0, NAN), "angle"),
+        (lambda st: st.reset(0, 0.0, time=-1.0), "time"),
+        (lambda st: st.set_plant(3, Plant()), "b="),
+        (lambda st: st.set_plant(0, 5), "plant="),
+        (lambda st: st.run_waveform([5], 0.01, 1e-3), r"waves\[0\]"),
+        (lambda st: st.run_waveform([], 0.01, 1e-3), "waves"),
+        (lambda st: st.observe_trace(0, np.array([NAN]), np.array([0.0])), "t, theta"),
+        (lambda st: st.observe_trace(0, np.zeros(3), np.zeros(2)), "t, theta"),
+    ],
+)
+def test_the_stepper_refuses_bad_calls_before_it_integrates(call, needle):
+    from turntable_env.plant import PlantStepper
+
+    st = PlantStepper([Plant()])
+    st.reset(0)
+    with pytest.raises(ValueError, match=needle):
+        call(st)
+
+
+@pytest.mark.parametrize("plants", [[5], ["real"], [], Plant()])
+def test_the_stepper_takes_a_list_of_plants(plants):
+    from turntable_env.plant import PlantStepper
+
+    with pytest.raises(ValueError, match="plants"):
+        PlantStepper(plants)

@@ -219,10 +219,10 @@ def test_save_refuses_what_the_loader_would_misread(meta, match, tmp_path):
 
 def test_save_refuses_non_finite_samples_and_round_trips_metadata(tmp_path):
     m = _m(operator="A. B.", note="x")
-    bad = Measurement(m.axis, m.amplifier_gain, m.detector, m.time, m.drives,
-                      np.where(np.arange(20) == 5, np.nan, 0.0))  # fmt: skip
-    with pytest.raises(ValueError, match="sample 5, column 'detector_V'"):
-        bad.save(tmp_path / "bad.csv")
+    with pytest.raises(ValueError, match="sample 5, column 'detector_V'"):  # refused when built
+        bad = np.where(np.arange(20) == 5, np.nan, 0.0)
+        Measurement(m.axis, m.amplifier_gain, m.detector, m.time, m.drives, bad).save(
+            tmp_path / "bad.csv")  # fmt: skip
     assert not (tmp_path / "bad.csv").exists()
     back = load_measurement(m.save(tmp_path / "m.csv"))
     assert back.meta == {"operator": "A. B.", "note": "x"}

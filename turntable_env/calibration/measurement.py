@@ -87,6 +87,47 @@ class Measurement:
     meta: dict[str, str] = field(default_factory=dict)
     source: str = ""
 
+    def __post_init__(self) -> None:
+        """The content's contract, checked as the loader checks a file (ValueError naming
+        the field, or the sample and the file's column): a known axis with its drive, a
+        gain > 0, a Detector, ≥ 2 times strictly increasing, every signal 1-D of time's
+        length and finite, text metadata. Ranges (the ±10 V input, the detector's ±15 V)
+        are :meth:`save`'s and the loader's."""
+        if self.axis not in AXES:
+            raise ValueError(f"axis={self.axis!r}: must be one of {', '.join(AXES)}")
+        g = self.amplifier_gain
+        if isinstance(g, bool) or not isinstance(g, int | float) or not (
+                math.isfinite(g) and g > 0.0):  # fmt: skip
+            raise ValueError(f"amplifier_gain={g!r}: must be a finite number > 0")
+        if not isinstance(self.detector, Detector):
+            raise ValueError(f"detector={self.detector!r}: must be a Detector")
+        if not isinstance(self.drives, dict) or self.axis not in self.drives:
+            raise ValueError(f"drives: need a dict holding the watched axis {self.axis!r}")
+        for k in self.drives:
+            if k not in AXES:
+                raise ValueError(f"drives: unknown channel {k!r} ({', '.join(AXES)})")
+        cols = {"t_s": self.time, **{f"drive_{k}_V": v for k, v in self.drives.items()},
+                "detector_V": self.detector_v}  # fmt: skip
+        if self.detector_y_v is not None:
+            cols["detector_y_V"] = self.detector_y_v
+        n = np.shape(self.time)
+        for name, v in cols.items():
+            a = np.asarray(v)
+            if a.ndim != 1 or a.shape != n or a.size < 2 or a.dtype.kind not in "fiu":
+                raise ValueError(f"column {name!r}: shape {a.shape}: need >= 2 numbers, "
+                                 f"one per time {n}")  # fmt: skip
+            if not np.isfinite(a).all():
+                r = int(np.flatnonzero(~np.isfinite(a))[0])
+                raise ValueError(f"sample {r}, column {name!r} = {float(a[r])!r}: not finite")
+        d = np.diff(np.asarray(self.time, dtype=float))
+        if np.any(d <= 0.0):
+            k = int(np.argmax(d <= 0.0)) + 1
+            raise ValueError(f"column 't_s': not increasing at sample {k}")
+        texts = isinstance(self.meta, dict) and all(
+            isinstance(k, str) and isinstance(v, str) for k, v in self.meta.items())
+        if not texts:
+            raise ValueError("meta: must be a dict of text keys and text values")
+
     def angle(self) -> np.ndarray:
         """Table angle from the detector, Eq. 4.1 [rad]."""
         return self.detector.angle(self.detector_v)

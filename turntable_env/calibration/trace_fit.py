@@ -934,6 +934,26 @@ def _considered(
     return [n for n in names if not ident.get(n) and not has.get(n, False)]
 
 
+def _check_arguments(files: Any, min_improvement: Any, counts: Mapping[str, Any]) -> None:
+    """:func:`calibrate_traces`'s files (a non-empty list of paths or Measurements, not
+    one string), ``min_improvement`` in [0, 1) and integer ``counts`` within their bounds;
+    ValueError naming the argument, before any file is read."""
+    if isinstance(files, str | bytes | Path) or not isinstance(files, Sequence) or not files:
+        raise ValueError(f"files={files!r}: must be a non-empty list of files or Measurements")
+    for k, f in enumerate(files):
+        if not isinstance(f, str | Path | Measurement):
+            raise ValueError(f"files[{k}]={f!r}: must be a path or a Measurement")
+    if isinstance(min_improvement, bool) or not isinstance(min_improvement, int | float) \
+            or not 0.0 <= min_improvement < 1.0:  # fmt: skip
+        raise ValueError(f"min_improvement={min_improvement!r}: must be in [0, 1)")
+    bounds = {"global_points": (0, MAX_GLOBAL_POINTS), "starts": (1, MAX_GLOBAL_POINTS),
+              "hops": (0, 1000), "max_effects": (0, len(CATALOGUE))}  # fmt: skip
+    for name, v in counts.items():
+        lo, hi = bounds[name]
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ValueError(f"{name}={v!r}: must be an integer in {lo}…{hi}")
+
+
 def calibrate_traces(
     files: Sequence[str | Path | Measurement],
     *,
@@ -974,19 +994,8 @@ def calibrate_traces(
             ``amplifier_dynamics`` is searched as an effect again.
     """
     t0 = time.perf_counter()
-    if isinstance(files, str | bytes | Path) or not isinstance(files, Sequence) or not files:
-        raise ValueError(f"files={files!r}: must be a non-empty list of files or Measurements")
-    for k, f in enumerate(files):
-        if not isinstance(f, str | Path | Measurement):
-            raise ValueError(f"files[{k}]={f!r}: must be a path or a Measurement")
-    if isinstance(min_improvement, bool) or not isinstance(min_improvement, int | float) \
-            or not 0.0 <= min_improvement < 1.0:  # fmt: skip
-        raise ValueError(f"min_improvement={min_improvement!r}: must be in [0, 1)")
-    for name, v, lo, hi in (("global_points", global_points, 0, MAX_GLOBAL_POINTS),
-                            ("starts", starts, 1, MAX_GLOBAL_POINTS), ("hops", hops, 0, 1000),
-                            ("max_effects", max_effects, 0, len(CATALOGUE))):  # fmt: skip
-        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise ValueError(f"{name}={v!r}: must be an integer in {lo}…{hi}")
+    _check_arguments(files, min_improvement, {"global_points": global_points, "starts": starts,
+                                              "hops": hops, "max_effects": max_effects})
     if isinstance(candidates, str) or isinstance(nominal, str):
         raise ValueError("candidates, nominal: lists of names, not one string")
     known = {p.name: p for p in NOMINAL_PARAMETERS}

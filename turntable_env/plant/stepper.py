@@ -43,13 +43,18 @@ from ..params import ParameterSet
 from ..reduced import H_MIN, REDUCED_AXES, ReducedBatch
 from ..reduced_kernel import N_REC
 from ..screw import exp_so3, log_so3
-from ..validation import check_finite
+from ..validation import check_finite, check_int, check_nonnegative, check_positive
 from .independent import IndependentBackend, Records
 from .models import load_capacitance, output_capacitance, reduced_model, turntable_model
 from .value import Plant
 
 __all__ = ["Backend", "IntervalResult", "PlantStepper", "Records"]
 
+MAX_PLANTS = 8192  # turntables of one stepper at most (the vector env's MAX_NUM_ENVS)
+MAX_INTERVAL = 10.0  # s, one advance or waveform run at most (the env's longest interval)
+MAX_TIME = 1e6  # s, a reset's time and an explicit waveform's duration at most
+MAX_RECORDS = 20_000_000  # records of one waveform run (simulation.MAX_OUTPUT_SAMPLES)
+MAX_FREQUENCY = 1e5  # Hz, a generator setting's frequency at most
 ANGLE_SAFE = 0.7  # rad, |θ| passed to the detector (< π/4, where the beam leaves it)
 _OUTPUT_COLUMNS = [
     i for i, f in enumerate(EFFECT_FIELDS) if CATALOGUE[f.split(".")[0]].stage == "output"
@@ -267,6 +272,30 @@ def _input_stage_batch(drive, rows, active, plays, creep, ref, grid, out, scr_t,
         out.count[b] = grid_points_nb(scr_t, scr_v, m, 1.0, out.times[b], out.values[b])
 
 
+def _check_settings(settings: Any, n: int, interval: Any) -> np.ndarray:
+    """:meth:`PlantStepper.advance`'s settings as a float (n, 5) array and its interval,
+    each checked (ValueError naming the column and the turntable): finite, frequency in
+    (0, :data:`MAX_FREQUENCY`], 0 < a < 1, k ≥ 0, 0 < interval ≤ :data:`MAX_INTERVAL`."""
+    if not 0.0 < check_finite("interval", interval) <= MAX_INTERVAL:
+        raise ValueError(f"interval={interval!r}: must be in (0, {MAX_INTERVAL:g}] s")
+    try:
+        s = np.asarray(settings, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"settings={settings!r}: must be ({n}, 5) numbers") from None
+    if s.shape != (n, 5):
+        raise ValueError(f"settings: shape {s.shape}, expected ({n}, 5)")
+    bad = ~np.isfinite(s).all(axis=1)
+    bad |= (s[:, 1] <= 0.0) | (s[:, 1] > MAX_FREQUENCY)
+    bad |= (s[:, 2] <= 0.0) | (s[:, 2] >= 1.0) | (s[:, 3] < 0.0)
+    if bad.any():
+        b = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"settings[{b}]={s[b].tolist()}: (amplitude V, frequency in (0, {MAX_FREQUENCY:g}] "
+            "Hz, 0 < a < 1, k >= 0, offset V), all finite"
+        )
+    return s
+
+
 class PlantStepper:
     """N plants about one axis, advanced together (see the module docstring).
 
@@ -282,8 +311,13 @@ class PlantStepper:
     """
 
     def __init__(self, plants: Sequence[Plant], axis: str = "B", *, noise: bool = True) -> None:
-        if not plants:
-            raise ValueError("plants: need at least one plant")
+        if isinstance(plants, Plant) or not isinstance(plants, Sequence) or not plants:
+            raise ValueError("plants: need a non-empty list of Plants")
+        if len(plants) > MAX_PLANTS:  # before anything is allocated (~60 kB a turntable)
+            raise ValueError(f"plants: {len(plants)} turntables, more than {MAX_PLANTS}")
+        for b, p in enumerate(plants):
+            if not isinstance(p, Plant):
+                raise ValueError(f"plants[{b}]={p!r}: must be a Plant")
         fid = {p.fidelity for p in plants}
         if len(fid) > 1:
             raise ValueError(f"plants: one fidelity per stepper, got {sorted(fid)}")
@@ -341,8 +375,15 @@ class PlantStepper:
         self._noise_std[b] = plant.sensor_noise if self.noise else 0.0
 
     # --- per-turntable setup ---------------------------------------------------------------
+    def _index(self, b: Any) -> int:
+        """Turntable index b, an integer in 0…N−1 (ValueError otherwise)."""
+        return check_int("b", b, 0, len(self) - 1)
+
     def set_plant(self, b: int, plant: Plant) -> None:
         """Replace turntable b's plant (domain randomisation); call :meth:`reset` after."""
+        b = self._index(b)
+        if not isinstance(plant, Plant):
+            raise ValueError(f"plant={plant!r}: must be a Plant")
         if plant.fidelity != self.plants[0].fidelity:
             raise ValueError(f"plant: fidelity {plant.fidelity!r} differs from the stepper's")
         self._physics.set_params(b, plant.params)
@@ -354,6 +395,10 @@ class PlantStepper:
         """Turntable b at rest at ``angle`` [rad] and ``time`` [s] with the amplifier input at
         ``level`` [V] (tubes bent by it, every element stuck), the generator idle, the
         effects' states at rest and the detector's time origin here."""
+        b = self._index(b)
+        angle, level = check_finite("angle", angle), check_finite("level", level)
+        if check_nonnegative("time", time) > MAX_TIME:
+            raise ValueError(f"time={time!r}: must be <= {MAX_TIME:g} s")
         amp = self._amp[b]
         lv = float(np.clip(level, -amp[3], amp[3]))
         self._physics.reset(b, float(angle), float(time), lv * amp[0])
@@ -392,8 +437,8 @@ class PlantStepper:
                 [Hz], ramp ratio a, slew adaptation k (> 0: the Fig. 4.3 adapted flyback), scan
                 offset at the interval's end [V input] (ramped from the last one).
         """
-        s = np.asarray(settings, dtype=float)
         n = len(self)
+        s = _check_settings(settings, n, interval)
         n_steps = round(interval / self.grid)
         pending = np.empty((n, 6))
         pending[:, :4] = s[:, :4]
@@ -422,8 +467,19 @@ class PlantStepper:
         time [s], values [V]) for ``duration`` [s]; the true angle every ``output_dt`` [s]
         (the last record at the end)."""
         n = len(self)
-        if len(waves) != n:
-            raise ValueError(f"waves: {len(waves)} for {n} plants")
+        if not isinstance(waves, Sequence) or len(waves) != n:
+            raise ValueError(f"waves: need a list of {n} Waveforms, one per plant")
+        for b, w in enumerate(waves):
+            if not isinstance(w, Waveform):
+                raise ValueError(f"waves[{b}]={w!r}: must be a Waveform")
+        if not 0.0 < check_finite("duration", duration) <= MAX_TIME:
+            raise ValueError(f"duration={duration!r}: must be in (0, {MAX_TIME:g}] s")
+        check_positive("output_dt", output_dt)
+        if duration / max(output_dt, self.grid) > MAX_RECORDS:  # before the records' arrays
+            raise ValueError(
+                f"output_dt={output_dt!r}: {duration / max(output_dt, self.grid):.3g} records "
+                f"over {duration:g} s, more than {MAX_RECORDS:g}"
+            )
         nbp = max(w.times.size for w in waves) * 2
         drive = DriveArrays(np.zeros((n, nbp)), np.zeros((n, nbp)), np.zeros(n, np.int64))
         n0 = self._physics.grid_time().copy()
@@ -554,6 +610,12 @@ class PlantStepper:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Detector (x, y) voltages [V] of a recorded angle trace of turntable b at times t
         [s] since its reset: output-stage effects, noise on both channels, saturation."""
+        b = self._index(b)
+        t, theta = np.asarray(t, dtype=float), np.asarray(theta, dtype=float)
+        if t.ndim != 1 or t.shape != theta.shape or not (np.isfinite(t).all()
+                                                          and np.isfinite(theta).all()):
+            raise ValueError(f"t, theta: shapes {t.shape}, {theta.shape}: need two finite 1-D "
+                             "arrays of one length")  # fmt: skip
         x, y = detector_stage(theta, t, self._rows[b], self._detector)
         vs = self._detector.saturation_voltage
         x, y = np.clip(x, -vs, vs), np.clip(y, -vs, vs)
