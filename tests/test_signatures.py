@@ -217,6 +217,31 @@ def test_y_slope_is_the_tangent_of_the_misalignment(proto):
     assert _group(f, "y")[0] == pytest.approx(math.tan(0.05), rel=1e-9)
 
 
+@pytest.mark.parametrize("phi", [0.0, 0.07])
+def test_y_slope_is_misalignment_not_a_drift_or_a_vibration_of_the_y_channel(proto, phi):
+    """The y channel drifts slowly (a thermal offset, 40 nm/s plus a bow, over the trace's
+    path) and vibrates at 80 Hz in both channels, as the floor moves the mount: the slope
+    over the moves is still tan φ within its noise, and the drift or the vibration alone
+    (φ = 0) scores within 3 standard deviations of 0. A slope of y on x over the whole trace
+    took the drift's correlation with the path for a misalignment (stop 73)."""
+    t, u, segs, bursts = proto
+    rng = np.random.default_rng(1)
+    x = _position(t, u, segs, bursts)
+    drift = 40.0 * t + 300.0 * (t / t[-1]) ** 2  # nm: slow, correlated with the path
+    shake = 30.0 * np.sin(2 * math.pi * 80.0 * t)  # nm, in both channels
+    xv = x + shake + rng.normal(0.0, SIGMA, t.size)
+    yv = math.tan(phi) * x + drift + 0.8 * shake + rng.normal(0.0, SIGMA, t.size)
+    _lay, f = _features(proto, xv, yv)
+    (slope,) = _group(f, "y")
+    (sd,) = f.noise[f.group("y")]
+    assert abs(slope - math.tan(phi)) < 3.0 * sd
+    assert sd < 0.07 / 3.0  # a 4° misalignment (0.07) still stands 3 sd out, 30 nm shaking
+    xc = xv - xv.mean()  # the whole-trace slope this replaces takes the drift for one
+    whole = float(xc @ (yv - yv.mean())) / float(xc @ xc)
+    if phi == 0.0:
+        assert abs(whole) > 10.0 * (SIGMA / math.sqrt(float(xc @ xc)))
+
+
 @pytest.mark.parametrize(
     ("ramp_ratios", "pairs"),
     [

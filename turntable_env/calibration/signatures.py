@@ -32,7 +32,9 @@ scan_shape  scan: 2nd and 3rd order terms over the gain;    piezo_hysteresis (be
 line        sine and cosine of the strongest spectral line  vibration
             in the holds (each hold's level, slope and
             curvature removed)
-y           slope of the y channel on the x channel         axis_misalignment
+y           slope of the y channel on the x channel over    axis_misalignment
+            the bursts' and scans' changes of level (a slow
+            y drift, a vibration in the holds are not one)
 ==========  ==============================================  ==================================
 
 The direction feature reads the steady step, not the net one: the first period of a burst
@@ -342,6 +344,12 @@ class SignatureLayout:
             [np.full(h.size, k) for k, h in enumerate(hold_idx)]
         ) if hold_idx else np.zeros(0, np.int64)  # fmt: skip
         self.line_frequency = math.nan
+        # the moves' level windows (before, after) [sample ranges]: bursts, then scans
+        n_w = max(3, round(WINDOW_S / dt))
+        self._moves = [(b.pre, b.post) for b in self.bursts] + [
+            ((sc.span[0] - n_w, sc.span[0]), (sc.span[1] - n_w, sc.span[1]))
+            for sc in self.scans if sc.span[0] >= n_w and sc.span[1] - sc.span[0] > 2 * n_w
+        ]  # fmt: skip
 
     @property
     def hold_samples(self) -> np.ndarray:
@@ -494,12 +502,38 @@ class SignatureLayout:
             add(f"line sin {self.line_frequency:.1f} Hz", "line", float(c[0]), float(sd[0]))
             add(f"line cos {self.line_frequency:.1f} Hz", "line", float(c[1]), float(sd[1]))
         if y_nm is not None:
-            y = np.asarray(y_nm, float)
-            xc = v - v.mean()
-            sxx = float(xc @ xc)
-            if sxx > 0:
-                add("y on x slope", "y", float(xc @ (y - y.mean())) / sxx, sig / math.sqrt(sxx))
+            slope = self._y_slope(v, np.asarray(y_nm, float))
+            if slope is not None:
+                add("y on x slope over the moves", "y", *slope)
         return Features(tuple(names), tuple(groups), np.array(vals), np.array(noise))
+
+    def _y_slope(self, x: np.ndarray, y: np.ndarray) -> tuple[float, float] | None:
+        """The y channel's slope on the x channel over the trace's moves [-] with its
+        standard deviation: each burst's and scan's change of level (``WINDOW_S`` before
+        and after; a scan's end its last window), Δy_i = b·Δx_i, b = ΣΔxΔy / ΣΔx². A
+        misaligned detector moves y with every move of x (b = tan φ); a slow offset of the
+        y channel (thermal drift) hardly changes over a move, where a whole-trace slope of
+        y on x takes its correlation with the trace's path for one, and a vibration moves
+        both channels in the holds, which 2 ms increments over the whole trace take for
+        one (the third independent plant, data alone: drifting y +0.0043 over the trace,
+        z 331; vibration z 76 over 2 ms increments; misaligned detector −0.070 either way;
+        stop 73). var b = ΣΔx_i²·v_i / (ΣΔx²)², v_i the larger of the windows' white noise
+        and the moves' scatter about the line (what vibration or drift adds). None with
+        fewer than three moves or no motion of x."""
+        moves = self._moves
+        if len(moves) < 3:
+            return None
+        dx = np.array([_mean(x, b) - _mean(x, a) for a, b in moves])
+        dy = np.array([_mean(y, b) - _mean(y, a) for a, b in moves])
+        sxx = float(dx @ dx)
+        if sxx <= 0.0:
+            return None
+        slope = float(dx @ dy) / sxx
+        white = np.array([self.sigma**2 * (1.0 / (a[1] - a[0]) + 1.0 / (b[1] - b[0]))
+                          for a, b in moves])  # fmt: skip
+        scatter = float(np.sum((dy - slope * dx) ** 2)) / (len(moves) - 1)
+        var = float(np.sum(dx**2 * np.maximum(white, scatter))) / sxx**2
+        return slope, math.sqrt(var)
 
 
 def misfit_variance(residual: np.ndarray, noise: np.ndarray, dof: int) -> float:
