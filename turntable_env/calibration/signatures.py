@@ -344,9 +344,10 @@ class SignatureLayout:
             [np.full(h.size, k) for k, h in enumerate(hold_idx)]
         ) if hold_idx else np.zeros(0, np.int64)  # fmt: skip
         self.line_frequency = math.nan
-        # the moves' level windows (before, after) [sample ranges]: bursts, then scans
+        # the moves' level windows (before, after) [sample ranges]: bursts, then scans (the
+        # y feature's, :meth:`_y_slope`)
         n_w = max(3, round(WINDOW_S / dt))
-        self._moves = [(b.pre, b.post) for b in self.bursts] + [
+        self.moves = [(b.pre, b.post) for b in self.bursts] + [
             ((sc.span[0] - n_w, sc.span[0]), (sc.span[1] - n_w, sc.span[1]))
             for sc in self.scans if sc.span[0] >= n_w and sc.span[1] - sc.span[0] > 2 * n_w
         ]  # fmt: skip
@@ -513,14 +514,16 @@ class SignatureLayout:
         and after; a scan's end its last window), Δy_i = b·Δx_i, b = ΣΔxΔy / ΣΔx². A
         misaligned detector moves y with every move of x (b = tan φ); a slow offset of the
         y channel (thermal drift) hardly changes over a move, where a whole-trace slope of
-        y on x takes its correlation with the trace's path for one, and a vibration moves
-        both channels in the holds, which 2 ms increments over the whole trace take for
-        one (the third independent plant, data alone: drifting y +0.0043 over the trace,
-        z 331; vibration z 76 over 2 ms increments; misaligned detector −0.070 either way;
-        stop 73). var b = ΣΔx_i²·v_i / (ΣΔx²)², v_i the larger of the windows' white noise
+        y on x takes its correlation with the trace's path for one; a vibration moves both
+        channels in the holds, which short increments over the whole trace would take for
+        one. The three independent plants' traces, data alone (``python
+        experiments/y_feature.py``, stop 73): the third plant's drifting y scores z 353.7
+        over the whole trace and −0.1 over the moves, its floor vibration 4.4 and −0.2; the
+        three misaligned detectors 730.6–866.2 over the moves; every other trace |z| ≤ 2.6.
+        var b = ΣΔx_i²·v_i / (ΣΔx²)², v_i the larger of the windows' white noise
         and the moves' scatter about the line (what vibration or drift adds). None with
         fewer than three moves or no motion of x."""
-        moves = self._moves
+        moves = self.moves
         if len(moves) < 3:
             return None
         dx = np.array([_mean(x, b) - _mean(x, a) for a, b in moves])

@@ -105,6 +105,7 @@ __all__ = [
     "identifiable_effects",
     "slower_amplifier",
     "trace_comparison",
+    "trace_data",
 ]
 
 # the nominal parameters a trace fit frees (nominal.NOMINAL_PARAMETERS; the amplifier's
@@ -265,6 +266,12 @@ def at_base_gain(m: Measurement, amplifier: Any) -> tuple[Measurement, list[str]
         f"{amplifier.gain:g}: the drive is taken ×{k:.4g} as its input, so the tubes see the "
         "file's gain; the amplifier's dynamics are the fitted slew and current scales"
     ]
+
+
+def trace_data(m: Measurement) -> TraceData:
+    """One file as the fit sees it (:func:`calibrate_traces`' first step: its drive read,
+    its segments in their portions, its anchoring and noise floor); ValueError as there."""
+    return _prepare(m)[0]
 
 
 def _prepare(m: Measurement, input_scale: float = 1.0) -> tuple[TraceData, list[str]]:
