@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from turntable_env.validation import check_finite, check_nonnegative
+from turntable_env.validation import check_finite, check_int, check_nonnegative
 
 __all__ = ["LabBrief", "dead_reckoned_start"]
 
@@ -54,7 +54,12 @@ class LabBrief:
         err = check_nonnegative("start_error", self.start_error)
         object.__setattr__(self, "start_error", err)
         if self.reference_rad is not None:
-            ref = np.asarray(self.reference_rad, dtype=float)
+            try:
+                ref = np.asarray(self.reference_rad, dtype=float)
+            except (TypeError, ValueError):  # text, complex numbers
+                raise ValueError(
+                    f"reference_rad={self.reference_rad!r}: must be a sequence of angles [rad]"
+                ) from None
             if ref.ndim != 1 or ref.size == 0 or not np.isfinite(ref).all():
                 raise ValueError(
                     f"reference_rad: need a non-empty sequence of finite angles, got shape "
@@ -64,6 +69,7 @@ class LabBrief:
 
     def reference_at(self, k: int) -> float:
         """The commanded target at interval k [rad] (the last value after the end)."""
+        k = check_int("k", k)
         if self.reference_rad is None:
             return self.target_rad
         return self.reference_rad[min(max(k, 0), len(self.reference_rad) - 1)]

@@ -17,7 +17,7 @@ import turntable_env  # noqa: F401  (registers the envs)
 from controllers import LabBrief, make
 from turntable_env.amplifier import Amplifier
 from turntable_env.calibration.virtual_lab import PROTOCOLS, check_protocol, protocol_drive
-from turntable_env.drive import DriveSignal
+from turntable_env.drive import DriveSignal, Waveform
 from turntable_env.envs.config import ActionScaling
 from turntable_env.params import get_parameter_set
 from turntable_env.plant import Plant, calibrated_set_toml
@@ -272,3 +272,37 @@ def test_the_stepper_takes_a_list_of_plants(plants):
 
     with pytest.raises(ValueError, match="plants"):
         PlantStepper(plants)
+
+
+@pytest.mark.parametrize(
+    ("make_it", "needle"),
+    [
+        (lambda: DriveSignal(n_periods=10**9), "n_periods"),
+        (lambda: DriveSignal(n_periods=10**6, pattern="two", n_cycles=100), "periods, more than"),
+        (lambda: DriveSignal(start=-1.0), "start"),
+        (lambda: Waveform(np.zeros((2, 2)), np.zeros((2, 2))), "1-D"),
+    ],
+)
+def test_a_drive_too_long_to_hold_or_of_the_wrong_shape_is_refused(make_it, needle):
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=needle):
+            make_it()
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 * 2**20
+
+
+@pytest.mark.parametrize(
+    ("make_it", "needle"),
+    [
+        (lambda: LabBrief(0.0, reference_rad=[1j]), "reference_rad"),
+        (lambda: LabBrief(0.0, reference_rad="abc"), "reference_rad"),
+        (lambda: LabBrief(NAN), "target_rad"),
+        (lambda: LabBrief(0.0, reference_rad=[0.0, 1e-4]).reference_at("x"), "k="),
+    ],
+)
+def test_a_lab_brief_refuses_what_is_not_an_angle(make_it, needle):
+    with pytest.raises(ValueError, match=needle):
+        make_it()

@@ -210,6 +210,9 @@ class Waveform:
     values: np.ndarray
 
     def __post_init__(self) -> None:
+        for name in ("times", "values"):
+            if np.ndim(getattr(self, name)) > 1:
+                raise ValueError(f"{name}: shape {np.shape(getattr(self, name))}: must be 1-D")
         t = check_array_finite("times", self.times).astype(float).reshape(-1)
         v = check_array_finite("values", self.values).astype(float).reshape(-1)
         if t.size == 0 or t.shape != v.shape:
@@ -256,9 +259,12 @@ class Waveform:
         return Waveform(self.times.copy(), self.values * check_finite("factor", factor))
 
 
+MAX_PERIODS = 10_000_000  # periods one drive or breakpoint list may hold (~0.6 GB of breakpoints)
+
+
 def _check_count(name: str, n: int) -> int:
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-        raise ValueError(f"{name}={n!r}: must be a positive integer")
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= MAX_PERIODS:
+        raise ValueError(f"{name}={n!r}: must be an integer in 1…{MAX_PERIODS}")
     return int(n)
 
 
@@ -398,10 +404,15 @@ class DriveSignal:
         if self.pattern not in ("one", "two"):
             raise ValueError(f"pattern={self.pattern!r}: must be 'one' or 'two'")
         check_nonnegative("slew_adaptation", self.slew_adaptation)
-        check_finite("start", self.start)
+        check_nonnegative("start", self.start)
         if self.flyback not in ("ramp", "step"):
             raise ValueError(f"flyback={self.flyback!r}: must be 'ramp' or 'step'")
         _check_count("n_cycles", self.n_cycles)
+        if self.total_periods > MAX_PERIODS:
+            raise ValueError(
+                f"n_periods={self.n_periods!r}, n_cycles={self.n_cycles!r}: "
+                f"{self.total_periods} periods, more than {MAX_PERIODS}"
+            )
 
     @property
     def stepped(self) -> bool:
