@@ -1195,9 +1195,10 @@ def _second_stage(
     n_workers: int, plan: tuple[int, int], bar: Any, say: Callable[[str], None],
 ) -> tuple[_Search | None, dict[str, Any]]:
     """A second global stage for a nominal fit that stays above its target [nm]: the
-    first design doubled (the same Sobol sequence and box, only its new half evaluated)
-    evaluated under the prior residual's weight as the first half was, and the search run
-    again on it (:func:`_search_design`: its best starts and the
+    first design doubled (the same Sobol sequence and box, only its new half evaluated),
+    and the first design's points again with slower amplifiers than its box holds
+    (:func:`slower_amplifier`), evaluated under the prior residual's weight as the first
+    half was, and the search run again on it (:func:`_search_design`: its best starts and the
     prior, the first pass, the re-weighting, every start continued, basin hopping). Kept
     where its optimum's cost is lower by :data:`HOP_TOL` than the first stage's best under
     the same weight (the second's re-weighting, the first's best evaluated again). Twelve

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..params import ParameterSet
 from ..plant import DEFAULT_RANDOMIZATION, FIDELITIES, NAMED_PLANTS, PARAMETER_SETS, Plant
+from ..plant.stepper import MAX_PLANTS
 from ..validation import check_nonnegative, check_positive, describe
 
 __all__ = [
@@ -187,10 +188,10 @@ RETARGET_HORIZON = 1000  # control intervals of a retargeting episode's legs (th
 # w·E/E_ref, E/E_ref (in full-amplitude periods) of order 10⁴ at most in an interval
 # (2 kHz × 10 s), so no reward can overflow; 10⁶ is far beyond any useful weight (0.01, 1)
 MAX_REWARD_WEIGHT = 1e6
-# turntables of one vector env at most, checked before anything is allocated: each takes
-# ~62 kB in the stepper's arrays alone (state, plant, generator), so 2¹³ is ~0.5 GB, more
-# than any machine here trains on
-MAX_NUM_ENVS = 8192
+# turntables of one vector env at most, checked before anything is allocated: the plant
+# stepper's own bound (~62 kB a turntable in its arrays alone, ~0.5 GB at 2¹³), more than
+# any machine here trains on
+MAX_NUM_ENVS = MAX_PLANTS
 
 
 def _pair(name: str, value: Any) -> tuple[Any, Any]:

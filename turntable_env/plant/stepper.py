@@ -50,7 +50,7 @@ from .value import Plant
 
 __all__ = ["Backend", "IntervalResult", "PlantStepper", "Records"]
 
-MAX_PLANTS = 8192  # turntables of one stepper at most (the vector env's MAX_NUM_ENVS)
+MAX_PLANTS = 8192  # turntables of one stepper at most (~62 kB each; the vector env's bound)
 MAX_INTERVAL = 10.0  # s, one advance or waveform run at most (the env's longest interval)
 MAX_TIME = 1e6  # s, a reset's time and an explicit waveform's duration at most
 MAX_RECORDS = 20_000_000  # records of one waveform run (simulation.MAX_OUTPUT_SAMPLES)
