@@ -8,7 +8,6 @@ weight."""
 
 from __future__ import annotations
 
-import math
 from types import SimpleNamespace
 from typing import Any
 
@@ -227,38 +226,3 @@ def test_report_states_the_second_stage_and_whether_it_was_kept(kept):
     none = "\n".join(_md_second({**row, "new_starts": 0}, "nm"))
     assert "0 of its best starts new: the search would repeat the first stage's" in none
     assert _md_second(None, "nm") == []
-
-
-class _AmplifierModel(_Model):
-    """The stand-in with the real model's names: the amplifier's two scales last."""
-
-    names = TRACE_NOMINAL
-
-
-@pytest.mark.parametrize("seed", [0, 3])
-def test_the_second_stage_tries_the_first_design_with_slower_amplifiers(seed):
-    """Each point of the first design again, its amplifier slew and current scales drawn
-    below the first design's box (× 0.05 … × 0.5), every other coordinate kept; a model
-    that fits no amplifier scale adds no point."""
-    first = _design(N_FIRST, seed)
-    slow = trace_fit.slower_amplifier(_AmplifierModel(), first, seed)
-    amp = [TRACE_NOMINAL.index(n) for n in trace_fit.AMPLIFIER_SCALES]
-    rest = [k for k in range(N) if k not in amp]
-    assert slow.shape == first.shape
-    np.testing.assert_array_equal(slow[:, rest], first[:, rest])
-    lo, hi = trace_fit.SLOW_AMPLIFIER_LN
-    assert np.all((slow[:, amp] >= lo) & (slow[:, amp] <= hi))
-    assert np.all(slow[:, amp] <= math.log(0.5))  # × 0.5 at most: slower than the datasheet
-    # spread over the range, not one value: a Sobol draw per point
-    assert np.ptp(slow[:, amp[0]]) > 0.8 * (hi - lo) and np.ptp(slow[:, amp[1]]) > 0.8 * (hi - lo)
-    assert trace_fit.slower_amplifier(_Model(), first, seed).shape == (0, N)
-
-
-def test_the_report_names_the_slower_amplifier_points():
-    from turntable_env.calibration.calibrate import _md_second
-
-    row = {"points": 128, "box_sigma": GLOBAL_BOX, "new_starts": 1, "slow_amplifier_points": 64,
-           "cost_before": 41.7, "cost_after": 29.0, "heldout_before": 80.4, "costs": [30.2],
-           "kept": True, "hops": [], "heldout_rms": 50.0}  # fmt: skip
-    text = "\n".join(_md_second(row, "nm"))
-    assert "and the first design's 64 points with slower amplifiers" in text

@@ -190,11 +190,8 @@ def _md_second(row: dict[str, Any] | None, u: str) -> list[str]:
         return []
     head = (f"Second global stage (the nominal fit, {row['heldout_before']:.3g} {u}, stayed "
             f"above the target): the design doubled to {row['points']} Sobol points over "
-            f"±{row['box_sigma']:g} prior σ"
-            + (f", and the first design's {row['slow_amplifier_points']} points with slower "
-               "amplifiers (slew and current × 0.05–0.5)" if row.get("slow_amplifier_points")
-               else "")
-            + f", {row['new_starts']} of its best starts new")  # fmt: skip
+            f"±{row['box_sigma']:g} prior σ, {row['new_starts']} of its best starts "
+            "new")  # fmt: skip
     if not row["new_starts"]:
         return ["", f"{head}: the search would repeat the first stage's, not run."]
     costs = ", ".join(f"{c:.5g}" for c in row["costs"])

@@ -103,7 +103,6 @@ __all__ = [
     "at_base_gain",
     "calibrate_traces",
     "identifiable_effects",
-    "slower_amplifier",
     "trace_comparison",
     "trace_data",
 ]
@@ -133,12 +132,6 @@ AMPLIFIER_SIGMAS = 3.0  # a scale named only this many standard errors from the 
 # … and outside the datasheet unit's scatter (the randomisation's ±10 %, plant.value)
 GLOBAL_BOX = 2.5  # Sobol design over ±GLOBAL_BOX prior σ
 MAX_GLOBAL_POINTS = 100_000  # a global stage's points at most (the CLI's --global-points bound)
-# the second stage's slower amplifiers: ln-factors of slew and current drawn over this range
-# (× 0.05 … × 0.5 of the base's), beyond the first design's box (× 0.17 at −2.5 σ): a lab's
-# unit and cabling are not the datasheet's HVA 900, and a current limit into a larger load
-# slews many times slower (the third independent plant's slower amplifier: slew × 0.125,
-# current × 0.16; its fit reaches 50.4 nm held out with the amplifier there, 80.4 nm without)
-SLOW_AMPLIFIER_LN = (math.log(0.05), math.log(0.5))
 FIRST_NFEV = 15  # least-squares iterations of each start of the nominal fit, first pass
 START_NFEV = 30  # … and continued under the data's weight (most end sooner)
 # monotonic basin hopping from the best start (:func:`_basin_hops`): at most HOPS hops,
@@ -1195,10 +1188,9 @@ def _second_stage(
     n_workers: int, plan: tuple[int, int], bar: Any, say: Callable[[str], None],
 ) -> tuple[_Search | None, dict[str, Any]]:
     """A second global stage for a nominal fit that stays above its target [nm]: the
-    first design doubled (the same Sobol sequence and box, only its new half evaluated),
-    and the first design's points again with slower amplifiers than its box holds
-    (:func:`slower_amplifier`), evaluated under the prior residual's weight as the first
-    half was, and the search run again on it (:func:`_search_design`: its best starts and the
+    first design doubled (the same Sobol sequence and box, only its new half evaluated)
+    evaluated under the prior residual's weight as the first half was, and the search run
+    again on it (:func:`_search_design`: its best starts and the
     prior, the first pass, the re-weighting, every start continued, basin hopping). Kept
     where its optimum's cost is lower by :data:`HOP_TOL` than the first stage's best under
     the same weight (the second's re-weighting, the first's best evaluated again). Twelve
@@ -1216,16 +1208,10 @@ def _second_stage(
         f"{ERROR_UNIT}: the global stage doubled, points {n_first + 1}–{2 * n_first}")  # fmt: skip
     w_data, problem.weight = problem.weight, first.w_prior  # the first's values' weight
     pts, vals = global_stage(problem, 2 * n_first, n_workers, seed, bar, first=n_first)
-    slow = slower_amplifier(problem.model, first.pts, seed)
-    if len(slow):
-        say(f"  and the first design's {len(slow)} points with slower amplifiers (slew and "
-            f"current × {math.exp(SLOW_AMPLIFIER_LN[0]):.2g}–{math.exp(SLOW_AMPLIFIER_LN[1]):.2g})")
-        pts, vals = np.vstack([pts, slow]), np.r_[vals, _objectives(problem, slow, n_workers, bar)]
     problem.weight = w_data
     design = first._replace(pts=np.vstack([first.pts, pts]), vals=np.r_[first.vals, vals])
     new = [int(i) for i in np.argsort(design.vals)[:design.starts] if i >= n_first]
     row: dict[str, Any] = {"points": 2 * n_first, "box_sigma": GLOBAL_BOX, "new_starts": len(new),
-                           "slow_amplifier_points": len(slow),
                            "costs": [], "hops": [], "kept": False,
                            "cost_before": best.cost, "heldout_before": best.heldout_rms,
                            "heldout_rms": best.heldout_rms}  # fmt: skip
@@ -1244,23 +1230,6 @@ def _second_stage(
         f"{row['cost_before']:.4g}; held-out {kept.heldout_rms:.3g} {ERROR_UNIT}"
         f"{' — kept' if row['kept'] else ''}")  # fmt: skip
     return found, row
-
-
-def slower_amplifier(model: NominalModel, pts: np.ndarray, seed: int) -> np.ndarray:
-    """The design ``pts`` [ln-factors] with the amplifier's slew and current scales (those
-    the model fits, :data:`AMPLIFIER_SCALES`) replaced by a scrambled Sobol draw over
-    :data:`SLOW_AMPLIFIER_LN` (clipped to the factors' bounds), the other coordinates
-    kept: each start of the first design tried with a slower amplifier than its box holds.
-    Empty where the model fits neither scale."""
-    idx = [model.names.index(n) for n in AMPLIFIER_SCALES if n in model.names]
-    if not idx or not len(pts):
-        return np.zeros((0, len(model)))
-    sob = scipy.stats.qmc.Sobol(len(idx), scramble=True, seed=seed + 1000)
-    u = sob.random_base2(max(0, math.ceil(math.log2(len(pts)))))[: len(pts)]
-    lo, hi = SLOW_AMPLIFIER_LN
-    out = np.array(pts, dtype=float, copy=True)
-    out[:, idx] = lo + u * (hi - lo)
-    return np.clip(out, model.low, model.high)
 
 
 def _basin_hops(
