@@ -25,15 +25,12 @@ from __future__ import annotations
 import argparse
 import hashlib
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.segments import DriveReading, Segment, read_drive, segment_trace
-
-RESULTS = Path("experiments/results")
-TRACE_SETS = ("independent_traces", "second_plant_traces", "third_plant_traces")
+from turntable_env.testing.trace_sets import trace_paths
 
 
 def fingerprint(reading: DriveReading, segments: list[Segment]) -> str:
@@ -52,9 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--segments", action="store_true", help="print each file's segments")
     ap.add_argument("traces", nargs="*", help="trace CSVs (default: the three plants' sets)")
     args = ap.parse_args(argv)
-    paths = [Path(p) for p in args.traces] or sorted(
-        p for d in TRACE_SETS for p in (RESULTS / d).glob("*.csv")
-    )
+    paths = trace_paths(args.traces)
     if not paths:
         print("drive_reading: no traces (write them with experiments/*_traces.py)",
               file=sys.stderr)  # fmt: skip

@@ -18,23 +18,18 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 
 from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.signatures import SignatureLayout
 from turntable_env.calibration.trace_fit import trace_data
-
-RESULTS = Path("experiments/results")
-TRACE_SETS = ("independent_traces", "second_plant_traces", "third_plant_traces")
+from turntable_env.testing.trace_sets import trace_paths
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="y_feature", description=__doc__.splitlines()[0])
     ap.add_argument("traces", nargs="*", help="trace CSVs (default: the three plants' sets)")
     args = ap.parse_args(argv)
-    paths = [Path(p) for p in args.traces] or sorted(
-        p for d in TRACE_SETS for p in (RESULTS / d).glob("*.csv")
-    )
+    paths = trace_paths(args.traces)
     if not paths:
         print("y_feature: no traces (write them with experiments/*_traces.py)", file=sys.stderr)
         return 2
