@@ -28,9 +28,8 @@ import sys
 
 import numpy as np
 
-from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.segments import DriveReading, Segment, read_drive, segment_trace
-from turntable_env.testing.trace_sets import trace_paths
+from turntable_env.testing.trace_sets import load_traces
 
 
 def fingerprint(reading: DriveReading, segments: list[Segment]) -> str:
@@ -49,17 +48,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--segments", action="store_true", help="print each file's segments")
     ap.add_argument("traces", nargs="*", help="trace CSVs (default: the three plants' sets)")
     args = ap.parse_args(argv)
-    paths = trace_paths(args.traces)
-    if not paths:
-        print("drive_reading: no traces (write them with experiments/*_traces.py)",
-              file=sys.stderr)  # fmt: skip
+    try:
+        traces = load_traces(args.traces)
+    except ValueError as exc:
+        print(f"drive_reading: {exc}", file=sys.stderr)
         return 2
-    for path in paths:
-        try:
-            m = load_measurement(path)
-        except (OSError, ValueError) as exc:
-            print(f"drive_reading: {exc}", file=sys.stderr)
-            return 2
+    for path, m in traces:
         reading = read_drive(m.time, m.drives[m.axis], m.meta)
         segs = segment_trace(reading, float(m.time[-1]))
         name = f"{path.parent.name}/{path.name}"

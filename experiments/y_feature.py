@@ -19,27 +19,22 @@ import argparse
 import math
 import sys
 
-from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.signatures import SignatureLayout
 from turntable_env.calibration.trace_fit import trace_data
-from turntable_env.testing.trace_sets import trace_paths
+from turntable_env.testing.trace_sets import load_traces
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="y_feature", description=__doc__.splitlines()[0])
     ap.add_argument("traces", nargs="*", help="trace CSVs (default: the three plants' sets)")
     args = ap.parse_args(argv)
-    paths = trace_paths(args.traces)
-    if not paths:
-        print("y_feature: no traces (write them with experiments/*_traces.py)", file=sys.stderr)
+    try:
+        traces = load_traces(args.traces)
+    except ValueError as exc:
+        print(f"y_feature: {exc}", file=sys.stderr)
         return 2
     print(f"{'trace':48s} {'moves':>5s} {'slope':>9s} {'z':>8s}   {'whole':>9s} {'z':>8s}")
-    for path in paths:
-        try:
-            m = load_measurement(path)
-        except (OSError, ValueError) as exc:
-            print(f"y_feature: {exc}", file=sys.stderr)
-            return 2
+    for path, m in traces:
         if m.detector_y_v is None:
             continue
         td = trace_data(m)

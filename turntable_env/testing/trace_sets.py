@@ -11,7 +11,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["RESULTS", "TRACE_SETS", "trace_paths"]
+from ..calibration.measurement import Measurement, load_measurement
+
+__all__ = ["RESULTS", "TRACE_SETS", "load_traces", "trace_paths"]
 
 RESULTS = Path("experiments/results")
 TRACE_SETS = ("independent_traces", "second_plant_traces", "third_plant_traces")
@@ -23,3 +25,15 @@ def trace_paths(given: Sequence[str]) -> list[Path]:
     return [Path(p) for p in given] or sorted(
         p for d in TRACE_SETS for p in (RESULTS / d).glob("*.csv")
     )
+
+
+def load_traces(given: Sequence[str]) -> list[tuple[Path, Measurement]]:
+    """(path, measurement) of every trace :func:`trace_paths` finds, all loaded before any
+    is used; ValueError naming the file (or that there is none) otherwise."""
+    paths = trace_paths(given)
+    if not paths:
+        raise ValueError("no traces (write them with experiments/*_traces.py)")
+    try:
+        return [(p, load_measurement(p)) for p in paths]
+    except OSError as exc:
+        raise ValueError(str(exc)) from None
