@@ -20,9 +20,12 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+
+from turntable_env.validation import check_finite, check_positive, describe
 
 from .step_map import read_table
 
@@ -40,8 +43,18 @@ class BlindSettings:
         worst: (frequency [Hz], amplitude [V]) → worst steady step over the map's [-].
     """
 
-    def __init__(self, worst: dict[tuple[float, float], float]) -> None:
-        self.worst = dict(worst)
+    def __init__(self, worst: Mapping[tuple[float, float], float]) -> None:
+        if not isinstance(worst, Mapping):
+            raise ValueError(f"worst={describe(worst)}: must be a mapping (Hz, V) → ratio")
+        self.worst: dict[tuple[float, float], float] = {}
+        for key, ratio in worst.items():
+            if not (isinstance(key, tuple) and len(key) == 2):
+                raise ValueError(
+                    f"worst[{describe(key)}]: a key must be (frequency [Hz], amplitude [V])"
+                )
+            f = check_positive("worst: frequency", key[0])
+            a = check_positive("worst: amplitude", key[1])
+            self.worst[(round(f, 6), round(a, 6))] = check_finite(f"worst[{key!r}]", ratio)
 
     def robust(
         self, amplitude: np.ndarray, frequency: np.ndarray, tolerance: float = BLIND_TOLERANCE

@@ -50,6 +50,10 @@ def register(
     """Register ``factory`` under ``name`` (ValueError if taken and not ``overwrite``)."""
     if not isinstance(name, str) or not name.isidentifier():
         raise ValueError(f"name={name!r}: must be an identifier")
+    if not callable(factory):
+        raise ValueError(f"factory={factory!r}: must be callable (ControllerContext → Controller)")
+    if not isinstance(description, str):
+        raise ValueError(f"description={description!r}: must be a string")
     if name in _REGISTRY and not overwrite:
         raise ValueError(f"name={name!r}: already registered")
     _REGISTRY[name] = ControllerSpec(name, factory, description)

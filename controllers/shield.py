@@ -60,6 +60,14 @@ class BlindShield:
         step_map: StepMap | None = None,
         blind_settings: BlindSettings | None = None,
     ) -> None:
+        if not isinstance(ctx, ControllerContext):
+            raise ValueError(f"ctx={type(ctx).__name__}: must be a ControllerContext")
+        if step_map is not None and not isinstance(step_map, StepMap):
+            raise ValueError(f"step_map={type(step_map).__name__}: must be a StepMap or None")
+        if blind_settings is not None and not isinstance(blind_settings, BlindSettings):
+            raise ValueError(
+                f"blind_settings={type(blind_settings).__name__}: must be a BlindSettings or None"
+            )
         self.ctx = ctx
         self.map = step_map if step_map is not None else StepMap.load()
         self.freqs = np.unique(self.map.frequency)  # Hz, the map's

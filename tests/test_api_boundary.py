@@ -15,6 +15,9 @@ import pytest
 
 import turntable_env  # noqa: F401  (registers the envs)
 from controllers import LabBrief, make
+from controllers.blind import BlindSettings
+from controllers.registry import register
+from controllers.shield import BlindShield
 from turntable_env.amplifier import Amplifier
 from turntable_env.calibration.virtual_lab import PROTOCOLS, check_protocol, protocol_drive
 from turntable_env.drive import DriveSignal, Waveform
@@ -22,7 +25,7 @@ from turntable_env.envs.config import ActionScaling
 from turntable_env.params import get_parameter_set
 from turntable_env.plant import Plant, calibrated_set_toml
 from turntable_env.plant.store import plant_toml
-from turntable_env.simulation import MAX_STEPS, simulate
+from turntable_env.simulation import MAX_STEPS, simulate, simulate_axes
 
 NAN = float("nan")
 
@@ -309,3 +312,45 @@ def test_a_drive_too_long_to_hold_or_of_the_wrong_shape_is_refused(make_it, need
 def test_a_lab_brief_refuses_what_is_not_an_angle(make_it, needle):
     with pytest.raises(ValueError, match=needle):
         make_it()
+
+
+# --- stop 74: the audit's rest (wrong types, deep TOML, an amplitude beyond the input) ----
+@pytest.mark.parametrize(
+    "call, needle",
+    [
+        (lambda: Plant.named(5), "plant 5"),
+        (lambda: Plant.named([1]), "plant [1]"),
+        (lambda: Plant.from_report(5), "report=5"),
+        (lambda: Plant.from_report(None), "report=None"),
+        (lambda: Plant.from_toml(b"x.toml"), "plant file=b'x.toml'"),
+        (lambda: BlindSettings(5), "worst=5"),
+        (lambda: BlindSettings({(100.0, 2.0): "x"}), "worst[(100.0, 2.0)]"),
+        (lambda: BlindSettings({(0.0, 2.0): -0.1}), "frequency"),
+        (lambda: BlindSettings({100.0: -0.1}), "worst[100.0]"),
+        (lambda: BlindShield(5), "ctx=int"),
+        (lambda: register("xx_not_kept", 5, "d"), "factory=5"),
+        (lambda: register("xx_not_kept", lambda c: None, 5), "description=5"),
+    ],
+)
+def test_a_wrong_type_at_a_public_call_is_a_value_error_naming_it(call, needle):
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        call()
+
+
+def test_a_plant_file_nested_beyond_the_parser_is_named(tmp_path):
+    """TOML's parser recurses per nested array; 5000 levels overflowed the stack."""
+    p = tmp_path / "deep.toml"
+    p.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n", encoding="utf-8")
+    with pytest.raises(ValueError, match=re.escape(f"{p}: nested too deep")):
+        Plant.from_toml(p)
+
+
+@pytest.mark.parametrize("amplitude", [10.5, -50.0])
+def test_a_drive_beyond_the_amplifier_input_is_refused_before_the_run(amplitude):
+    """§4.1.1: the HVA 900 takes ±10 V; a larger sawtooth would be clipped into another
+    waveform than the one commanded."""
+    drive = DriveSignal(amplitude=amplitude, n_periods=1)
+    with pytest.raises(ValueError, match=r"amplitude=.*±10 V input"):
+        simulate("real", drive)
+    with pytest.raises(ValueError, match=r"amplitude=.*±10 V input"):
+        simulate_axes(["real"], [drive])

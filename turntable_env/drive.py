@@ -373,7 +373,8 @@ class DriveSignal:
     """A stepping drive as the simulator and the environment use it.
 
     Args:
-        amplitude: amplifier input amplitude [V]; sign = direction (|amplitude| ≤ 10 V).
+        amplitude: amplifier input amplitude [V]; sign = direction. The simulations
+            refuse one beyond the plant's amplifier input limit (±10 V, §4.1.1).
         frequency: [Hz].
         a: ramp ratio, position of the maximum, 0 < a < 1.
         n_periods: periods per direction.

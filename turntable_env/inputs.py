@@ -8,7 +8,9 @@ calibration report (JSON), a parameter file (TOML) — is read here:
   device never ends), and at most ``max_bytes`` (checked on the file's size, then on what
   is read, so a file growing meanwhile is caught too);
 * JSON nested at most :data:`MAX_NESTING` deep, checked on the text before parsing (a
-  recursive parser would overflow the stack);
+  recursive parser would overflow the stack); TOML's parser recursing too deep is caught
+  and named the same way;
+* a path that is a string or a path-like object (anything else is refused, not coerced);
 * every error a ValueError of one line naming the file — and the key and the value, or
   the line and column — never a traceback, and a missing file the same way.
 
@@ -24,9 +26,9 @@ import os
 import stat
 import tomllib
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
+from .validation import check_path
 from .validation import describe as show
 
 __all__ = [
@@ -45,7 +47,7 @@ MAX_NESTING = 64  # nested JSON arrays/objects
 
 def read_input(path: str | os.PathLike[str], what: str, max_bytes: int = MAX_INPUT_BYTES) -> str:
     """The text of an input file (UTF-8) after the checks of the module docstring."""
-    p = Path(path)
+    p = check_path(what, path)
     try:
         st = os.stat(p)
     except FileNotFoundError:
@@ -111,6 +113,8 @@ def load_toml(path: str | os.PathLike[str], what: str, max_bytes: int = MAX_INPU
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: {exc}") from None
+    except RecursionError:  # arrays or inline tables nested beyond the parser's stack
+        raise ValueError(f"{path}: nested too deep for a {what}") from None
 
 
 _MISSING = object()

@@ -44,7 +44,7 @@ from .geometry import TurntableGeometry, com_stability
 from .quantities import Quantity
 from .table import TableParams
 from .tube import TubeParams, TubeStiffness
-from .validation import check_finite, check_in_open
+from .validation import check_finite, check_in_open, check_path
 
 __all__ = [
     "AMPLIFIER_FACTORS",
@@ -161,12 +161,14 @@ def load_unlisted(
     ``overrides`` replaces values (for calibration). Raises ValueError naming the file and
     the entry; nothing is returned unless the whole file is valid.
     """
-    p = Path(path) if path is not None else UNLISTED_FILE
+    p = check_path("path", path) if path is not None else UNLISTED_FILE
     try:
         st = p.stat()
         raw = _parse_toml(str(p), st.st_mtime_ns, st.st_size)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ValueError(f"{p}: cannot read parameter file: {exc}") from None
+    except RecursionError:  # nested arrays beyond the TOML parser's stack
+        raise ValueError(f"{p}: cannot read parameter file: nested too deep") from None
     values: dict[str, float] = {}
     sources: dict[str, str] = {}
     for name in raw:

@@ -149,6 +149,7 @@ def simulate(
     if axis not in AXES:
         raise ValueError(f"axis={axis!r}: must be one of {', '.join(AXES)}")
     drives = {axis: drive} if isinstance(drive, DriveSignal | Waveform) else dict(drive)
+    _check_amplitudes(drives.values(), pl)
     check_nonnegative("settle", settle)
     if duration is None:
         duration = _drive_end(drives.values()) + settle
@@ -245,6 +246,8 @@ def simulate_axes(
     if axis not in REDUCED_AXES:
         raise ValueError(f"axis={axis!r}: the reduced model covers {', '.join(REDUCED_AXES)}")
     resolved = [_runnable(p) for p in plants]
+    for p, d in zip(resolved, drives, strict=True):
+        _check_amplitudes([d], p)
     check_nonnegative("settle", settle)
     if duration is None:
         duration = _drive_end(drives) + settle
@@ -270,6 +273,17 @@ def _drive_end(drives: Iterable[DriveSignal | Waveform]) -> float:
     """The end of the longest drive [s] (0 for none)."""
     ends = [d.start + d.duration if isinstance(d, DriveSignal) else d.end for d in drives]
     return max([*ends, 0.0])
+
+
+def _check_amplitudes(drives: Iterable[object], plant: Plant) -> None:
+    """ValueError where a stepping drive's amplitude [V] exceeds the plant's amplifier
+    input limit (§4.1.1: ±10 V): the amplifier would clip its sawtooth into another one."""
+    limit = plant.params.amplifier.input_limit  # V
+    for d in drives:
+        if isinstance(d, DriveSignal) and abs(d.amplitude) > limit:
+            raise ValueError(
+                f"amplitude={d.amplitude!r}: beyond the amplifier's ±{limit:g} V input"
+            )
 
 
 def _input_staged(wave: Waveform, plant: Plant, end: float) -> Waveform:

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import re
 from collections.abc import Iterable
+from pathlib import Path
 
 import numpy as np
 
@@ -20,6 +22,7 @@ __all__ = [
     "check_in_open",
     "check_int",
     "check_nonnegative",
+    "check_path",
     "check_positive",
     "check_positive_array",
     "check_sums_to_one",
@@ -81,6 +84,16 @@ def check_int(name: str, value: int, lo: int | None = None, hi: int | None = Non
         bounds = f"{lo if lo is not None else '-inf'}…{hi if hi is not None else 'inf'}"
         raise ValueError(f"{name}={_describe(value)}: must lie in {bounds}")
     return value
+
+
+def check_path(name: str, value: str | os.PathLike[str]) -> Path:
+    """A file system path from a string or a path-like object; anything else (a number,
+    None, bytes) is refused, not coerced."""
+    if isinstance(value, str | os.PathLike) and not isinstance(value, bytes):
+        path = os.fspath(value)
+        if isinstance(path, str) and path and "\0" not in path:
+            return Path(path)
+    raise ValueError(f"{name}={_describe(value)}: must be a path (a string or a path-like)")
 
 
 def check_positive(name: str, value: float) -> float:

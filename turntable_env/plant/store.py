@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..inputs import Fields, load_json, load_toml, show
+from ..validation import check_path
 
 __all__ = [
     "CALIBRATED_FILE",
@@ -84,7 +85,7 @@ def plant_toml(plant: Mapping[str, Any], source: str, name: str = "calibrated") 
 
 def named_plant_dict(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
     """(name, plant dictionary) of a :func:`plant_toml` file; ValueError naming the file."""
-    p = Path(path)
+    p = check_path("plant file", path)
     data = Fields(load_toml(p, "plant file (TOML)", max_bytes=2**20), str(p)).known("set", "plant")
     name = data.sub("set").text("name")
     plant = data.sub("plant").table
@@ -95,7 +96,7 @@ def report_plant_dict(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The plant dictionary a calibration ``report.json`` (or its directory) describes:
     its ``plant`` entry, or for reports written before it, the nominal factors and the
     selected effects with their standard errors. ValueError naming the file."""
-    p = Path(path)
+    p = check_path("report", path)
     if p.is_dir():
         p = p / "report.json"
     data = load_json(p, "calibration report (JSON)")

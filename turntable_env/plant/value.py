@@ -13,7 +13,6 @@ import functools
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields, replace
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -21,7 +20,8 @@ import numpy as np
 from ..effects import CATALOGUE, apply_parameters, check_effects, pack_effects
 from ..params import FACTORS, ParameterSet, RigParams, get_parameter_set
 from ..params import PARAMETER_SETS as BASE_SETS
-from ..validation import check_finite, check_nonnegative
+from ..validation import check_finite, check_nonnegative, check_path
+from ..validation import describe as show
 from .store import NAMED_PLANTS, named_plant_dict, report_plant_dict
 
 __all__ = [
@@ -353,7 +353,7 @@ class Plant:
         nominal estimates, its selected effects with their parameters, their standard
         errors (for :meth:`sample`). Raises ValueError naming the file when it cannot be
         read or does not describe one (:func:`.store.report_plant_dict`)."""
-        p = Path(path)
+        p = check_path("report", path)
         p = p / "report.json" if p.is_dir() else p
         return cls.from_dict(report_plant_dict(p), source=str(p))
 
@@ -362,15 +362,18 @@ class Plant:
         """A named plant of the store, whole — base set, rig, factors, effects, fidelity,
         detector noise and the calibration's uncertainties (``"calibrated"``:
         ``data/calibrated.toml``). ValueError for an unknown name or a bad file."""
-        if name not in NAMED_PLANTS:
-            raise ValueError(f"plant {name!r}: unknown (named plants: {', '.join(NAMED_PLANTS)})")
+        if not isinstance(name, str) or name not in NAMED_PLANTS:
+            raise ValueError(
+                f"plant {show(name)}: unknown (named plants: {', '.join(NAMED_PLANTS)})"
+            )
         return _named_plant(name)
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> Plant:
         """The plant of a named-plant file (:func:`.store.plant_toml`'s format)."""
-        _name, data = named_plant_dict(path)
-        return cls.from_dict(data, source=str(path))
+        p = check_path("plant file", path)
+        _name, data = named_plant_dict(p)
+        return cls.from_dict(data, source=str(p))
 
 
 @functools.lru_cache(maxsize=8)
