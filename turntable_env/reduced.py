@@ -41,6 +41,7 @@ from .model import SimulationError, TurntableModel, axis_index
 from .params import ParameterSet, get_parameter_set
 from .reduced_kernel import N_REC, run_reduced_batch, run_reduced_serial
 from .response import SteppingMetrics
+from .threads import one_blas_thread
 from .validation import check_finite, check_positive
 
 __all__ = [
@@ -466,7 +467,8 @@ class ReducedModel:
         self.translation_params = (
             TranslationParameters.from_model(self.full, axis, ps) if translation else None
         )
-        self._pack()
+        with one_blas_thread():  # 10×10 expm ladders: spinning BLAS threads cost 35× here
+            self._pack()
 
     @property
     def n_state(self) -> int:
