@@ -455,7 +455,8 @@ def plot_learning_curve(run: str | Path) -> Path | None:
             ax.plot(df["time/total_timesteps"], df["rollout/ep_rew_mean"], label="training")
     ax.set_xlabel("timesteps")
     ax.set_ylabel("episode return")
-    ax.legend()
+    if ax.get_legend_handles_labels()[0]:  # a short run may have logged neither curve yet
+        ax.legend()
     ax.set_title(run.name)
     p = run / "learning_curve.png"
     fig.tight_layout()

@@ -354,3 +354,10 @@ def test_a_drive_beyond_the_amplifier_input_is_refused_before_the_run(amplitude)
         simulate("real", drive)
     with pytest.raises(ValueError, match=r"amplitude=.*±10 V input"):
         simulate_axes(["real"], [drive])
+
+
+def test_a_3d_response_records_the_plant_as_it_ran():
+    """simulate() runs the 3-D model whatever the plant's fidelity; its record said
+    fidelity='reduced' for the default plant (a new user's report, stop 74)."""
+    r = simulate(Plant(factors={"friction": 1.1}), DriveSignal(n_periods=1), axis="B")
+    assert "fidelity='full'" in r.info["plant"] and "'friction': 1.1" in r.info["plant"]

@@ -94,6 +94,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["simulate", "--amplitude", "\u0665"], "--amplitude"),  # an Arabic-Indic five
         (["virtual-lab", "--effects", "piezo_creep=0_0", "--out", "v.csv"], "piezo_creep"),
         (["virtual-lab", "--effects", "piezo_creep.=0.02", "--out", "v.csv"], "after the dot"),
+        (["calibrate", "--thesis", "lab.csv", "--report", "rep"], "--thesis"),  # stop 74
     ],
 )
 def test_bad_values_exit_2_with_one_line_naming_the_option(argv, names, capsys, tmp_path,

@@ -340,7 +340,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         seen[key] = f
     summary = [f for f in files if f.endswith(".toml")]
     if summary and len(summary) != len(files):
-        raise ValueError(f"files: {summary} are summary-level (TOML); calibrate them apart")
+        what = "--thesis (the thesis's summary file)" if args.thesis else f"files: {summary}"
+        raise ValueError(
+            f"{what}: summary-level figures (TOML) are calibrated apart from measurement "
+            "traces (CSV); give one or the other"
+        )
     if len(summary) > 1:
         raise ValueError(f"files: one summary file at a time, got {summary}")
     if summary:
@@ -482,7 +486,8 @@ def _add_benchmark(sub: Any) -> None:
         description="Point-to-point moves that need stepping (2, 50, 200 µm; the long ones "
         "from beyond the detector with a ±30 % dead-reckoned start; to the detector's edge), "
         "tracking (constant-velocity scan, waypoints, back and forth) and a knock, on the "
-        "nominal, randomized (RL training), held_out, calibrated and full_3d plant sets. "
+        "nominal, randomized (RL training), held_out, calibrated, full_3d and independent "
+        "plant sets. "
         "Controllers see only observations and what a lab knows. Writes benchmark.json "
         "(versioned; means with 95 % bootstrap intervals and paired differences), "
         "episodes.csv, leaderboard.md/.html and trajectory plots.",

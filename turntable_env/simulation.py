@@ -204,7 +204,7 @@ def simulate(
         effect_row=pl.effect_row if _output_effects(pl) else None,
         info={
             "params": ps.name,
-            "plant": repr(pl),
+            "plant": repr(pl if pl.fidelity == "full" else replace(pl, fidelity="full")),
             "drive": {k: repr(v) for k, v in given.items()},
             "dt": raw["dt"],
             "n_steps": raw["n_steps"],
