@@ -26,9 +26,11 @@ from turntable_env.threads import one_blas_thread
 
 
 def _spin(stop: mp.synchronize.Event) -> None:
-    x = 0
+    """A busy neighbour as a scientific process is one: small products on its own BLAS
+    threads, back to back."""
+    a = np.random.default_rng(0).random((64, 64))
     while not stop.is_set():
-        x += 1
+        a = np.tanh(a @ a)
 
 
 def _builds(n: int, limited: bool) -> tuple[float, reduced.ReducedModel]:
