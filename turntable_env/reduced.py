@@ -467,7 +467,7 @@ class ReducedModel:
         self.translation_params = (
             TranslationParameters.from_model(self.full, axis, ps) if translation else None
         )
-        with one_blas_thread():  # 10×10 expm ladders: spinning BLAS threads cost 35× here
+        with one_blas_thread():  # 10×10 expm ladders: a second BLAS thread only waits here
             self._pack()
 
     @property

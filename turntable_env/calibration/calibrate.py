@@ -18,10 +18,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import threadpoolctl
 
 from ..files import output_directory, plain_json
 from ..plant import calibrated_set_toml
+from ..threads import one_blas_thread
 from .measurement import Measurement
 from .result import CalibrationResult
 from .trace_fit import calibrate_traces
@@ -35,7 +35,7 @@ def calibrate(files: Sequence[str | Path | Measurement], **options: Any) -> Cali
 
     Runs with one BLAS thread: its linear algebra is small and dense, where OpenBLAS's
     worker threads only spin and slow every simulation down."""
-    with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return calibrate_traces(files, **options)
 
 

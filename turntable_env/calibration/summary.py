@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 import scipy.stats
-import threadpoolctl
 
 from ..effects import CATALOGUE
 from ..plant import Plant
+from ..threads import one_blas_thread
 from .result import (
     NOMINAL,
     CalibrationResult,
@@ -346,7 +346,7 @@ def calibrate_summary(
         workers = len(os.sched_getaffinity(0))
     elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"workers={workers!r}: must be an integer >= 1")
-    with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return _calibrate_summary(
             targets, candidates, max_effects, min_improvement, rig, rig_hypotheses,
             rig_fidelity, progress, starts, seed, workers,
