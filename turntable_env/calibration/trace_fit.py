@@ -61,10 +61,11 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -336,12 +337,25 @@ class TraceProblem:
         self._plants: OrderedDict[bytes, Plant] = OrderedDict()  # x → its nominal plant
         self.n_sims = 0
         self.weight = 1.0  # 1 / (σ_r·√L): data rows' scale [1/nm]
+        # the caches and the count are shared by the threads that drive fits side by side
+        # (:func:`_local_fits`)
+        self._lock = threading.RLock()
 
     def __getstate__(self) -> dict[str, Any]:
         d = dict(self.__dict__)
         d["_cache"] = OrderedDict()
         d["_plants"] = OrderedDict()
+        del d["_lock"]
         return d
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.RLock()
+
+    def count(self, n: int) -> None:
+        """Add n simulations a worker ran for this problem."""
+        with self._lock:
+            self.n_sims += n
 
     def _nominal_plant(self, x: np.ndarray) -> Plant:
         """The nominal model's plant of x (the last few kept: the simulation and the
@@ -355,6 +369,12 @@ class TraceProblem:
         return hit
 
     def _theta(self, x: np.ndarray, phys: Mapping[str, Mapping[str, float]]) -> list[np.ndarray]:
+        with self._lock:
+            return self._theta_locked(x, phys)
+
+    def _theta_locked(
+        self, x: np.ndarray, phys: Mapping[str, Mapping[str, float]]
+    ) -> list[np.ndarray]:
         key = (
             tuple(np.round(x, 12)),
             repr(sorted((k, sorted(v.items())) for k, v in phys.items())),
@@ -533,8 +553,19 @@ class _Differences:
 
     def __call__(self, _fun: Callable, points: Any) -> list[np.ndarray]:
         done = list(self.pool.map(_worker_residual, [(self.space, z) for z in points]))
-        self.problem.n_sims += sum(n for _r, n in done)
+        self.problem.count(sum(n for _r, n in done))
         return [r for r, _n in done]
+
+
+class _Remote(_Differences):
+    """least_squares' residual function over the pool: the residual at z evaluated by a
+    worker (the number this process would compute), so that fits driven side by side by
+    threads of this process (:func:`_local_fits`) leave every simulation to the workers."""
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:  # type: ignore[override]
+        r, n = self.pool.submit(_worker_residual, (self.space, z)).result()
+        self.problem.count(n)
+        return r
 
 
 def _worker_residual(job: tuple[FitSpace, np.ndarray]) -> tuple[np.ndarray, int]:
@@ -575,9 +606,12 @@ def local_fit(
     if v0.size == 0:
         x, e = space.unpack(v0)
         r = space.residual(problem, v0)
-        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, nx, rows)
+        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, (nx, rows))
+    # with a pool every evaluation is a worker's: the residual, the Jacobian's perturbed
+    # points (side by side) and the final errors
     res = scipy.optimize.least_squares(
-        lambda z: space.residual(problem, z), v0 / unit, bounds=(lo / unit, hi / unit),
+        (lambda z: space.residual(problem, z)) if pool is None else _Remote(pool, space, problem),
+        v0 / unit, bounds=(lo / unit, hi / unit),
         x_scale=scale / unit, diff_step=DIFF_STEP, max_nfev=max_nfev, method="trf",
         workers=None if pool is None else _Differences(pool, space, problem),
     )  # fmt: skip
@@ -588,10 +622,27 @@ def local_fit(
         cov = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
         cov = np.diag(np.full(v.size, np.inf))
-    return _finish(problem, x, e, v, cov, float(res.fun @ res.fun), int(res.nfev), nx, rows)
+    if pool is None:
+        errors = (problem.rms(x, e, "heldout"), problem.rms(x, e, "fit"))
+    else:
+        errors, n = pool.submit(_worker_errors, (x, e)).result()
+        problem.count(n)
+    return _finish(problem, x, e, v, cov, float(res.fun @ res.fun), int(res.nfev), (nx, rows),
+                   errors)  # fmt: skip
 
 
-def _finish(problem, x, e, v, cov, cost, nfev, nx, rows) -> LocalFit:
+def _worker_errors(job: tuple[np.ndarray, dict]) -> tuple[tuple[float, float], int]:
+    """(held-out, fit) RMS errors [nm] at (x, effects) in a worker, simulations run."""
+    x, e = job
+    return _counted(lambda pb: (pb.rms(x, e, "heldout"), pb.rms(x, e, "fit")))
+
+
+def _finish(problem, x, e, v, cov, cost, nfev, layout, errors=None) -> LocalFit:
+    """The LocalFit of a least-squares result; ``layout``: (nominal factors free, the free
+    effect rows); ``errors``: its (held-out, fit) RMS [nm] where already evaluated."""
+    nx, rows = layout
+    if errors is None:
+        errors = (problem.rms(x, e, "heldout"), problem.rms(x, e, "fit"))
     mdl = problem.model
     var = np.clip(np.diag(cov), 0.0, None) if cov.size else np.zeros(0)
     # a parameter the data do not constrain keeps its prior σ (never nan)
@@ -609,8 +660,8 @@ def _finish(problem, x, e, v, cov, cost, nfev, nx, rows) -> LocalFit:
         std_x=std_x,
         std_effects=std_eff,
         cost=cost,
-        heldout_rms=problem.rms(x, e, "heldout"),
-        fit_rms=problem.rms(x, e, "fit"),
+        heldout_rms=errors[0],
+        fit_rms=errors[1],
         nfev=nfev,
         corr=corr,
     )
@@ -712,13 +763,6 @@ class _Candidates:
         return out
 
 
-def _worker_local_fit(job: tuple[np.ndarray, int, dict, tuple]) -> tuple[LocalFit, int]:
-    """One start of a fit in a worker, job (x, max_nfev, effects, free effects): (its fit,
-    simulations run)."""
-    x0, nfev, effects, free = job
-    return _counted(lambda pb: local_fit(pb, x0, effects, free_effects=free, max_nfev=nfev))
-
-
 def _counted(fn: Callable[[TraceProblem], Any]) -> tuple[Any, int]:
     """fn on this worker's problem: (its result, the simulations it ran), so the calling
     process can count them."""
@@ -730,20 +774,30 @@ def _counted(fn: Callable[[TraceProblem], Any]) -> tuple[Any, int]:
 def _local_fits(
     problem: TraceProblem, starts: list[np.ndarray], workers: int, max_nfev: int,
     effects: Mapping[str, Mapping[str, float]] | None = None, free_effects: Sequence[str] = (),
+    pool: ProcessPoolExecutor | None = None,
 ) -> list[LocalFit]:  # fmt: skip
     """Least squares from each start (in order) of the nominal model, with ``effects``
-    (``free_effects`` of them fitted too), over ``workers`` processes when > 1 (each fit
-    is deterministic: the result does not depend on them, up to the last bits of a sum;
-    a worker's copy of the problem carries its weight)."""
+    (``free_effects`` of them fitted too), over ``workers`` processes when > 1 (``pool``
+    where given, else a pool of its own; each fit is deterministic: the result does not
+    depend on them, up to the last bits of a sum; the weight travels with each evaluation,
+    :class:`FitSpace`)."""
     eff = {k: dict(v) for k, v in (effects or {}).items()}
     free = tuple(free_effects)
-    if workers <= 1 or len(starts) <= 1:
+    if workers <= 1 or not starts:
         return [local_fit(problem, xs, eff, free_effects=free, max_nfev=max_nfev)
                 for xs in starts]  # fmt: skip
-    with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(problem,)) as ex:
-        done = list(ex.map(_worker_local_fit, [(xs, max_nfev, eff, free) for xs in starts]))
-    problem.n_sims += sum(n for _f, n in done)
-    return [f for f, _n in done]
+    if pool is None:
+        with ProcessPoolExecutor(workers, initializer=_init_worker, initargs=(problem,)) as ex:
+            return _local_fits(problem, starts, workers, max_nfev, eff, free, ex)
+    # the fits side by side, each driven by a thread of this process, every evaluation a
+    # worker's (the residual, the Jacobian's columns): the workers stay busy until the
+    # last fit ends, where one fit per worker left one idle while the other's longer fit
+    # ran on, and a single fit has its columns side by side
+    pool.submit(int).result()  # the workers forked before any thread starts
+    with ThreadPoolExecutor(len(starts)) as threads:
+        return list(threads.map(
+            lambda xs: local_fit(problem, xs, eff, free_effects=free, max_nfev=max_nfev,
+                                 pool=pool), starts))  # fmt: skip
 
 
 def _worker_objective(job: tuple[np.ndarray, dict]) -> float:
@@ -1430,9 +1484,8 @@ def _by_signature(
     # without the effect may have absorbed part of it (a stroke or gain factor bent to a
     # detector's curvature), and a few iterations from there do not undo that
     joint = min(
-        (local_fit(problem, x0, eff, free_effects=[*selected, n], max_nfev=6,
-                   pool=pool.executor())
-         for x0 in (current.x, np.zeros_like(current.x))),
+        _local_fits(problem, [current.x, np.zeros_like(current.x)], pool.workers, 6, eff,
+                    [*selected, n], pool.executor()),
         key=lambda f: f.cost,
     )  # fmt: skip
     rnd["hops"] = {}
