@@ -112,3 +112,32 @@ def test_a_fits_finite_differences_over_workers_give_the_same_fit(trace):
     # the fit moved (its Jacobian was used), and every simulation is counted where it ran
     assert not np.array_equal(one.x, x0)
     assert pooled_pb.n_sims == serial_pb.n_sims
+
+
+def test_a_problem_counts_from_threads_and_travels_without_its_caches(trace):
+    """The fits driven side by side by threads (:func:`_local_fits`) count the workers'
+    simulations into one problem: no count is lost between threads; a copy sent to a
+    worker carries the weight and no cache (it simulates again) and a lock of its own."""
+    import pickle
+    import threading
+
+    problem = TraceProblem([trace], NominalModel(Plant("real", fidelity="reduced"), TRACE_NOMINAL))
+    problem.weight = 0.37
+    x = np.zeros(len(problem.model))
+    cost = problem.objective(x)
+    assert problem.n_sims == 1
+    copy = pickle.loads(pickle.dumps(problem))
+    assert copy.weight == 0.37 and copy.n_sims == 1
+    assert copy.objective(x) == cost and copy.n_sims == 2  # simulated again: no cache
+    assert problem.objective(x) == cost and problem.n_sims == 1  # the original's cache
+
+    def add() -> None:
+        for _ in range(2000):
+            problem.count(1)
+
+    threads = [threading.Thread(target=add) for _ in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert problem.n_sims == 1 + 8 * 2000

@@ -576,7 +576,8 @@ def _add_calibrate(sub: Any) -> None:
     )  # fmt: skip
     pc.add_argument(
         "--workers", type=_int(1, 1024), default=None,
-        help="processes of the global stage (figures: of the rig hypotheses)",
+        help="worker processes (traces: the global stage, the fits, the effect candidates; "
+        "figures: the rig hypotheses); default: the CPUs this process may use",
     )
     pc.add_argument(
         "--global-points", type=_int(1, 100_000), default=None,

@@ -560,12 +560,34 @@ class _Differences:
 class _Remote(_Differences):
     """least_squares' residual function over the pool: the residual at z evaluated by a
     worker (the number this process would compute), so that fits driven side by side by
-    threads of this process (:func:`_local_fits`) leave every simulation to the workers."""
+    threads of this process (:func:`_local_fits`) leave every simulation to the workers;
+    the worker returns the point's (held-out, fit) RMS errors [nm] with it, kept by z for
+    the fit's result (:attr:`errors`)."""
+
+    def __init__(self, pool: ProcessPoolExecutor, space: FitSpace, problem: TraceProblem):
+        super().__init__(pool, space, problem)
+        self.errors: dict[bytes, tuple[float, float]] = {}
 
     def __call__(self, z: np.ndarray) -> np.ndarray:  # type: ignore[override]
-        r, n = self.pool.submit(_worker_residual, (self.space, z)).result()
+        (r, err), n = self.pool.submit(_worker_residual_errors, (self.space, z)).result()
         self.problem.count(n)
+        self.errors[np.asarray(z, float).tobytes()] = err
         return r
+
+
+def _worker_residual_errors(
+    job: tuple[FitSpace, np.ndarray],
+) -> tuple[tuple[np.ndarray, tuple[float, float]], int]:
+    """The residual at z and the point's (held-out, fit) RMS errors [nm] in a worker (one
+    simulation: the errors reuse its cached angle), simulations run."""
+    space, z = job
+
+    def both(pb: TraceProblem) -> tuple[np.ndarray, tuple[float, float]]:
+        r = space.residual(pb, z)
+        x, e = space.unpack(z * space.unit)
+        return r, (pb.rms(x, e, "heldout"), pb.rms(x, e, "fit"))
+
+    return _counted(both)
 
 
 def _worker_residual(job: tuple[FitSpace, np.ndarray]) -> tuple[np.ndarray, int]:
@@ -609,8 +631,9 @@ def local_fit(
         return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, (nx, rows))
     # with a pool every evaluation is a worker's: the residual, the Jacobian's perturbed
     # points (side by side) and the final errors
+    remote = None if pool is None else _Remote(pool, space, problem)
     res = scipy.optimize.least_squares(
-        (lambda z: space.residual(problem, z)) if pool is None else _Remote(pool, space, problem),
+        (lambda z: space.residual(problem, z)) if remote is None else remote,
         v0 / unit, bounds=(lo / unit, hi / unit),
         x_scale=scale / unit, diff_step=DIFF_STEP, max_nfev=max_nfev, method="trf",
         workers=None if pool is None else _Differences(pool, space, problem),
@@ -622,19 +645,10 @@ def local_fit(
         cov = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
         cov = np.diag(np.full(v.size, np.inf))
-    if pool is None:
-        errors = (problem.rms(x, e, "heldout"), problem.rms(x, e, "fit"))
-    else:
-        errors, n = pool.submit(_worker_errors, (x, e)).result()
-        problem.count(n)
+    # the errors of the optimum, an evaluated point: the worker's that evaluated it
+    errors = None if remote is None else remote.errors.get(np.asarray(res.x, float).tobytes())
     return _finish(problem, x, e, v, cov, float(res.fun @ res.fun), int(res.nfev), (nx, rows),
                    errors)  # fmt: skip
-
-
-def _worker_errors(job: tuple[np.ndarray, dict]) -> tuple[tuple[float, float], int]:
-    """(held-out, fit) RMS errors [nm] at (x, effects) in a worker, simulations run."""
-    x, e = job
-    return _counted(lambda pb: (pb.rms(x, e, "heldout"), pb.rms(x, e, "fit")))
 
 
 def _finish(problem, x, e, v, cov, cost, nfev, layout, errors=None) -> LocalFit:
