@@ -31,7 +31,10 @@ def _calibrate(tree: Path, trace: Path, out: Path, workers: int) -> dict:
     env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(out / "numba")}
     cmd = [sys.executable, "-m", "turntable_env.cli", "calibrate", str(trace), "--report",
            str(out / "report"), "--workers", str(workers)]  # fmt: skip
-    subprocess.run(cmd, cwd=tree, env=env, check=True, capture_output=True, text=True)
+    done = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["no output"])[-1]
+        raise SystemExit(f"calibrate from {tree} failed ({done.returncode}): {last}")
     return json.loads((out / "report" / "report.json").read_text())
 
 
