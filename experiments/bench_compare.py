@@ -18,6 +18,8 @@ import statistics
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,6 +33,21 @@ FIGURES = (  # speed figures of `turntable bench --json`, higher is faster
     "vector_env_steps_per_s_nominal",
     "vector_env_steps_per_s_random",
 )
+
+
+@contextmanager
+def worktree(commit: str) -> Iterator[tuple[Path, Path]]:
+    """(a git worktree of ``commit``, a scratch directory), both in a temporary directory
+    removed on exit, the worktree with it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        other = Path(tmp) / "other"
+        subprocess.run(["git", "worktree", "add", "--detach", "-q", str(other), commit],
+                       cwd=ROOT, check=True)  # fmt: skip
+        try:
+            yield other, Path(tmp)
+        finally:
+            subprocess.run(["git", "worktree", "remove", "--force", str(other)], cwd=ROOT,
+                           check=False)  # fmt: skip
 
 
 def _bench(tree: Path, cache: Path) -> dict:
@@ -47,22 +64,15 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.repeats < 1:
         ap.error(f"--repeats={args.repeats}: must be >= 1")
-    with tempfile.TemporaryDirectory() as tmp:
-        other = Path(tmp) / "other"
-        subprocess.run(["git", "worktree", "add", "--detach", "-q", str(other), args.commit],
-                       cwd=ROOT, check=True)  # fmt: skip
-        try:
-            trees = {"this": ROOT, args.commit: other}
-            caches = {k: Path(tmp) / f"numba-{i}" for i, k in enumerate(trees)}
-            for k, tree in trees.items():  # compile both before any timing
-                _bench(tree, caches[k])
-            runs: dict[str, list[dict]] = {k: [] for k in trees}
-            for _ in range(args.repeats):
-                for k, tree in trees.items():
-                    runs[k].append(_bench(tree, caches[k]))
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(other)], cwd=ROOT,
-                           check=False)  # fmt: skip
+    with worktree(args.commit) as (other, tmp):
+        trees = {"this": ROOT, args.commit: other}
+        caches = {k: tmp / f"numba-{i}" for i, k in enumerate(trees)}
+        for k, tree in trees.items():  # compile both before any timing
+            _bench(tree, caches[k])
+        runs: dict[str, list[dict]] = {k: [] for k in trees}
+        for _ in range(args.repeats):
+            for k, tree in trees.items():
+                runs[k].append(_bench(tree, caches[k]))
     print(f"{'figure':32s} {'this':>10s} {args.commit:>10s} {'ratio':>7s}  range of ratios")
     for f in FIGURES:
         a = [r[f] for r in runs["this"] if f in r]

@@ -19,10 +19,10 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from bench_compare import ROOT, worktree  # this directory is on sys.path
+
 TRACE = ROOT / "experiments" / "results" / "second_plant_traces" / "axis_C_20kHz.csv"
 
 
@@ -52,25 +52,17 @@ def main(argv: list[str] | None = None) -> int:
     if not args.trace.is_file():
         ap.error(f"--trace {args.trace}: no such file (python experiments/second_plant_traces.py "
                  "writes the default one)")  # fmt: skip
-    with tempfile.TemporaryDirectory() as tmp:
-        other = Path(tmp) / "other"
-        subprocess.run(["git", "worktree", "add", "--detach", "-q", str(other), args.commit],
-                       cwd=ROOT, check=True)  # fmt: skip
-        try:
-            trees = {"this": ROOT, args.commit: other}
-            reports: dict[str, list[dict]] = {k: [] for k in trees}
-            for r in range(args.repeats):
-                for i, (k, tree) in enumerate(trees.items()):
-                    rep = _calibrate(tree, args.trace.resolve(), Path(tmp) / f"run{r}-{i}",
-                                     args.workers)  # fmt: skip
-                    reports[k].append(rep)
-                    print(f"{k:>12}: {rep['wall_s']:7.1f} s, "
-                          f"{rep['diagnosis']['n_simulations']} simulations, "
-                          f"effects {rep['selected_effects'] or 'none'}, "
-                          f"held-out {rep['error_after']:.4g} nm", flush=True)  # fmt: skip
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(other)], cwd=ROOT,
-                           check=False)  # fmt: skip
+    with worktree(args.commit) as (other, tmp):
+        trees = {"this": ROOT, args.commit: other}
+        reports: dict[str, list[dict]] = {k: [] for k in trees}
+        for r in range(args.repeats):
+            for i, (k, tree) in enumerate(trees.items()):
+                rep = _calibrate(tree, args.trace.resolve(), tmp / f"run{r}-{i}", args.workers)
+                reports[k].append(rep)
+                print(f"{k:>12}: {rep['wall_s']:7.1f} s, "
+                      f"{rep['diagnosis']['n_simulations']} simulations, "
+                      f"effects {rep['selected_effects'] or 'none'}, "
+                      f"held-out {rep['error_after']:.4g} nm", flush=True)  # fmt: skip
     med = {k: statistics.median(r["wall_s"] for r in v) for k, v in reports.items()}
     print(f"median wall time: this {med['this']:.1f} s, {args.commit} {med[args.commit]:.1f} s, "
           f"ratio {med[args.commit] / med['this']:.2f} ({args.workers} workers, a new numba "
