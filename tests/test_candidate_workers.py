@@ -109,6 +109,8 @@ def test_a_fits_finite_differences_over_workers_give_the_same_fit(trace):
     assert one.effects == two.effects and one.cost == two.cost and one.nfev == two.nfev
     np.testing.assert_array_equal(one.std_x, two.std_x)
     assert one.std_effects == two.std_effects
+    # the optimum's errors, which the worker that evaluated it returns with its residual
+    assert (one.heldout_rms, one.fit_rms) == (two.heldout_rms, two.fit_rms)
     # the fit moved (its Jacobian was used), and every simulation is counted where it ran
     assert not np.array_equal(one.x, x0)
     assert pooled_pb.n_sims == serial_pb.n_sims

@@ -324,6 +324,11 @@ def identifiable_effects(traces: Sequence[TraceData]) -> dict[str, str]:
     return {k: why.get(k, "") for k in CATALOGUE}
 
 
+def _rms(r: np.ndarray) -> float:
+    """Root mean square [the residual's unit]."""
+    return float(np.sqrt(np.mean(r**2)))
+
+
 class TraceProblem:
     """Anchored residuals of (nominal x, effects) over the traces, with a physics cache.
 
@@ -434,15 +439,22 @@ class TraceProblem:
             res.append(chans)
         return res
 
+    def portions(
+        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]]
+    ) -> dict[str, np.ndarray]:
+        """Concatenated anchored errors [nm] on the ``"fit"`` and the ``"heldout"``
+        samples, both from one evaluation of the detector signals."""
+        parts: dict[str, list[np.ndarray]] = {"fit": [], "heldout": []}
+        for td, chans in zip(self.traces, self.errors(x, effects), strict=True):
+            parts["fit"] += [c[td.anchoring.fit] for c in chans]
+            parts["heldout"] += [c[td.anchoring.heldout] for c in chans]
+        return {k: np.concatenate(v) for k, v in parts.items()}
+
     def residual(
         self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]], portion: str
     ) -> np.ndarray:
         """Concatenated anchored errors [nm] on the ``"fit"`` or ``"heldout"`` samples."""
-        parts = []
-        for td, chans in zip(self.traces, self.errors(x, effects), strict=True):
-            mask = td.anchoring.fit if portion == "fit" else td.anchoring.heldout
-            parts += [c[mask] for c in chans]
-        return np.concatenate(parts)
+        return self.portions(x, effects)["fit" if portion == "fit" else "heldout"]
 
     def units(self, portion: str) -> np.ndarray:
         """Per sample of :meth:`residual` on ``portion``: the segment it belongs to,
@@ -458,8 +470,7 @@ class TraceProblem:
         return np.concatenate(parts)
 
     def rms(self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]], portion: str) -> float:
-        r = self.residual(x, effects, portion)
-        return float(np.sqrt(np.mean(r**2)))
+        return _rms(self.residual(x, effects, portion))
 
     def objective(
         self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]] | None = None
@@ -538,7 +549,11 @@ class FitSpace(NamedTuple):
         """The weighted residual rows at z (and the priors' rows x/σ when the nominal
         model is free)."""
         x, e = self.unpack(z * self.unit)
-        r = problem.residual(x, e, self.portion) * self.weight
+        return self.weighted(problem, x, problem.residual(x, e, self.portion))
+
+    def weighted(self, problem: TraceProblem, x: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The weighted residual rows of the portion's errors r [nm] at ln-factors x."""
+        r = r * self.weight
         return np.concatenate([r, x / problem.model.sigma]) if self.free_nominal else r
 
 
@@ -557,7 +572,7 @@ class _Differences:
         return [r for r, _n in done]
 
 
-class _Remote(_Differences):
+class _Remote:
     """least_squares' residual function over the pool: the residual at z evaluated by a
     worker (the number this process would compute), so that fits driven side by side by
     threads of this process (:func:`_local_fits`) leave every simulation to the workers;
@@ -565,10 +580,10 @@ class _Remote(_Differences):
     the fit's result (:attr:`errors`)."""
 
     def __init__(self, pool: ProcessPoolExecutor, space: FitSpace, problem: TraceProblem):
-        super().__init__(pool, space, problem)
+        self.pool, self.space, self.problem = pool, space, problem
         self.errors: dict[bytes, tuple[float, float]] = {}
 
-    def __call__(self, z: np.ndarray) -> np.ndarray:  # type: ignore[override]
+    def __call__(self, z: np.ndarray) -> np.ndarray:
         (r, err), n = self.pool.submit(_worker_residual_errors, (self.space, z)).result()
         self.problem.count(n)
         self.errors[np.asarray(z, float).tobytes()] = err
@@ -578,14 +593,15 @@ class _Remote(_Differences):
 def _worker_residual_errors(
     job: tuple[FitSpace, np.ndarray],
 ) -> tuple[tuple[np.ndarray, tuple[float, float]], int]:
-    """The residual at z and the point's (held-out, fit) RMS errors [nm] in a worker (one
-    simulation: the errors reuse its cached angle), simulations run."""
+    """The residual at z and the point's (held-out, fit) RMS errors [nm] in a worker, all
+    from one evaluation of the detector signals; simulations run."""
     space, z = job
 
     def both(pb: TraceProblem) -> tuple[np.ndarray, tuple[float, float]]:
-        r = space.residual(pb, z)
         x, e = space.unpack(z * space.unit)
-        return r, (pb.rms(x, e, "heldout"), pb.rms(x, e, "fit"))
+        p = pb.portions(x, e)
+        rows = space.weighted(pb, x, p["fit" if space.portion == "fit" else "heldout"])
+        return rows, (_rms(p["heldout"]), _rms(p["fit"]))
 
     return _counted(both)
 
