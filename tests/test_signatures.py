@@ -187,6 +187,46 @@ def test_scan_features_see_a_lagging_loop_and_a_cubic_gain(proto):
     assert np.all(_named(f2, "scan cubic") > _named(f0, "scan cubic") + 0.005)
 
 
+def _scans_apart(shift_nm: float):
+    """Time, drive, segments and the table's position [nm] of: an up and a down scan at
+    the start, a burst of ``shift_nm``, then a half-amplitude up and down scan there
+    (100 nm per drive volt while stuck)."""
+    segs = [Segment(0.0, 0.02, "hold"), Segment(0.02, 0.07, "scan", 1, 4.0),
+            Segment(0.07, 0.09, "hold"), Segment(0.09, 0.14, "scan", -1, 4.0),
+            Segment(0.14, 0.16, "hold"), Segment(0.16, 0.18, "steps", 1, 2.0, 500.0, "jump", 10),
+            Segment(0.18, 0.2, "hold"), Segment(0.2, 0.25, "scan", 1, 2.0),
+            Segment(0.25, 0.27, "hold"), Segment(0.27, 0.32, "scan", -1, 2.0),
+            Segment(0.32, 0.34, "hold")]  # fmt: skip
+    t = np.arange(0.0, 0.34, 1.0 / FS)
+    u = np.interp(t, [0.0, 0.02, 0.07, 0.09, 0.14, 0.2, 0.25, 0.27, 0.32, 0.34],
+                  [0.0, 0.0, 4.0, 4.0, 0.0, 0.0, 2.0, 2.0, 0.0, 0.0])  # fmt: skip
+    x = 100.0 * u + shift_nm * np.clip((t - 0.16) / 0.02, 0.0, 1.0)
+    return t, u, segs, x
+
+
+@pytest.mark.parametrize("k", [0.0, 2e-8, -2e-8])  # 1/nm²: the detector's cubic term
+@pytest.mark.parametrize("gain", [1.0, 0.7])
+def test_scan_range_reads_the_detectors_local_gain_where_the_table_stepped(k, gain):
+    """A detector reading r(x) = g·x·(1 − k·x²) [nm] has the local gain g·(1 − 3k·x²): a
+    scan after a burst of 1000 nm reads the same motion per drive volt × (1 − 3k·X²)
+    over the first scan's (X its mean position, the first's at 200 nm), whatever the
+    constant gain g (which the nominal detector gain fits). A linear detector reads 1
+    within the feature's noise."""
+    t, u, segs, x = _scans_apart(1000.0)
+    rng = np.random.default_rng(3)
+    r = gain * x * (1.0 - k * x**2) + rng.normal(0.0, SIGMA, t.size)
+    f = SignatureLayout(t, u, segs, SIGMA).measure(r)
+    ratio, sd = f.value[f.group("scan_range")], f.noise[f.group("scan_range")]
+    assert ratio.size == 3  # the down scan at the start and both scans after the burst
+    local = [(1.0 - 3.0 * k * xm**2) / (1.0 - 3.0 * k * 200.0**2) for xm in (200.0, 1100.0)]
+    expected = np.array([local[0], local[1], local[1]])
+    # the cubic's mean over a scan's range differs from its value at the mean position
+    tol = 4.0 * sd + 3.0 * abs(k) * 100.0**2
+    assert np.all(np.abs(ratio - expected) <= tol), (ratio, expected, sd)
+    if k != 0.0:  # the step's scans tell the effect apart from the noise
+        assert abs(ratio[1] - 1.0) > 10.0 * sd[1]
+
+
 @pytest.mark.parametrize(
     "f_hz, amp",
     [(123.0, 3.0),  # several periods per hold

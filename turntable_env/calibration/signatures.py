@@ -29,6 +29,10 @@ scan_shape  scan: 2nd and 3rd order terms over the gain;    piezo_hysteresis (be
             the gain                                        (odd, cubic), sensor_drift (a
                                                             loop ∝ the time between scans,
                                                             alternating in sign)
+scan_range  scan after the first: its gain per drive volt  detector_nonlinearity (the gain
+            over the first scan's (the table has stepped   along the detector's range; a
+            between them, so the scans read the detector   constant gain factor cancels)
+            at other positions)
 line        sine and cosine of the strongest spectral line  vibration
             in the holds (each hold's level, slope and
             curvature removed)
@@ -100,7 +104,9 @@ MIN_HOLD_S = 8e-3  # s, shortest hold whose relaxation is measured
 LINE_FMIN_HZ = 5.0  # Hz, lowest line searched (below: trends)
 LINE_FMAX_HZ = 1000.0  # Hz, highest (the catalogue's vibration range)
 LINE_MIN_PERIODS = 0.2  # periods of the lowest line searched in the median hold
-GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "line", "y")
+# the least |gain|/σ of the scan the others' gains are referred to (scan_range)
+RANGE_REFERENCE_Z = 10.0
+GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "scan_range", "line", "y")
 # the groups of one quantity repeated over the protocol's settings (one unit, one misfit
 # size): a model's misfit there is a variance common to every feature (:func:`group_scores`)
 REPEATED_GROUPS = ("direction",)
@@ -123,7 +129,7 @@ EFFECT_GROUPS: dict[str, tuple[str, ...]] = {
     # a pair's bursts run in time order: wear (μ with the travel) makes the later one differ
     "friction_wear": ("steps", "direction"),
     "axis_misalignment": ("y",),
-    "detector_nonlinearity": ("scan_shape",),
+    "detector_nonlinearity": ("scan_shape", "scan_range"),
     "sensor_drift": ("relaxation", "scan_shape"),
     "vibration": ("line",),
 }
@@ -470,6 +476,7 @@ class SignatureLayout:
                 sig * math.sqrt(1.0 / n1 + 1.0 / n2))  # fmt: skip
         prev: tuple[_Scan, np.ndarray] | None = None
         poly = np.polynomial.polynomial.polyval
+        first: tuple[float, float] | None = None  # the first scan's gain per drive volt, sd
         for s in self.scans:
             ys = v[s.span[0] : s.span[1]]
             a = np.column_stack([np.ones_like(s.xi), s.xi, s.xi**2, s.xi**3])
@@ -477,6 +484,17 @@ class SignatureLayout:
             sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(a.T @ a)), 0, None)) * sig
             gain = float(coef[1]) if abs(coef[1]) > 1e-12 else 1e-12
             add(f"scan gain, {s.label}", "scan", gain, float(sd[1]))
+            # the gain per drive volt over the first scan's: a detector whose gain changes
+            # along its range reads the same motion smaller (or larger) where the table
+            # has stepped to, which the scans at other levels show
+            per_volt = (2.0 * gain / (s.hi - s.lo), 2.0 * float(sd[1]) / (s.hi - s.lo))
+            if first is None:
+                if abs(per_volt[0]) >= RANGE_REFERENCE_Z * per_volt[1]:  # a gain to refer to
+                    first = per_volt
+            else:
+                ratio = per_volt[0] / first[0]
+                add(f"scan gain / the first scan's, {s.label}", "scan_range", ratio,
+                    abs(ratio) * math.hypot(per_volt[1] / per_volt[0], first[1] / first[0]))
             # the shape relative to the gain: hysteresis bends a branch by its direction,
             # a photodiode's gain change is odd in the position
             add(f"scan curvature / gain, {s.label}", "scan_shape", float(coef[2]) / gain,

@@ -104,6 +104,8 @@ __all__ = [
     "at_base_gain",
     "calibrate_traces",
     "identifiable_effects",
+    "on_base",
+    "signature_search",
     "trace_comparison",
     "trace_data",
 ]
@@ -260,6 +262,16 @@ def at_base_gain(m: Measurement, amplifier: Any) -> tuple[Measurement, list[str]
         f"{amplifier.gain:g}: the drive is taken ×{k:.4g} as its input, so the tubes see the "
         "file's gain; the amplifier's dynamics are the fitted slew and current scales"
     ]
+
+
+def on_base(m: Measurement, base: Plant) -> tuple[TraceData, list[str]]:
+    """One file as :func:`calibrate_traces` fits it on ``base``: its drives taken at the
+    base amplifier's gain (:func:`at_base_gain`), then read as :func:`trace_data` reads
+    them; (the trace, its warnings). ValueError as there."""
+    m, w = at_base_gain(m, base.params.amplifier)
+    k = m.amplifier_gain / base.params.amplifier.gain if w else 1.0  # taken ×k
+    td, w2 = _prepare(m, k)
+    return td, w + w2
 
 
 def trace_data(m: Measurement) -> TraceData:
@@ -1107,12 +1119,9 @@ def calibrate_traces(
     if base_plant.fidelity != "reduced":
         base_plant = base_plant.replace(fidelity="reduced")
     for f in files:
-        m = f if isinstance(f, Measurement) else load_measurement(f)
-        m, w = at_base_gain(m, base_plant.params.amplifier)
-        k = m.amplifier_gain / base_plant.params.amplifier.gain if w else 1.0  # taken ×k
-        td, w2 = _prepare(m, k)
+        td, w = on_base(f if isinstance(f, Measurement) else load_measurement(f), base_plant)
         traces.append(td)
-        warnings += w + w2
+        warnings += w
     model = NominalModel(base_plant, tuple(nominal))
     problem = TraceProblem(traces, model)
     floor = float(np.sqrt(np.mean([td.floor**2 for td in traces])))
@@ -1443,7 +1452,9 @@ def _accept_one(
     return None
 
 
-def _signature_search(problem: TraceProblem) -> SignatureSearch:
+def signature_search(problem: TraceProblem) -> SignatureSearch:
+    """The features of ``problem``'s traces, read on the data and on its models
+    (:class:`~.identify.SignatureSearch`), as the effect rounds read them."""
     return SignatureSearch(
         problem.signals,
         [
@@ -1617,7 +1628,7 @@ def _select_effects(
     selected: list[str] = []
     history = [{"effects": [], "heldout_rms": nominal.heldout_rms}]
     candidates_out: list[dict[str, Any]] = []
-    search = _signature_search(problem)
+    search = signature_search(problem)
     signature: dict[str, Any] = {"lines": search.find_lines(nominal.x, {}), "rounds": []}
     with _Candidates(problem, search, workers) as pool:
         while len(selected) < max_effects and considered:
