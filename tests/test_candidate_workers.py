@@ -16,8 +16,8 @@ from turntable_env.calibration.trace_fit import (
     _Candidates,
     _local_fits,
     _prepare,
-    _signature_search,
     local_fit,
+    signature_search,
 )
 from turntable_env.calibration.virtual_lab import run_virtual_lab
 from turntable_env.plant import Plant
@@ -37,7 +37,7 @@ def _rounds(trace, workers: int) -> tuple[list, list, int]:
     problem = TraceProblem([trace], NominalModel(Plant("real", fidelity="reduced"), TRACE_NOMINAL))
     x = np.zeros(len(problem.model))
     current = local_fit(problem, x, {}, free_effects=(), max_nfev=1)
-    search = _signature_search(problem)
+    search = signature_search(problem)
     search.find_lines(x, {})
     base = search.features(x, {})
     n0 = problem.n_sims
