@@ -31,6 +31,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -101,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --show: models with this effect at these values, e.g. "
                     "friction_asymmetry alpha=-0.15 alpha=0.15")  # fmt: skip
     args = ap.parse_args(argv)
+    t0 = time.perf_counter()
     if args.show is not None and args.show not in GROUPS:
         ap.error(f"--show {args.show!r}: not a feature group ({', '.join(GROUPS)})")
     variants = _variants(ap, args.effect)
@@ -114,7 +116,10 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--candidates {bad[0]!r}: not a catalogue effect ({', '.join(CATALOGUE)})")
     try:
         report = json.loads(path.read_text())
-        report["plant"]["base"], report["parameters"]["nominal"], report["selected_effects"]
+        for keys in (("plant", "base"), ("parameters", "nominal"), ("selected_effects",)):
+            part = report
+            for k in keys:
+                part = part[k]
     except (ValueError, KeyError, TypeError) as exc:
         ap.error(f"{path}: not a calibration report ({type(exc).__name__}: {exc})")
     base = Plant(report["plant"]["base"], fidelity="reduced")
@@ -145,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{f.total_nats:7.1f}  level {level:4.1f}  significant {f.significant!s:<5}  "
               f"{ {k: round(v, 4) for k, v in f.values.items()} }  {f.note}")  # fmt: skip
     dec = decide(fits)
-    print(f"  decision: {dec.to_json()}")
+    print(f"  decision: {dec.to_json()}; wall {time.perf_counter() - t0:.0f} s")
     return 0
 
 
