@@ -17,8 +17,10 @@ from turntable_env.calibration.virtual_lab import (
 )
 from turntable_env.effects import (
     CATALOGUE,
+    WEAR_LENGTH,
     check_effects,
     detector_stage,
+    friction_scale,
     pack_effects,
     parse_effects,
 )
@@ -221,6 +223,46 @@ def test_friction_wear_changes_the_steps_with_travel(ps, drive, clean):
         ratio[beta] = abs(back) / abs(fwd)
     assert abs(ratio[0.0] - 1.0) < 0.01
     assert ratio[0.3] < ratio[0.0] - 0.01 and ratio[-0.3] > ratio[0.0] + 0.01
+
+
+@pytest.mark.parametrize("beta", [-0.3, 0.1])
+@pytest.mark.parametrize("k", [0.1, 0.5, 2.0])
+def test_friction_wear_runs_in(beta, k):
+    """The running-in form: the same slope β per 10 µm at the start as the linear form,
+    levelling off at 1 + β/k, monotone in the travel, and the linear form as k → 0."""
+    row = pack_effects(check_effects({"friction_wear": {"beta": beta, "saturation": k}}))
+    lin = pack_effects(check_effects({"friction_wear": {"beta": beta}}))
+    dx = 1e-4 * WEAR_LENGTH
+    slope = (friction_scale(row, np.array(dx)) - 1.0) / (dx / WEAR_LENGTH)
+    assert slope == pytest.approx(beta, rel=1e-3)
+    far = friction_scale(row, np.array(200.0 * WEAR_LENGTH / k))
+    assert far == pytest.approx(max(1.0 + beta / k, 0.2), rel=1e-9)
+    travel = np.linspace(0.0, 50.0 * WEAR_LENGTH, 400)
+    s = friction_scale(np.broadcast_to(row, (travel.size, row.size)), travel)
+    assert np.all(np.sign(np.diff(s)) * np.sign(beta) >= 0.0)
+    # running in: never more change than the linear form
+    s_lin = friction_scale(np.broadcast_to(lin, (travel.size, lin.size)), travel)
+    assert np.all(np.abs(s - 1.0) <= np.abs(s_lin - 1.0) + 1e-12)
+    tiny = pack_effects(check_effects({"friction_wear": {"beta": beta, "saturation": 1e-9}}))
+    np.testing.assert_allclose(
+        friction_scale(np.broadcast_to(tiny, (travel.size, tiny.size)), travel), s_lin,
+        rtol=1e-7,
+    )  # fmt: skip
+
+
+def test_friction_wear_that_runs_in_changes_the_later_steps_less(ps, drive, clean):
+    """With falling friction (β < 0) the later (backward) block outgrows the earlier one;
+    contacts that have run in (saturation 2: most of the change within the first 5 µm)
+    change the later block less than the linear form with the same start."""
+    ratio = {}
+    for k in (0.0, 2.0):
+        res = _trace(ps, drive, {"friction_wear": {"beta": -0.3, "saturation": k}})
+        fwd, back = _block_steps(ps, drive, res)
+        ratio[k] = abs(back) / abs(fwd)
+    fwd0, back0 = _block_steps(ps, drive, clean)
+    r0 = abs(back0) / abs(fwd0)
+    assert ratio[0.0] > r0 + 0.01
+    assert 0.0 < ratio[2.0] - r0 < 0.8 * (ratio[0.0] - r0)
 
 
 def test_parse_effects_spec():

@@ -256,9 +256,11 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
         lines += _md_hops(hops.get("joint_refit"), f"{dec['named']}'s joint refit", u)
         lines += _md_hops(hops.get("current_refit"), "the current model's refit", u)
         if rnd.get("unsupported"):
-            lines += ["", "Not to be named by the held-out trace error (the signature does not "
-                      "back them): " + "; ".join(f"{k}: {v}" for k, v in
-                                                rnd["unsupported"].items()) + "."]  # fmt: skip
+            lines += ["", "Not backed by their signature search (the held-out trace error "
+                      "names one only if it leaves at most half of the structured residual, "
+                      "or if its features back it on the refits the trace compares): "
+                      + "; ".join(f"{k}: {v}" for k, v in
+                                  rnd["unsupported"].items()) + "."]  # fmt: skip
         lines += _md_trace_verdicts(rnd.get("trace_verdicts"), u)
     return lines
 
@@ -284,6 +286,10 @@ def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
             f"{v['blocks']} blocks{dist}) | {agree}{note} | "
             f"{v['pinned'] or 'no'} | {'**yes**' if v['named'] else 'no'} |"
         )
+    backing = [f"{v['effect']}: {v['refit_backing']}" for v in rows if v.get("refit_backing")]
+    if backing:
+        out += ["", "Features on the refits (for a candidate its signature search did not "
+                "back): " + "; ".join(backing) + "."]  # fmt: skip
     return out
 
 

@@ -13,7 +13,10 @@ effects already named):
    direction pairs by the noise plus the current model's common misfit variance, so the
    settings weigh alike, as in :func:`~.signatures.group_scores`).
 3. **A bounded Powell search** (:func:`scipy.optimize.minimize`) over all its parameters
-   from the profile's best point, in range-normalised coordinates.
+   from the profile's best point, in range-normalised coordinates. An effect that moves a
+   level the nominal fit set to the trace's average (:data:`CONFOUNDED_NOMINAL`: wear and
+   the friction level) is searched with that level free, and scored against the current
+   model with the level refitted to the features alone, so the two differ by the effect.
 4. **Scores**: :func:`~.signatures.group_scores` against the current model per feature
    group, in nats. A candidate is *significant* when it gains ≥ :func:`significance_nats`
    of its number of free parameters (4.5 for one, 5.91 for two: the same 3σ level)
@@ -50,7 +53,7 @@ import numpy as np
 import scipy.optimize
 import scipy.stats
 
-from ..effects import CATALOGUE
+from ..effects import CATALOGUE, WEAR_RUN_IN_START
 from .signatures import (
     EFFECT_GROUPS,
     REPEATED_GROUPS,
@@ -63,8 +66,10 @@ from .signatures import (
 )
 
 __all__ = [
+    "CONFOUNDED_NOMINAL",
     "JACKKNIFE_GROUPS",
     "JACKKNIFE_MIN",
+    "LEVEL_SPAN",
     "LINE_P_VALUE",
     "P_SIGNIFICANT",
     "SIGNIFICANT_NATS",
@@ -113,6 +118,13 @@ JACKKNIFE_MIN = REPEATED_MIN  # features a group needs for its leave-one-out che
 # widest scan), the holds (creep follows the move before each) or the steps (an amplifier
 # effect shows in the fastest bursts).
 JACKKNIFE_GROUPS = REPEATED_GROUPS
+# nominal levels an effect is searched with (its signature here, its screen on the trace,
+# :mod:`.trace_fit`): wear moves the friction from the level the nominal fit set to the
+# trace's average, so with that level held a true wear only adds to it (the third plant's
+# contact wear: 1.0 nats held, 6 nats with the level refitted beside it)
+CONFOUNDED_NOMINAL: dict[str, tuple[str, ...]] = {"friction_wear": ("friction",)}
+LEVEL_SPAN = 0.5  # the most a searched level moves, in its ln-factor (×0.61 … ×1.65)
+LEVEL_EVALS = 12  # objective evaluations refitting the levels at each profile point
 # the parameter profiled (else an effect's first)
 MAIN_PARAMETER = {"sensor_drift": "rate", "vibration": "amplitude"}
 # held at their start: the line's frequency (found by the line search), the drift's offset
@@ -145,6 +157,15 @@ class CandidateFit:
     # the declared gain with the feature it rests on most left out, and that feature
     declared_nats_loo: float = math.nan
     weakest_feature: str = ""
+    # the nominal levels searched with it (:data:`CONFOUNDED_NOMINAL`): name → ln-factor
+    # shift from the current model's (the model it is scored against has its own)
+    level_shift: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n_free(self) -> int:
+        """The F-test's degrees of freedom: the effect's free parameters (its levels are
+        refitted in the model it is compared with as well)."""
+        return len(free_parameters(self.name))
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -155,12 +176,13 @@ class CandidateFit:
             "objective_neutral": self.objective_neutral,
             "at_neutral": self.at_neutral,
             "declared_groups": list(EFFECT_GROUPS.get(self.name, ())),
-            "n_free": len(free_parameters(self.name)),
+            "n_free": self.n_free,
+            "level_shift": self.level_shift,
             "declared_nats": self.declared_nats,
             "total_nats": self.total_nats,
             "group_nats": {g: s["nats"] for g, s in self.scores.items()},
             "significant": self.significant,
-            "significance_nats": significance_nats(len(free_parameters(self.name))),
+            "significance_nats": significance_nats(self.n_free),
             "declared_nats_leave_one_out": self.declared_nats_loo,
             "rests_on": self.weakest_feature,
             "size_over_floor": self.size,
@@ -253,15 +275,19 @@ class SignatureSearch:
         signals: (x, effects) → per trace the model's detector channels (x, y) [V].
         traces: per trace (time [s], drive [V], segments, detector x [V], detector y [V]
             or None, nm per volt, noise floor [nm], table radius [m]).
+        nominal_names: the names of x's ln-factors (the levels of
+            :data:`CONFOUNDED_NOMINAL` are searched where x has them).
     """
 
     def __init__(
         self,
         signals: Callable[[np.ndarray, Effects], list[tuple[np.ndarray, np.ndarray]]],
         traces: Sequence[tuple[Any, ...]],
+        nominal_names: Sequence[str] = (),
     ) -> None:
         self._signals = signals
         self.traces = list(traces)
+        self.nominal_names = tuple(nominal_names)
         self.layouts = [
             SignatureLayout(t - t[0], u, segs, floor)
             for t, u, segs, _x, _y, _s, floor, _r in self.traces
@@ -325,6 +351,8 @@ class SignatureSearch:
         start = e.defaults()
         if name == "sensor_drift":
             start["offset"] = 0.0  # the features are level differences: no offset in them
+        elif name == "friction_wear":
+            start["saturation"] = WEAR_RUN_IN_START  # running in; the search may end at 0
         d, m = self.data, model
         if name == "vibration":
             ln = [k for k, g in enumerate(d.groups) if g == "line"]
@@ -351,10 +379,19 @@ class SignatureSearch:
         d = self.data
         declared = EFFECT_GROUPS.get(name, ())
         w = self._weights(base, declared)
+        levels = [lv for lv in CONFOUNDED_NOMINAL.get(name, ()) if lv in self.nominal_names]
+        at = [self.nominal_names.index(lv) for lv in levels]
+        null_shift: dict[str, float] = {}
+
+        def shifted(vals: Mapping[str, float]) -> np.ndarray:
+            xs = np.array(x, dtype=float)
+            for lv, i in zip(levels, at, strict=True):
+                xs[i] += vals.get(f"level:{lv}", 0.0)
+            return xs
 
         def objective(vals: Mapping[str, float]) -> float:
             try:
-                f = self.features(x, {**effects, name: dict(vals)})
+                f = self.features(shifted(vals), {**effects, name: _own(name, vals)})
             except Exception:  # a diverging corner of the range is a bad point
                 return math.inf
             z = (d.value - f.value) / d.noise
@@ -365,25 +402,44 @@ class SignatureSearch:
             return self.not_run(name, "no spectral line in the holds above the false-alarm level")
         start = self._start(name, base)
         neutral = e.neutral()
+        if levels:
+            # the null model refits its levels to the features too, so the F-test's models
+            # differ by the effect's parameters alone: a level alone moves the steps the
+            # nominal fit set on the trace, and that is no effect's signature
+            lk = [f"level:{lv}" for lv in levels]
+            res0 = scipy.optimize.minimize(
+                lambda z: objective({**start, **neutral, **dict(zip(lk, z, strict=True))}),
+                np.zeros(len(lk)), method="Powell", bounds=[(-LEVEL_SPAN, LEVEL_SPAN)] * len(lk),
+                options={"maxfev": POWELL_EVALS // 2, "xtol": 1e-3, "ftol": 1e-4},
+            )  # fmt: skip
+            start = {**start, **{k: float(v) for k, v in zip(lk, res0.x, strict=True)}}
+            null_shift = {lv: float(start[k]) for lv, k in zip(levels, lk, strict=True)}
+            x = shifted(start)  # the null model: the current one with its levels refitted
+            start = {**start, **{k: 0.0 for k in lk}}
+            base = self.features(x, effects)
+            w = self._weights(base, declared)
         p0 = next(p for p in e.parameters if p.name == MAIN_PARAMETER.get(name, p.name))
         j_neutral = objective({**start, **neutral}) if name != "vibration" else objective(
             {**start, "amplitude": 0.0})  # fmt: skip
         grid = _profile_grid(p0.low, p0.high, p0.neutral, start[p0.name])
-        profile = [(float(v), objective({**start, p0.name: float(v)})) for v in grid]
-        v_best, j_best = min(profile, key=lambda vj: vj[1])
-        best = {**start, p0.name: v_best}
-        # bounded Powell in range-normalised coordinates over the parameters that move
+        points = [_with_levels(objective, {**start, p0.name: float(v)}, levels) for v in grid]
+        profile = [(float(v), j) for v, (j, _vals) in zip(grid, points, strict=True)]
+        k_best = int(np.argmin([j for _v, j in profile]))
+        j_best, best = points[k_best]
+        # bounded Powell in range-normalised coordinates over the parameters that move, and
+        # the levels searched with them (a shift of ±LEVEL_SPAN in the ln-factor)
         free = free_parameters(name)
-        lo = np.array([p.low for p in free])
-        span = np.array([p.high - p.low for p in free])
+        keys = [p.name for p in free] + [f"level:{lv}" for lv in levels]
+        lo = np.array([p.low for p in free] + [-LEVEL_SPAN] * len(levels))
+        span = np.array([p.high - p.low for p in free] + [2.0 * LEVEL_SPAN] * len(levels))
 
         def from_unit(z: np.ndarray) -> dict[str, float]:
-            return {**best, **{p.name: float(lo[i] + span[i] * z[i]) for i, p in enumerate(free)}}
+            return {**best, **{k: float(lo[i] + span[i] * z[i]) for i, k in enumerate(keys)}}
 
-        z0 = np.array([(best[p.name] - p.low) / (p.high - p.low) for p in free])
+        z0 = np.array([(best[k] - lo[i]) / span[i] for i, k in enumerate(keys)])
         res = scipy.optimize.minimize(
             lambda z: objective(from_unit(np.clip(z, 0.0, 1.0))), z0, method="Powell",
-            bounds=[(0.0, 1.0)] * len(free),
+            bounds=[(0.0, 1.0)] * len(keys),
             options={"maxfev": POWELL_EVALS, "xtol": 1e-3, "ftol": 1e-4},
         )  # fmt: skip
         if res.fun < j_best:
@@ -391,12 +447,17 @@ class SignatureSearch:
         at_neutral = j_best >= j_neutral - 1e-9 or all(
             abs(best[p.name] - p.neutral) <= 1e-3 * (p.high - p.low) for p in (p0,)
         )
-        feats = self.features(x, {**effects, name: best})
-        scores = group_scores(d, base, feats, n_free=len(free))
+        # each level's shift from the current model's: the null's and the candidate's own
+        shift = {lv: null_shift[lv] + float(best[f"level:{lv}"]) for lv in levels}
+        xb = shifted(best)
+        best = _own(name, best)
+        n_free = len(free)
+        feats = self.features(xb, {**effects, name: best})
+        scores = group_scores(d, base, feats, n_free=n_free)
         gain = sum(scores[g]["nats"] for g in declared if g in scores)
         total = sum(s["nats"] for g, s in scores.items() if g in SIGNATURE_GROUPS)
-        loo, weakest = leave_one_out(d, base, feats, declared, len(free))
-        size = self._effect_size(x, effects, {**effects, name: best})
+        loo, weakest = leave_one_out(d, base, feats, declared, n_free)
+        size = self._effect_size(x, effects, {**effects, name: best}, xb)  # x: the null's
         notes = []
         if main_at_bound(name, best, p0.name):
             notes.append(f"{p0.name} at its bound with the nominal model held (the joint "
@@ -407,7 +468,11 @@ class SignatureSearch:
             if g in scores and not scores[g]["scored"]:
                 notes.append(f"{g}: {scores[g]['n']} setting(s), not scored (fewer than "
                              f"{REPEATED_MIN} cannot tell it from one setting's misfit)")
-        level = significance_nats(len(free))
+        level = significance_nats(n_free)
+        if shift:
+            notes.append("searched with " + ", ".join(
+                f"the nominal {lv} ×{math.exp(v):.3g} (×{math.exp(null_shift[lv]):.3g} "
+                "without it)" for lv, v in shift.items()))
         if gain >= level > loo:
             notes.append(f"its gain rests on one feature: {loo:.1f} nats without {weakest}")
         # at a bound is reported, not disqualifying: with the nominal model held at its fit
@@ -417,7 +482,7 @@ class SignatureSearch:
             name, best, profile, j_best, j_neutral, bool(at_neutral), scores, float(gain),
             float(total),
             bool(ok and min(gain, loo) >= level and total >= level),
-            "; ".join(notes), float(size), float(loo), weakest,
+            "; ".join(notes), float(size), float(loo), weakest, shift,
         )  # fmt: skip
 
     def _weights(self, base: Features, declared: Sequence[str]) -> np.ndarray:
@@ -441,11 +506,15 @@ class SignatureSearch:
                 w[mk] = max(1.0, float(np.sum((r / sd) ** 2)) / n)
         return w
 
-    def _effect_size(self, x: np.ndarray, without: Effects, with_: Effects) -> float:
+    def _effect_size(
+        self, x: np.ndarray, without: Effects, with_: Effects, x_with: np.ndarray | None = None
+    ) -> float:
         """How much a candidate changes the predicted detector channels: the largest RMS
-        change [nm] of a trace's x or y channel over that trace's noise floor."""
+        change [nm] of a trace's x or y channel over that trace's noise floor (``x_with``:
+        the candidate's ln-factors where its levels moved them)."""
         size = 0.0
-        for (xa, ya), (xb, yb), tr in zip(self._signals(x, without), self._signals(x, with_),
+        xw = x if x_with is None else x_with
+        for (xa, ya), (xb, yb), tr in zip(self._signals(x, without), self._signals(xw, with_),
                                           self.traces, strict=True):  # fmt: skip
             s, floor = tr[5], tr[6]
             chans = [(xa, xb)] + ([(ya, yb)] if tr[4] is not None else [])
@@ -459,6 +528,32 @@ class SignatureSearch:
         """A candidate that was not searched, with the reason."""
         return CandidateFit(name, CATALOGUE[name].neutral(), [], math.nan, math.nan, True, {},
                             0.0, 0.0, False, why)  # fmt: skip
+
+
+def _with_levels(
+    objective: Callable[[Mapping[str, float]], float], vals: dict[str, float],
+    levels: Sequence[str],
+) -> tuple[float, dict[str, float]]:  # fmt: skip
+    """(objective, values) at ``vals`` with the ``levels`` ("level:NAME" shifts) refitted
+    there by a short bounded search: a profile over an effect's main parameter along the
+    valley it forms with the level (wear lowers the friction the level raises)."""
+    if not levels:
+        return objective(vals), vals
+    lk = [f"level:{lv}" for lv in levels]
+    z0 = np.array([vals.get(k, 0.0) for k in lk])
+    res = scipy.optimize.minimize(
+        lambda z: objective({**vals, **dict(zip(lk, z, strict=True))}), z0, method="Powell",
+        bounds=[(-LEVEL_SPAN, LEVEL_SPAN)] * len(lk),
+        options={"maxfev": LEVEL_EVALS, "xtol": 1e-3, "ftol": 1e-4},
+    )  # fmt: skip
+    out = {**vals, **{k: float(v) for k, v in zip(lk, res.x, strict=True)}}
+    j = float(res.fun)
+    return (j, out) if math.isfinite(j) else (math.inf, out)
+
+
+def _own(name: str, vals: Mapping[str, float]) -> dict[str, float]:
+    """An effect's own parameters from a search's values (without its levels)."""
+    return {p.name: float(vals[p.name]) for p in CATALOGUE[name].parameters}
 
 
 def leave_one_out(

@@ -74,10 +74,20 @@ import numpy as np
 import scipy.optimize
 import scipy.stats.qmc
 
-from ..effects import CATALOGUE, apply_output
+from ..effects import CATALOGUE, WEAR_RUN_IN_START, apply_output
 from ..plant import Plant
 from ..plant.value import DEFAULT_RANDOMIZATION
-from .identify import CandidateFit, SignatureSearch, decide, main_at_bound, supports
+from .identify import (
+    CONFOUNDED_NOMINAL,
+    SUPPORT_NATS,
+    CandidateFit,
+    SignatureSearch,
+    decide,
+    free_parameters,
+    leave_one_out,
+    main_at_bound,
+    supports,
+)
 from .measurement import Measurement, load_measurement
 from .nominal import NOMINAL_PARAMETERS, NominalModel
 from .residual import (
@@ -95,6 +105,7 @@ from .residual import (
 )
 from .result import CalibrationResult
 from .segments import DriveReading, Segment, read_drive, segment_trace, split_portions
+from .signatures import EFFECT_GROUPS, group_scores
 from .trace import simulate_trace
 
 __all__ = [
@@ -533,9 +544,10 @@ class FitSpace(NamedTuple):
     holding a copy of the problem evaluates the same residual (:class:`_Differences`).
 
     Attributes:
-        x0: the nominal ln-factors (held where ``free_nominal`` is False); effects: the
-        effects' values (the free ones overwritten by v); rows: (effect, parameter) of the
-        free effect parameters, in v's order; free_nominal: the ln-factors lead v;
+        x0: the nominal ln-factors (held but where ``free_nominal`` frees them); effects:
+        the effects' values (the free ones overwritten by v); rows: (effect, parameter) of
+        the free effect parameters, in v's order; free_nominal: the indices of the free
+        ln-factors, which lead v in this order;
         portion: "fit" or "heldout"; weight: the data rows' weight [1/nm];
         unit: v = z · unit (least squares works in z).
     """
@@ -543,15 +555,16 @@ class FitSpace(NamedTuple):
     x0: np.ndarray
     effects: dict[str, dict[str, float]]
     rows: tuple[tuple[str, str], ...]
-    free_nominal: bool
+    free_nominal: tuple[int, ...]
     portion: str
     weight: float
     unit: np.ndarray
 
     def unpack(self, v: np.ndarray) -> tuple[np.ndarray, dict[str, dict[str, float]]]:
         """(ln-factors, effects) of a parameter vector v."""
-        nx = len(v) - len(self.rows)
-        x = np.array(v[:nx]) if self.free_nominal else np.asarray(self.x0, float)
+        nx = len(self.free_nominal)
+        x = np.array(self.x0, dtype=float)
+        x[list(self.free_nominal)] = v[:nx]
         e = {k: dict(d) for k, d in self.effects.items()}
         for (name, key), val in zip(self.rows, v[nx:], strict=True):
             e[name][key] = float(val)
@@ -564,9 +577,13 @@ class FitSpace(NamedTuple):
         return self.weighted(problem, x, problem.residual(x, e, self.portion))
 
     def weighted(self, problem: TraceProblem, x: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """The weighted residual rows of the portion's errors r [nm] at ln-factors x."""
+        """The weighted residual rows of the portion's errors r [nm] at ln-factors x, then
+        the free ln-factors' prior rows x/σ."""
         r = r * self.weight
-        return np.concatenate([r, x / problem.model.sigma]) if self.free_nominal else r
+        if not self.free_nominal:
+            return r
+        k = list(self.free_nominal)
+        return np.concatenate([r, x[k] / problem.model.sigma[k]])
 
 
 class _Differences:
@@ -623,40 +640,54 @@ def _worker_residual(job: tuple[FitSpace, np.ndarray]) -> tuple[np.ndarray, int]
     return _counted(lambda pb: space.residual(pb, z))
 
 
+def _free_indices(model: NominalModel, free: bool | Sequence[str]) -> list[int]:
+    """The indices of the nominal ln-factors a fit frees: all (True), none (False) or
+    those named (a ValueError names one the model does not have)."""
+    if isinstance(free, bool):
+        return list(range(len(model))) if free else []
+    unknown = [n for n in free if n not in model.names]
+    if unknown:
+        raise ValueError(f"free_nominal: {unknown[0]!r} is not a nominal parameter of the "
+                         f"model ({', '.join(model.names)})")  # fmt: skip
+    return [model.names.index(n) for n in free]
+
+
 def local_fit(
     problem: TraceProblem,
     x0: np.ndarray,
     effects: Mapping[str, Mapping[str, float]],
     *,
-    free_nominal: bool = True,
+    free_nominal: bool | Sequence[str] = True,
     free_effects: Sequence[str] = (),
     max_nfev: int = 15,
     portion: str = "fit",
     pool: ProcessPoolExecutor | None = None,
 ) -> LocalFit:
     """Bounded least squares of the free parameters on ``portion`` (priors as extra rows
-    on the nominal ln-factors; effect parameters bounded by the catalogue); the Jacobian's
+    on the nominal ln-factors; effect parameters bounded by the catalogue). ``free_nominal``:
+    every nominal ln-factor (True), none (False) or those named; the Jacobian's
     finite differences over ``pool``'s workers when given (initialised with
     :func:`_init_worker`: the same fit, sooner)."""
     mdl = problem.model
-    nx = len(mdl) if free_nominal else 0
+    idx = _free_indices(mdl, free_nominal)
+    nx = len(idx)
     eff = {k: dict(v) for k, v in effects.items()}
     rows = _effect_rows(eff, free_effects)
-    lo = np.concatenate([mdl.low[:nx], [p.low for _n, p in rows]])
-    hi = np.concatenate([mdl.high[:nx], [p.high for _n, p in rows]])
-    scale = np.concatenate([mdl.sigma[:nx], [(p.high - p.low) / 4.0 for _n, p in rows]])
-    v0 = np.concatenate([np.asarray(x0, float)[:nx], [eff[n][p.name] for n, p in rows]])
+    lo = np.concatenate([mdl.low[idx], [p.low for _n, p in rows]])
+    hi = np.concatenate([mdl.high[idx], [p.high for _n, p in rows]])
+    scale = np.concatenate([mdl.sigma[idx], [(p.high - p.low) / 4.0 for _n, p in rows]])
+    v0 = np.concatenate([np.asarray(x0, float)[idx], [eff[n][p.name] for n, p in rows]])
     v0 = np.clip(v0, lo, hi)
     # effect parameters in units of a quarter of their range: the finite-difference step
     # (DIFF_STEP of the unit) then moves a 5e-5 rad amplitude or a 1 µs time constant as
     # much as a ln-factor, instead of stepping past its bounds
     unit = np.concatenate([np.ones(nx), scale[nx:]])
     space = FitSpace(np.asarray(x0, float), eff, tuple((n, p.name) for n, p in rows),
-                     free_nominal, portion, problem.weight, unit)  # fmt: skip
+                     tuple(idx), portion, problem.weight, unit)  # fmt: skip
     if v0.size == 0:
         x, e = space.unpack(v0)
         r = space.residual(problem, v0)
-        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, (nx, rows))
+        return _finish(problem, x, e, np.zeros(0), np.zeros((0, 0)), float(r @ r), 0, (idx, rows))
     # with a pool every evaluation is a worker's: the residual, the Jacobian's perturbed
     # points (side by side) and the final errors
     remote = None if pool is None else _Remote(pool, space, problem)
@@ -675,14 +706,16 @@ def local_fit(
         cov = np.diag(np.full(v.size, np.inf))
     # the errors of the optimum, an evaluated point: the worker's that evaluated it
     errors = None if remote is None else remote.errors.get(np.asarray(res.x, float).tobytes())
-    return _finish(problem, x, e, v, cov, float(res.fun @ res.fun), int(res.nfev), (nx, rows),
+    return _finish(problem, x, e, v, cov, float(res.fun @ res.fun), int(res.nfev), (idx, rows),
                    errors)  # fmt: skip
 
 
 def _finish(problem, x, e, v, cov, cost, nfev, layout, errors=None) -> LocalFit:
-    """The LocalFit of a least-squares result; ``layout``: (nominal factors free, the free
-    effect rows); ``errors``: its (held-out, fit) RMS [nm] where already evaluated."""
-    nx, rows = layout
+    """The LocalFit of a least-squares result; ``layout``: (the free nominal factors'
+    indices, the free effect rows); ``errors``: its (held-out, fit) RMS [nm] where already
+    evaluated."""
+    idx, rows = layout
+    nx = len(idx)
     if errors is None:
         errors = (problem.rms(x, e, "heldout"), problem.rms(x, e, "fit"))
     mdl = problem.model
@@ -690,7 +723,7 @@ def _finish(problem, x, e, v, cov, cost, nfev, layout, errors=None) -> LocalFit:
     # a parameter the data do not constrain keeps its prior σ (never nan)
     std = np.where(np.isfinite(var), np.sqrt(var), np.inf)
     std_x = mdl.sigma.copy()
-    std_x[:nx] = np.minimum(std[:nx], mdl.sigma[:nx])
+    std_x[idx] = np.minimum(std[:nx], mdl.sigma[idx])
     std_eff: dict[str, dict[str, float]] = {}
     for (name, p), s in zip(rows, std[nx:], strict=True):
         std_eff.setdefault(name, {})[p.name] = float(min(s, p.high - p.low))
@@ -899,8 +932,10 @@ def _start_values(name: str, problem: TraceProblem, x: np.ndarray, effects) -> d
         start = {"gamma": 0.005}
     elif name == "amplifier_dynamics":
         start = {"slew_scale": 0.9, "current_scale": 1.0}
-    elif name in ("friction_asymmetry", "friction_wear"):
-        start = {e.parameters[0].name: 0.02}
+    elif name == "friction_asymmetry":
+        start = {"alpha": 0.02}
+    elif name == "friction_wear":  # a small slope, running in (a linear trend can end at 0)
+        start = {"beta": 0.02, "saturation": WEAR_RUN_IN_START}
     td = problem.traces[0]
     m = td.m
     mask = td.anchoring.fit
@@ -937,8 +972,9 @@ def _start_values(name: str, problem: TraceProblem, x: np.ndarray, effects) -> d
 
 
 def screen_effect(problem: TraceProblem, base: LocalFit, name: str) -> LocalFit:
-    """One candidate on top of the fitted nominal model (nominal fixed): a 7-point grid
-    over its first parameter for physics effects, then least squares of its parameters."""
+    """One candidate on top of the fitted nominal model (nominal fixed but for the levels
+    the effect moves, :data:`~.identify.CONFOUNDED_NOMINAL`): a 7-point grid over its first
+    parameter for physics effects, then least squares of its parameters (and levels)."""
     e = CATALOGUE[name]
     start = _start_values(name, problem, base.x, base.effects)
     x_at = base.x
@@ -958,8 +994,11 @@ def screen_effect(problem: TraceProblem, base: LocalFit, name: str) -> LocalFit:
                 if sse < best:
                     best, start_best, x_at = sse, trial, x_try
         start = start_best
+    # the nominal levels it moves (wear: the friction the nominal fit set to the trace's
+    # average) are fitted with it; the rest of the nominal model is held
+    levels = [lv for lv in CONFOUNDED_NOMINAL.get(name, ()) if lv in problem.model.names]
     return local_fit(
-        problem, x_at, {**base.effects, name: start}, free_nominal=False,
+        problem, x_at, {**base.effects, name: start}, free_nominal=levels,
         free_effects=(name,), max_nfev=12,
     )  # fmt: skip
 
@@ -1403,16 +1442,20 @@ def _accept_one(
     selected: list[str], min_improvement: float, warnings: list[str],
     say: Callable[[str], None], pool: ProcessPoolExecutor | None = None,
     verdicts: list[dict[str, Any]] | None = None,
+    backing: tuple[SignatureSearch, set[str]] | None = None,
 ) -> tuple[str, LocalFit] | None:  # fmt: skip
     """The first of the best screened candidates, refitted jointly with the nominal model,
     that beats the nominal model refitted with the same budget by ``min_improvement`` on
     held-out data, with a held-out prediction better at z ≥ :data:`Z_HELDOUT`
     (:func:`trace_comparison`, a signed-rank test over segment blocks), agrees between
     portions and has its main parameter inside its range
-    (:func:`~.identify.main_at_bound`); None if none does. The fits' finite differences
-    run over ``pool`` when given; each candidate's verdict on every rule is appended to
-    ``verdicts`` (the report's record of why it was or was not named; its parameters'
-    distance from neutral is reported, not judged)."""
+    (:func:`~.identify.main_at_bound`), and, for the candidates ``backing`` lists (those
+    whose signature search did not back them and that leave more than
+    :data:`UNSEEN_SHARE` of the structured residual), whose features the joint refit
+    explains better than the model without it (:func:`_refit_backing`); None if none does.
+    The fits' finite differences run over ``pool`` when given; each candidate's verdict on
+    every rule is appended to ``verdicts`` (the report's record of why it was or was not
+    named; its parameters' distance from neutral is reported, not judged)."""
     refit_nom = local_fit(problem, current.x, current.effects,
                           free_effects=selected, max_nfev=6, pool=pool)  # fmt: skip
     without = refit_nom if refit_nom.heldout_rms < current.heldout_rms else current
@@ -1438,7 +1481,11 @@ def _accept_one(
         pinned = main_at_bound(n, cand.effects[n])
         if pinned:
             say(f"  {n}: {pinned} at its bound (it stands in for a structure it cannot be)")
-        named = gain >= min_improvement and sig and ok and not pinned
+        backed, why = True, ""
+        if backing is not None and n in backing[1]:
+            backed, why = _refit_backing(backing[0], n, cand, without)
+            say(f"  {n}: {why}")
+        named = gain >= min_improvement and sig and ok and not pinned and backed
         if verdicts is not None:
             verdicts.append({"effect": n, "heldout_rms": cand.heldout_rms,
                              "baseline_rms": baseline, "gain": gain,
@@ -1446,10 +1493,36 @@ def _accept_one(
                              "z_min": Z_HELDOUT, "blocks": test.blocks,
                              "significant": bool(sig), "from_neutral": _from_neutral(cand, n),
                              "consistent": bool(ok) if sig else None, "note": note,
-                             "pinned": pinned or "", "named": bool(named)})  # fmt: skip
+                             "pinned": pinned or "", "refit_backing": why,
+                             "named": bool(named)})  # fmt: skip
         if named:
             return n, cand
     return None
+
+
+def _refit_backing(
+    search: SignatureSearch, name: str, with_: LocalFit, without: LocalFit
+) -> tuple[bool, str]:
+    """Whether an effect's features back it on the two refits the held-out trace compares
+    (the joint refit with it, the model without it refitted): at least
+    :data:`~.identify.SUPPORT_NATS` on its declared groups, also with the feature its gain
+    rests on most left out — the rule :func:`~.identify.supports` applies to its signature
+    search, which holds the nominal model at a fit made without the effect (the third
+    plant's contact wear: 1.0 nats there, its trace fit lowering the friction the nominal
+    fit had set to the trace's average). (backed, the verdict's text)."""
+    groups = EFFECT_GROUPS.get(name, ())
+    a = search.features(without.x, without.effects)
+    b = search.features(with_.x, with_.effects)
+    k = len(free_parameters(name))
+    scores = group_scores(search.data, a, b, n_free=k)
+    gain = sum(scores[g]["nats"] for g in groups if g in scores)
+    loo, weakest = leave_one_out(search.data, a, b, groups, k)
+    least = min(gain, loo)
+    text = (f"its features on the refits gain {gain:.1f} nats on {'+'.join(groups)}"
+            + (f", {loo:.1f} without {weakest}" if weakest else ""))  # fmt: skip
+    if least >= SUPPORT_NATS:
+        return True, f"{text}: backed"
+    return False, f"{text}, under {SUPPORT_NATS:.1f}: not backed"
 
 
 def signature_search(problem: TraceProblem) -> SignatureSearch:
@@ -1463,6 +1536,7 @@ def signature_search(problem: TraceProblem) -> SignatureSearch:
              td.m.detector.table_radius)
             for td in problem.traces
         ],
+        problem.model.names,
     )  # fmt: skip
 
 
@@ -1702,18 +1776,18 @@ def _round(
     left = structured_rms(current.heldout_rms, floor)
     share = {c: structured_rms(f.heldout_rms, floor) / left if left > 0 else 1.0
              for c, f in screened if c in rnd["unsupported"]}  # fmt: skip
-    for c, f in screened:
-        if c in share:
-            rnd["unsupported"][c] += f"; leaves {share[c]:.0%} of the structured residual"
-            if share[c] > UNSEEN_SHARE and f.heldout_rms < current.heldout_rms:
-                say(f"  {c}: not named by the trace: {rnd['unsupported'][c]}")
-    screened = [(c, f) for c, f in screened if share.get(c, 0.0) <= UNSEEN_SHARE]
+    for c in share:
+        rnd["unsupported"][c] += f"; leaves {share[c]:.0%} of the structured residual"
+    # one that leaves more must be backed by its features on the two refits the trace
+    # compares (:func:`_refit_backing`)
+    unbacked = {c for c, v in share.items() if v > UNSEEN_SHARE}
     if not screened:
         return current, None, ""
     top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
     rnd["trace_verdicts"] = []
     accepted = _accept_one(problem, current, top, selected, min_improvement, warnings, say,
-                           pool.executor(), rnd["trace_verdicts"])  # fmt: skip
+                           pool.executor(), rnd["trace_verdicts"],
+                           (pool.search, unbacked))  # fmt: skip
     if accepted is None:
         say("  no effect beats the nominal model on held-out data")
         return current, None, ""
