@@ -143,3 +143,23 @@ def test_a_problem_counts_from_threads_and_travels_without_its_caches(trace):
     for t in threads:
         t.join()
     assert problem.n_sims == 1 + 8 * 2000
+
+
+def test_a_fit_frees_only_the_named_nominal_parameters(trace):
+    """local_fit(free_nominal=names): those ln-factors move, the others stay where they
+    were, bit for bit, with their prior σ; every name is the whole model; an unknown name
+    is a ValueError naming it (wear's screen frees the friction level alone)."""
+    problem = TraceProblem([trace], NominalModel(Plant("real", fidelity="reduced"), TRACE_NOMINAL))
+    mdl = problem.model
+    x = np.full(len(mdl), 0.05)
+    f = local_fit(problem, x, {}, free_nominal=("friction",), max_nfev=3)
+    i = mdl.names.index("friction")
+    others = np.arange(len(mdl)) != i
+    assert f.x[i] != x[i]
+    np.testing.assert_array_equal(f.x[others], x[others])
+    np.testing.assert_array_equal(f.std_x[others], mdl.sigma[others])
+    a = local_fit(problem, x, {}, free_nominal=mdl.names, max_nfev=1)
+    b = local_fit(problem, x, {}, free_nominal=True, max_nfev=1)
+    np.testing.assert_array_equal(a.x, b.x)
+    with pytest.raises(ValueError, match="'friction_level'"):
+        local_fit(problem, x, {}, free_nominal=("friction_level",), max_nfev=1)

@@ -831,3 +831,70 @@ def test_the_report_counts_standard_errors_from_neutral(alpha, std, text):
     fit = LocalFit(np.zeros(1), {"friction_asymmetry": {"alpha": alpha}}, np.ones(1),
                    {"friction_asymmetry": {"alpha": std}}, 1.0, 1.0, 1.0, 1)  # fmt: skip
     assert _from_neutral(fit, "friction_asymmetry") == text
+
+
+def _worn_position(proto, x, effects, step_nm=3000.0):
+    """A hand-made table whose burst steps shrink as the friction level exp(x[0]) and the
+    wear's factor on it (``effects.friction_scale`` of the travel before the burst) grow:
+    step = ±step_nm / (exp(x[0]) · scale)."""
+    from turntable_env.effects import check_effects, friction_scale, pack_effects
+
+    t, u, segs, bursts = proto
+    row = pack_effects(check_effects(dict(effects)))
+    travel, steps = 0.0, []
+    for k in range(len(bursts)):
+        s = (1 if k % 2 == 0 else -1) * step_nm / (
+            math.exp(x[0]) * float(friction_scale(row, np.array(travel * 1e-9))))
+        steps.append(s)
+        travel += abs(s)
+    return _position(t, u, segs, bursts, tuple(steps))
+
+
+def _level_search(proto, data_x, data_effects, names):
+    t, u, segs, _b = proto
+    data = _worn_position(proto, data_x, data_effects)
+
+    def signals(x, effects):
+        return [(_worn_position(proto, x, effects), np.zeros_like(t))]
+
+    return SignatureSearch(signals, [(t, u, segs, data, None, 1.0, SIGMA, 0.05)], names)
+
+
+@pytest.mark.parametrize("wear", [False, True])
+def test_wear_is_scored_against_the_friction_level_refitted(proto, wear):
+    """Wear moves the friction from the level the nominal fit set to the trace's average
+    (identify.CONFOUNDED_NOMINAL): a level alone is no wear (the null model refits it, so
+    the candidate gains nothing), and wear beyond the level is found with it."""
+    truth = {"friction_wear": {"beta": -0.3}} if wear else {}
+    x_true = np.array([math.log(1.2)])
+    with_level = _level_search(proto, x_true, truth, ("friction",)).fit_candidate(
+        "friction_wear", np.zeros(1), {})
+    assert with_level.level_shift["friction"] == pytest.approx(math.log(1.2), abs=0.05)
+    if wear:
+        assert with_level.declared_nats >= significance_nats(2)
+        assert with_level.values["beta"] < -0.1
+    else:
+        assert with_level.declared_nats < SUPPORT_NATS
+    # without the level in the model's names nothing but the effect is searched
+    held = _level_search(proto, x_true, truth, ()).fit_candidate("friction_wear", np.zeros(1), {})
+    assert not held.level_shift
+
+
+@pytest.mark.parametrize("wear", [False, True])
+def test_refit_backing_asks_the_features_of_the_two_refits(proto, wear):
+    """A candidate its signature search did not back is named by the trace only when its
+    features back it on the two models the trace compares (trace_fit._refit_backing): the
+    wear model against the model without it, both at the data's friction level, backs
+    wear on worn data and not on data without wear."""
+    from types import SimpleNamespace
+
+    from turntable_env.calibration.trace_fit import _refit_backing
+
+    x_true = np.array([math.log(1.2)])
+    worn = {"friction_wear": {"beta": -0.3}}
+    search = _level_search(proto, x_true, worn if wear else {}, ("friction",))
+    with_ = SimpleNamespace(x=x_true, effects=worn)
+    without = SimpleNamespace(x=x_true, effects={})
+    backed, why = _refit_backing(search, "friction_wear", with_, without)
+    assert backed is wear
+    assert ("backed" if wear else "not backed") in why
