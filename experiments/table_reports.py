@@ -2,13 +2,18 @@
 the signature decisions, what a stricter significance level would have named, and whose
 mode a ring after the flybacks is.
 
-    python experiments/table_reports.py DIR [DIR ...] [--rows | --margins | --compare OLD_DIR ...]
+    python experiments/table_reports.py DIR [DIR ...] [--rows | --margins | --refitted |
+        --compare OLD_DIR ...]
 
 ``--rows`` prints the table's rows instead, one per trace, from every DIR's
 ``results.json`` (a later DIR's row replaces an earlier one's for the same trace: a
 table run in parts, or rows re-run), with the count of rows that pass.
 ``--compare OLD_DIR ...`` prints the rows the DIRs and the earlier runs share side by
 side: nominal and final held-out error, the effects named and the verdict, old → new.
+
+``--refitted`` lists, per trace, the rounds where wear (an effect whose level the nominal
+fit absorbs) was not backed by its signature and ranked among the two best screened
+(dropped before stop 77, refitted and judged since).
 
 ``--margins`` prints, per round of every trace (merged as ``--rows`` merges), how far
 each rule of the signature route was from deciding otherwise (a decision has a margin):
@@ -318,6 +323,41 @@ def _unseen(dirs: list[Path]) -> int:
     return 0
 
 
+def _refitted(dirs: list[Path]) -> int:
+    """Per trace: the rounds where an effect whose level the nominal fit absorbs
+    (``identify.CONFOUNDED_NOMINAL``: wear) was not backed by its signature, left more than
+    ``UNSEEN_SHARE`` of the structured held-out residual in the screening and ranked among
+    the two best screened — dropped before stop 77, refitted and judged since (its features
+    then back it or not on the two refits the trace compares,
+    ``trace_fit._refit_backing``); and how many traces have one. A report made before stop
+    77 screened wear with the friction level held, so this is where such a report's round
+    would have differed at least."""
+    from turntable_env.calibration.identify import CONFOUNDED_NOMINAL
+    from turntable_env.calibration.residual import structured_rms
+    from turntable_env.calibration.trace_fit import UNSEEN_SHARE
+
+    exposed = 0
+    reports = _reports(dirs)
+    for label, _row, rep in reports:
+        floor, hist = rep["diagnosis"]["noise_floor"], rep["history"]
+        hits = []
+        for rnd in rep["diagnosis"]["signatures"]["rounds"]:
+            k, uns = rnd["round"], rnd.get("unsupported") or {}
+            left = structured_rms(hist[min(k - 1, len(hist) - 1)]["heldout_rms"], floor)
+            screened = sorted((c for c in rep["candidates"] if c["round"] == k),
+                              key=lambda c: c["heldout_error"])[:2]  # fmt: skip
+            hits += [
+                f"round {k} {c['effect']} ({c['heldout_error']:.1f} nm screened)"
+                for c in screened
+                if c["effect"] in uns and c["effect"] in CONFOUNDED_NOMINAL and left > 0
+                and structured_rms(c["heldout_error"], floor) > UNSEEN_SHARE * left
+            ]  # fmt: skip
+        exposed += bool(hits)
+        print(f"{label}: {', '.join(hits) or 'none'}")
+    print(f"\n{exposed} of {len(reports)} traces have such a round")
+    return 0
+
+
 def _rows(dirs: list[Path]) -> int:
     from independent_calibration import HEADER, print_row  # the table's own format
 
@@ -341,6 +381,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--unseen", action="store_true",
                     help="per trace, the candidates without their signature's backing that "
                     "the trace error may still name (they leave at most half the structure)")
+    ap.add_argument("--refitted", action="store_true",
+                    help="per trace, the rounds where wear without its signature's backing "
+                    "ranks among the two best screened (refitted since stop 77)")
     args = ap.parse_args(argv)
     for d in [*args.dirs, *(args.compare or [])]:
         if not (d / "results.json").exists():
@@ -349,6 +392,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     if args.unseen:
         return _unseen(args.dirs)
+    if args.refitted:
+        return _refitted(args.dirs)
     if args.margins:
         return _margins(args.dirs)
     if args.compare:

@@ -258,7 +258,8 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
         if rnd.get("unsupported"):
             lines += ["", "Not backed by their signature search (the held-out trace error "
                       "names one only if it leaves at most half of the structured residual, "
-                      "or if its features back it on the refits the trace compares): "
+                      "or, for an effect whose level the nominal fit absorbs, if its "
+                      "features back it on the refits the trace compares): "
                       + "; ".join(f"{k}: {v}" for k, v in
                                   rnd["unsupported"].items()) + "."]  # fmt: skip
         lines += _md_trace_verdicts(rnd.get("trace_verdicts"), u)

@@ -1449,10 +1449,11 @@ def _accept_one(
     held-out data, with a held-out prediction better at z ≥ :data:`Z_HELDOUT`
     (:func:`trace_comparison`, a signed-rank test over segment blocks), agrees between
     portions and has its main parameter inside its range
-    (:func:`~.identify.main_at_bound`), and, for the candidates ``backing`` lists (those
-    whose signature search did not back them and that leave more than
-    :data:`UNSEEN_SHARE` of the structured residual), whose features the joint refit
-    explains better than the model without it (:func:`_refit_backing`); None if none does.
+    (:func:`~.identify.main_at_bound`), and, for the candidates ``backing`` lists (effects
+    of :data:`~.identify.CONFOUNDED_NOMINAL` whose signature search did not back them and
+    that leave more than :data:`UNSEEN_SHARE` of the structured residual), whose features
+    the joint refit explains better than the model without it (:func:`_refit_backing`);
+    None if none does.
     The fits' finite differences run over ``pool`` when given; each candidate's verdict on
     every rule is appended to ``verdicts`` (the report's record of why it was or was not
     named; its parameters' distance from neutral is reported, not judged)."""
@@ -1778,9 +1779,16 @@ def _round(
              for c, f in screened if c in rnd["unsupported"]}  # fmt: skip
     for c in share:
         rnd["unsupported"][c] += f"; leaves {share[c]:.0%} of the structured residual"
-    # one that leaves more must be backed by its features on the two refits the trace
-    # compares (:func:`_refit_backing`)
+    # one that leaves more is not named, unless the nominal fit absorbed part of it (a
+    # level the nominal fit set to the trace's average, :data:`~.identify.
+    # CONFOUNDED_NOMINAL`): its signature search, with the nominal model held, cannot see
+    # that part, so its features must back it on the two refits the trace compares
+    # (:func:`_refit_backing`)
     unbacked = {c for c, v in share.items() if v > UNSEEN_SHARE}
+    for c, f in screened:
+        if c in unbacked and c not in CONFOUNDED_NOMINAL and f.heldout_rms < current.heldout_rms:
+            say(f"  {c}: not named by the trace: {rnd['unsupported'][c]}")
+    screened = [(c, f) for c, f in screened if c not in unbacked or c in CONFOUNDED_NOMINAL]
     if not screened:
         return current, None, ""
     top = sorted(screened, key=lambda nc: nc[1].heldout_rms)[:2]
