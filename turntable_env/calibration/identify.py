@@ -121,7 +121,8 @@ JACKKNIFE_GROUPS = REPEATED_GROUPS
 # nominal levels an effect is searched with (its signature here, its screen on the trace,
 # :mod:`.trace_fit`): wear moves the friction from the level the nominal fit set to the
 # trace's average, so with that level held a true wear only adds to it (the third plant's
-# contact wear: 1.0 nats held, 6 nats with the level refitted beside it)
+# contact wear gains 1.0 nats on its features here, the nominal model held but for the
+# level, and 5.7 on the two refits the trace compares, trace_fit._refit_backing)
 CONFOUNDED_NOMINAL: dict[str, tuple[str, ...]] = {"friction_wear": ("friction",)}
 LEVEL_SPAN = 0.5  # the most a searched level moves, in its ln-factor (×0.61 … ×1.65)
 LEVEL_EVALS = 12  # objective evaluations refitting the levels at each profile point
