@@ -79,6 +79,7 @@ __all__ = [
     "Decision",
     "SignatureSearch",
     "decide",
+    "declared_gain",
     "free_parameters",
     "leave_one_out",
     "main_at_bound",
@@ -454,10 +455,8 @@ class SignatureSearch:
         best = _own(name, best)
         n_free = len(free)
         feats = self.features(xb, {**effects, name: best})
-        scores = group_scores(d, base, feats, n_free=n_free)
-        gain = sum(scores[g]["nats"] for g in declared if g in scores)
+        scores, gain, loo, weakest = declared_gain(d, base, feats, declared, n_free)
         total = sum(s["nats"] for g, s in scores.items() if g in SIGNATURE_GROUPS)
-        loo, weakest = leave_one_out(d, base, feats, declared, n_free)
         size = self._effect_size(x, effects, {**effects, name: best}, xb)  # x: the null's
         notes = []
         if main_at_bound(name, best, p0.name):
@@ -529,6 +528,18 @@ class SignatureSearch:
         """A candidate that was not searched, with the reason."""
         return CandidateFit(name, CATALOGUE[name].neutral(), [], math.nan, math.nan, True, {},
                             0.0, 0.0, False, why)  # fmt: skip
+
+
+def declared_gain(
+    data: Features, a: Features, b: Features, declared: Sequence[str], n_free: int
+) -> tuple[dict[str, dict[str, float]], float, float, str]:
+    """Model b against model a on the data's features: the per-group scores
+    (:func:`~.signatures.group_scores`), the gain on the ``declared`` groups [nats], the
+    least of it with one feature left out and that feature (:func:`leave_one_out`)."""
+    scores = group_scores(data, a, b, n_free=n_free)
+    gain = sum(scores[g]["nats"] for g in declared if g in scores)
+    loo, weakest = leave_one_out(data, a, b, declared, n_free)
+    return scores, float(gain), float(loo), weakest
 
 
 def _with_levels(

@@ -83,8 +83,8 @@ from .identify import (
     CandidateFit,
     SignatureSearch,
     decide,
+    declared_gain,
     free_parameters,
-    leave_one_out,
     main_at_bound,
     supports,
 )
@@ -105,7 +105,7 @@ from .residual import (
 )
 from .result import CalibrationResult
 from .segments import DriveReading, Segment, read_drive, segment_trace, split_portions
-from .signatures import EFFECT_GROUPS, group_scores
+from .signatures import EFFECT_GROUPS
 from .trace import simulate_trace
 
 __all__ = [
@@ -1514,10 +1514,7 @@ def _refit_backing(
     groups = EFFECT_GROUPS.get(name, ())
     a = search.features(without.x, without.effects)
     b = search.features(with_.x, with_.effects)
-    k = len(free_parameters(name))
-    scores = group_scores(search.data, a, b, n_free=k)
-    gain = sum(scores[g]["nats"] for g in groups if g in scores)
-    loo, weakest = leave_one_out(search.data, a, b, groups, k)
+    _s, gain, loo, weakest = declared_gain(search.data, a, b, groups, len(free_parameters(name)))
     least = min(gain, loo)
     text = (f"its features on the refits gain {gain:.1f} nats on {'+'.join(groups)}"
             + (f", {loo:.1f} without {weakest}" if weakest else ""))  # fmt: skip
