@@ -7,7 +7,7 @@ effects already named):
 1. **Start values from the data**: the line's amplitude and phase (vibration), the y/x
    slope (misalignment), the relaxation's rate (drift); the middle of the range else.
 2. **A profile** of its main parameter over its whole range (its neutral value and
-   1 %…100 % of the way to each end, :func:`_profile_grid`), the objective being the
+   1 %…100 % of the way to each end, :func:`profile_grid`), the objective being the
    features' misfit Σ_g RSS_g / w_g (whitened by the detector noise, each group weighted
    by the current model's misfit per feature, so no group dominates by its count; the
    direction pairs by the noise plus the current model's common misfit variance, so the
@@ -83,8 +83,11 @@ __all__ = [
     "free_parameters",
     "leave_one_out",
     "main_at_bound",
+    "profile_grid",
+    "shift_levels",
     "significance_nats",
     "supports",
+    "with_levels",
 ]
 
 P_SIGNIFICANT = 2.0 * float(scipy.stats.norm.sf(3.0))  # two-sided 3σ: 0.0027
@@ -382,24 +385,8 @@ class SignatureSearch:
         declared = EFFECT_GROUPS.get(name, ())
         w = self._weights(base, declared)
         levels = [lv for lv in CONFOUNDED_NOMINAL.get(name, ()) if lv in self.nominal_names]
-        at = [self.nominal_names.index(lv) for lv in levels]
         null_shift: dict[str, float] = {}
-
-        def shifted(vals: Mapping[str, float]) -> np.ndarray:
-            xs = np.array(x, dtype=float)
-            for lv, i in zip(levels, at, strict=True):
-                xs[i] += vals.get(f"level:{lv}", 0.0)
-            return xs
-
-        def objective(vals: Mapping[str, float]) -> float:
-            try:
-                f = self.features(shifted(vals), {**effects, name: _own(name, vals)})
-            except Exception:  # a diverging corner of the range is a bad point
-                return math.inf
-            z = (d.value - f.value) / d.noise
-            j = float(np.sum(z**2 / w))
-            return j if math.isfinite(j) else math.inf
-
+        objective = self._objective(name, x, effects, w, levels)
         if name == "vibration" and not any(math.isfinite(ly.line_frequency) for ly in self.layouts):
             return self.not_run(name, "no spectral line in the holds above the false-alarm level")
         start = self._start(name, base)
@@ -409,22 +396,20 @@ class SignatureSearch:
             # differ by the effect's parameters alone: a level alone moves the steps the
             # nominal fit set on the trace, and that is no effect's signature
             lk = [f"level:{lv}" for lv in levels]
-            res0 = scipy.optimize.minimize(
-                lambda z: objective({**start, **neutral, **dict(zip(lk, z, strict=True))}),
-                np.zeros(len(lk)), method="Powell", bounds=[(-LEVEL_SPAN, LEVEL_SPAN)] * len(lk),
-                options={"maxfev": POWELL_EVALS // 2, "xtol": 1e-3, "ftol": 1e-4},
-            )  # fmt: skip
-            start = {**start, **{k: float(v) for k, v in zip(lk, res0.x, strict=True)}}
-            null_shift = {lv: float(start[k]) for lv, k in zip(levels, lk, strict=True)}
-            x = shifted(start)  # the null model: the current one with its levels refitted
+            _j0, at_null = with_levels(objective, {**start, **neutral}, levels,
+                                        POWELL_EVALS // 2)  # fmt: skip
+            null_shift = {lv: at_null[k] for lv, k in zip(levels, lk, strict=True)}
+            # the null: the current model with its levels refitted
+            x = shift_levels(x, self.nominal_names, levels, at_null)
             start = {**start, **{k: 0.0 for k in lk}}
             base = self.features(x, effects)
             w = self._weights(base, declared)
+            objective = self._objective(name, x, effects, w, levels)
         p0 = next(p for p in e.parameters if p.name == MAIN_PARAMETER.get(name, p.name))
         j_neutral = objective({**start, **neutral}) if name != "vibration" else objective(
             {**start, "amplitude": 0.0})  # fmt: skip
-        grid = _profile_grid(p0.low, p0.high, p0.neutral, start[p0.name])
-        points = [_with_levels(objective, {**start, p0.name: float(v)}, levels) for v in grid]
+        grid = profile_grid(p0.low, p0.high, p0.neutral, start[p0.name])
+        points = [with_levels(objective, {**start, p0.name: float(v)}, levels) for v in grid]
         profile = [(float(v), j) for v, (j, _vals) in zip(grid, points, strict=True)]
         k_best = int(np.argmin([j for _v, j in profile]))
         j_best, best = points[k_best]
@@ -451,7 +436,7 @@ class SignatureSearch:
         )
         # each level's shift from the current model's: the null's and the candidate's own
         shift = {lv: null_shift[lv] + float(best[f"level:{lv}"]) for lv in levels}
-        xb = shifted(best)
+        xb = shift_levels(x, self.nominal_names, levels, best)
         best = _own(name, best)
         n_free = len(free)
         feats = self.features(xb, {**effects, name: best})
@@ -484,6 +469,25 @@ class SignatureSearch:
             bool(ok and min(gain, loo) >= level and total >= level),
             "; ".join(notes), float(size), float(loo), weakest, shift,
         )  # fmt: skip
+
+    def _objective(
+        self, name: str, x: np.ndarray, effects: Effects, w: np.ndarray, levels: Sequence[str]
+    ) -> Callable[[Mapping[str, float]], float]:
+        """A candidate's objective over its values (its parameters and "level:NAME" shifts
+        of x): Σ z²/w over the features (z the data's misfit in its noise, w
+        :meth:`_weights`); inf where the model diverges or the sum is not finite."""
+        d = self.data
+
+        def objective(vals: Mapping[str, float]) -> float:
+            try:
+                f = self.features(shift_levels(x, self.nominal_names, levels, vals),
+                                  {**effects, name: _own(name, vals)})  # fmt: skip
+            except Exception:  # a diverging corner of the range is a bad point
+                return math.inf
+            j = float(np.sum(((d.value - f.value) / d.noise) ** 2 / w))
+            return j if math.isfinite(j) else math.inf
+
+        return objective
 
     def _weights(self, base: Features, declared: Sequence[str]) -> np.ndarray:
         """Per feature the factor on its noise variance in a candidate's objective: the
@@ -542,13 +546,25 @@ def declared_gain(
     return scores, float(gain), float(loo), weakest
 
 
-def _with_levels(
+def shift_levels(
+    x: np.ndarray, names: Sequence[str], levels: Sequence[str], vals: Mapping[str, float]
+) -> np.ndarray:
+    """ln-factors x (named ``names``) with each of ``levels`` shifted by
+    ``vals["level:NAME"]`` (0 where absent)."""
+    xs = np.array(x, dtype=float)
+    for lv in levels:
+        xs[list(names).index(lv)] += vals.get(f"level:{lv}", 0.0)
+    return xs
+
+
+def with_levels(
     objective: Callable[[Mapping[str, float]], float], vals: dict[str, float],
-    levels: Sequence[str],
+    levels: Sequence[str], maxfev: int = LEVEL_EVALS,
 ) -> tuple[float, dict[str, float]]:  # fmt: skip
     """(objective, values) at ``vals`` with the ``levels`` ("level:NAME" shifts) refitted
-    there by a short bounded search: a profile over an effect's main parameter along the
-    valley it forms with the level (wear lowers the friction the level raises)."""
+    there by a bounded search of ``maxfev`` evaluations: a profile over an effect's main
+    parameter along the valley it forms with the level (wear lowers the friction the level
+    raises), and the null model's levels (the effect at neutral)."""
     if not levels:
         return objective(vals), vals
     lk = [f"level:{lv}" for lv in levels]
@@ -556,7 +572,7 @@ def _with_levels(
     res = scipy.optimize.minimize(
         lambda z: objective({**vals, **dict(zip(lk, z, strict=True))}), z0, method="Powell",
         bounds=[(-LEVEL_SPAN, LEVEL_SPAN)] * len(lk),
-        options={"maxfev": LEVEL_EVALS, "xtol": 1e-3, "ftol": 1e-4},
+        options={"maxfev": maxfev, "xtol": 1e-3, "ftol": 1e-4},
     )  # fmt: skip
     out = {**vals, **{k: float(v) for k, v in zip(lk, res.x, strict=True)}}
     j = float(res.fun)
@@ -592,7 +608,7 @@ def leave_one_out(
     return float(worst[0]), worst[1]
 
 
-def _profile_grid(low: float, high: float, neutral: float, start: float) -> np.ndarray:
+def profile_grid(low: float, high: float, neutral: float, start: float) -> np.ndarray:
     """Values of a parameter for its profile: its neutral value, then on each side of it
     that the range has, distances of 1 %, 3 %, 10 %, 30 % and 100 % of that side (an
     effect may be small: a linear grid would step over it), and the start value."""
