@@ -237,7 +237,7 @@ def test_the_screen_finds_an_effect_smaller_than_a_linear_grids_step():
     with it). Wear of −0.02 per 10 µm, an eighth of a 7-point linear grid's step over
     [−0.5, 0.5], is screened from the true nominal model to its sign and within 30 % of its
     size, and the held-out error falls by a fifth (stop 77: the third plant's contact wear
-    stayed at β = 0 from the linear grid's best point; that grid screens −0.0014 here)."""
+    stayed at β = 0 from the linear grid's best point; here that grid stays near 0)."""
     from turntable_env.calibration.nominal import NominalModel
     from turntable_env.calibration.trace_fit import TRACE_NOMINAL, TraceProblem, _prepare
     from turntable_env.calibration.virtual_lab import run_virtual_lab
