@@ -227,28 +227,3 @@ def test_the_problems_units_label_each_held_out_segment_apart():
         # one run per segment and channel: a segment's samples are contiguous
         channels = 2 if td.has_y and td.m.detector_y_v is not None else 1
         assert runs.size == np.unique(u).size == channels * np.unique(td.anchoring.unit[mask]).size
-
-
-@pytest.mark.slow  # 15–30 s: the level refitted at each of the grid's points
-def test_the_screen_finds_an_effect_smaller_than_a_linear_grids_step():
-    """``screen_effect`` starts its least squares from the best point of the profile grid
-    over the main parameter (``identify.profile_grid``: neutral, then 1 %…100 % of the way
-    to each bound), with the friction level refitted at each point (wear forms a valley
-    with it). Wear of −0.02 per 10 µm, an eighth of a 7-point linear grid's step over
-    [−0.5, 0.5], is screened from the true nominal model to its sign and within 30 % of its
-    size, and the held-out error falls by a fifth (stop 77: the third plant's contact wear
-    stayed at β = 0 from the linear grid's best point; here that grid stays near 0)."""
-    from turntable_env.calibration.nominal import NominalModel
-    from turntable_env.calibration.trace_fit import TRACE_NOMINAL, TraceProblem, _prepare
-    from turntable_env.calibration.virtual_lab import run_virtual_lab
-    from turntable_env.plant import Plant
-
-    beta = -0.02  # per 10 µm of travel
-    m = run_virtual_lab("standard", {"friction_wear": {"beta": beta}}, noise_std=1e-3, seed=2)
-    model = NominalModel(Plant("real", fidelity="reduced"), TRACE_NOMINAL)
-    problem = TraceProblem([_prepare(m)[0]], model)
-    x = np.zeros(len(problem.model))  # the virtual lab's own plant: the true nominal model
-    base = trace_fit.local_fit(problem, x, {}, free_nominal=False, free_effects=())
-    fit = trace_fit.screen_effect(problem, base, "friction_wear")
-    assert fit.effects["friction_wear"]["beta"] == pytest.approx(beta, rel=0.3)
-    assert fit.heldout_rms < 0.8 * base.heldout_rms

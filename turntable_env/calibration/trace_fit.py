@@ -86,10 +86,7 @@ from .identify import (
     declared_gain,
     free_parameters,
     main_at_bound,
-    profile_grid,
-    shift_levels,
     supports,
-    with_levels,
 )
 from .measurement import Measurement, load_measurement
 from .nominal import NOMINAL_PARAMETERS, NominalModel
@@ -976,56 +973,34 @@ def _start_values(name: str, problem: TraceProblem, x: np.ndarray, effects) -> d
 
 def screen_effect(problem: TraceProblem, base: LocalFit, name: str) -> LocalFit:
     """One candidate on top of the fitted nominal model (nominal fixed but for the levels
-    the effect moves, :data:`~.identify.CONFOUNDED_NOMINAL`): for physics effects the
-    profile grid over its first parameter (:func:`~.identify.profile_grid`: neutral, then
-    1 %…100 % of the way to each bound, so a small effect is not stepped over), with those
-    levels refitted at each point (:func:`~.identify.with_levels`: along the valley the
-    effect forms with them); then least squares of its parameters (and levels) from the
-    best point."""
+    the effect moves, :data:`~.identify.CONFOUNDED_NOMINAL`): a 7-point grid over its first
+    parameter for physics effects, then least squares of its parameters (and levels)."""
     e = CATALOGUE[name]
     start = _start_values(name, problem, base.x, base.effects)
-    levels = [lv for lv in CONFOUNDED_NOMINAL.get(name, ()) if lv in problem.model.names]
     x_at = base.x
     if e.stage != "output":
         # the grid at the fitted nominal model and at the prior one: the nominal fit may
-        # have absorbed part of the effect (a stroke factor mimics a slower amplifier);
-        # an effect searched with its levels has that absorption refitted instead
+        # have absorbed part of the effect (a stroke factor mimics a slower amplifier)
         p0 = e.parameters[0]
         best, start_best = math.inf, start
-        for x_try in (base.x,) if levels else (base.x, np.zeros_like(base.x)):
-            sse_at = _grid_objective(problem, x_try, base.effects, name, levels)
-            for v in profile_grid(p0.low, p0.high, p0.neutral, start[p0.name]):
-                sse, vals = with_levels(sse_at, {**start, p0.name: float(v)}, levels)
+        for x_try in (base.x, np.zeros_like(base.x)):
+            for v in np.linspace(p0.low, p0.high, 7):
+                trial = {**start, p0.name: float(v)}
+                try:
+                    rr = problem.residual(x_try, {**base.effects, name: trial}, "fit")
+                except Exception:
+                    continue
+                sse = float(rr @ rr)
                 if sse < best:
-                    best, start_best = sse, vals
-                    x_at = shift_levels(x_try, problem.model.names, levels, vals)
-        start = {p.name: start_best[p.name] for p in e.parameters}
+                    best, start_best, x_at = sse, trial, x_try
+        start = start_best
     # the nominal levels it moves (wear: the friction the nominal fit set to the trace's
     # average) are fitted with it; the rest of the nominal model is held
+    levels = [lv for lv in CONFOUNDED_NOMINAL.get(name, ()) if lv in problem.model.names]
     return local_fit(
         problem, x_at, {**base.effects, name: start}, free_nominal=levels,
         free_effects=(name,), max_nfev=12,
     )  # fmt: skip
-
-
-def _grid_objective(
-    problem: TraceProblem, x: np.ndarray, effects: Mapping[str, Mapping[str, float]],
-    name: str, levels: Sequence[str],
-) -> Callable[[Mapping[str, float]], float]:  # fmt: skip
-    """The fit portion's weighted SSE of the effect ``name`` at values (its parameters and
-    "level:NAME" shifts of x); inf where the simulation fails."""
-    own = [p.name for p in CATALOGUE[name].parameters]
-
-    def sse(vals: Mapping[str, float]) -> float:
-        trial = {**effects, name: {k: float(vals[k]) for k in own}}
-        try:
-            rr = problem.residual(shift_levels(x, problem.model.names, levels, vals), trial, "fit")
-        except Exception:  # a diverging corner of the range is a bad point
-            return math.inf
-        j = float(rr @ rr)
-        return j if math.isfinite(j) else math.inf
-
-    return sse
 
 
 def _sigmas_from_neutral(fit: LocalFit, name: str) -> dict[str, float]:
