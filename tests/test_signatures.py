@@ -19,9 +19,9 @@ from turntable_env.calibration.identify import (
     TIE_NATS,
     CandidateFit,
     SignatureSearch,
+    _profile_grid,
     decide,
     leave_one_out,
-    profile_grid,
     significance_nats,
     supports,
 )
@@ -563,7 +563,7 @@ def test_the_trace_names_only_what_its_own_signature_backs(fit, backed):
     ("low", "high", "neutral"), [(-0.4, 0.4, 0.0), (0.0, 0.05, 0.0), (0.3, 2.0, 1.0)]
 )
 def test_profile_grid_reaches_small_values_on_each_side(low, high, neutral):
-    g = profile_grid(low, high, neutral, neutral)
+    g = _profile_grid(low, high, neutral, neutral)
     assert neutral in g and g.min() == low and g.max() == high
     for edge in (low, high):
         if edge != neutral:  # 1 % of the way to each end is on the grid

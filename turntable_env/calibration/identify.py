@@ -7,7 +7,7 @@ effects already named):
 1. **Start values from the data**: the line's amplitude and phase (vibration), the y/x
    slope (misalignment), the relaxation's rate (drift); the middle of the range else.
 2. **A profile** of its main parameter over its whole range (its neutral value and
-   1 %…100 % of the way to each end, :func:`profile_grid`), the objective being the
+   1 %…100 % of the way to each end, :func:`_profile_grid`), the objective being the
    features' misfit Σ_g RSS_g / w_g (whitened by the detector noise, each group weighted
    by the current model's misfit per feature, so no group dominates by its count; the
    direction pairs by the noise plus the current model's common misfit variance, so the
@@ -83,11 +83,8 @@ __all__ = [
     "free_parameters",
     "leave_one_out",
     "main_at_bound",
-    "profile_grid",
-    "shift_levels",
     "significance_nats",
     "supports",
-    "with_levels",
 ]
 
 P_SIGNIFICANT = 2.0 * float(scipy.stats.norm.sf(3.0))  # two-sided 3σ: 0.0027
@@ -396,11 +393,11 @@ class SignatureSearch:
             # differ by the effect's parameters alone: a level alone moves the steps the
             # nominal fit set on the trace, and that is no effect's signature
             lk = [f"level:{lv}" for lv in levels]
-            _j0, at_null = with_levels(objective, {**start, **neutral}, levels,
+            _j0, at_null = _with_levels(objective, {**start, **neutral}, levels,
                                         POWELL_EVALS // 2)  # fmt: skip
             null_shift = {lv: at_null[k] for lv, k in zip(levels, lk, strict=True)}
             # the null: the current model with its levels refitted
-            x = shift_levels(x, self.nominal_names, levels, at_null)
+            x = _shift_levels(x, self.nominal_names, levels, at_null)
             start = {**start, **{k: 0.0 for k in lk}}
             base = self.features(x, effects)
             w = self._weights(base, declared)
@@ -408,8 +405,8 @@ class SignatureSearch:
         p0 = next(p for p in e.parameters if p.name == MAIN_PARAMETER.get(name, p.name))
         j_neutral = objective({**start, **neutral}) if name != "vibration" else objective(
             {**start, "amplitude": 0.0})  # fmt: skip
-        grid = profile_grid(p0.low, p0.high, p0.neutral, start[p0.name])
-        points = [with_levels(objective, {**start, p0.name: float(v)}, levels) for v in grid]
+        grid = _profile_grid(p0.low, p0.high, p0.neutral, start[p0.name])
+        points = [_with_levels(objective, {**start, p0.name: float(v)}, levels) for v in grid]
         profile = [(float(v), j) for v, (j, _vals) in zip(grid, points, strict=True)]
         k_best = int(np.argmin([j for _v, j in profile]))
         j_best, best = points[k_best]
@@ -436,7 +433,7 @@ class SignatureSearch:
         )
         # each level's shift from the current model's: the null's and the candidate's own
         shift = {lv: null_shift[lv] + float(best[f"level:{lv}"]) for lv in levels}
-        xb = shift_levels(x, self.nominal_names, levels, best)
+        xb = _shift_levels(x, self.nominal_names, levels, best)
         best = _own(name, best)
         n_free = len(free)
         feats = self.features(xb, {**effects, name: best})
@@ -480,7 +477,7 @@ class SignatureSearch:
 
         def objective(vals: Mapping[str, float]) -> float:
             try:
-                f = self.features(shift_levels(x, self.nominal_names, levels, vals),
+                f = self.features(_shift_levels(x, self.nominal_names, levels, vals),
                                   {**effects, name: _own(name, vals)})  # fmt: skip
             except Exception:  # a diverging corner of the range is a bad point
                 return math.inf
@@ -546,7 +543,7 @@ def declared_gain(
     return scores, float(gain), float(loo), weakest
 
 
-def shift_levels(
+def _shift_levels(
     x: np.ndarray, names: Sequence[str], levels: Sequence[str], vals: Mapping[str, float]
 ) -> np.ndarray:
     """ln-factors x (named ``names``) with each of ``levels`` shifted by
@@ -557,7 +554,7 @@ def shift_levels(
     return xs
 
 
-def with_levels(
+def _with_levels(
     objective: Callable[[Mapping[str, float]], float], vals: dict[str, float],
     levels: Sequence[str], maxfev: int = LEVEL_EVALS,
 ) -> tuple[float, dict[str, float]]:  # fmt: skip
@@ -608,7 +605,7 @@ def leave_one_out(
     return float(worst[0]), worst[1]
 
 
-def profile_grid(low: float, high: float, neutral: float, start: float) -> np.ndarray:
+def _profile_grid(low: float, high: float, neutral: float, start: float) -> np.ndarray:
     """Values of a parameter for its profile: its neutral value, then on each side of it
     that the range has, distances of 1 %, 3 %, 10 %, 30 % and 100 % of that side (an
     effect may be small: a linear grid would step over it), and the start value."""
