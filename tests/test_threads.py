@@ -31,16 +31,26 @@ def test_one_thread_inside_and_the_callers_setting_after():
 
 
 @pytest.mark.parametrize("translation", [False, True])
-def test_a_model_built_on_one_thread_is_the_same_bit_for_bit(translation, monkeypatch):
-    """The ladders exp(A·h·2^r) and the modal data do not depend on how BLAS splits its
-    work: a model built on two BLAS threads (the limit switched off) equals the one built
-    on one, so limiting changed no result of the env, the benchmark or the tables."""
+def test_a_model_is_the_same_whatever_threads_the_caller_allows(translation, monkeypatch):
+    """The ladders exp(A·h·2^r) and the modal data are built on one BLAS thread: a model
+    built where the caller allows two threads is the same bit for bit as one built where
+    it allows one, so the env, the benchmark and the tables do not depend on the caller's
+    thread setting. Built without the limit on two threads, the model may differ in its
+    last bits: how BLAS splits a product changes the order of its sums (on an AMD EPYC
+    with OpenBLAS's Haswell kernels the translation form's ladders moved, stop 79; on the
+    machine that added the limit they did not), and it agrees within 1e-9 of each array's
+    scale, kernel_golden's tolerance."""
     ps = Plant("real", factors={"friction": 1.07, "preload": 0.93}).params
-    limited = ReducedModel(ps, "B", translation=translation)
+    with threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+        one = ReducedModel(ps, "B", translation=translation)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        limited = ReducedModel(ps, "B", translation=translation)
     monkeypatch.setattr(reduced, "one_blas_thread", contextlib.nullcontext)
     with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
         free = ReducedModel(ps, "B", translation=translation)
     arrays = [k for k, v in limited.packed.items() if isinstance(v, np.ndarray)]
     assert len(arrays) >= 5
     for k in arrays:
-        assert np.array_equal(limited.packed[k], free.packed[k]), k
+        assert np.array_equal(limited.packed[k], one.packed[k]), k
+        scale = float(np.max(np.abs(limited.packed[k]), initial=0.0))
+        assert np.max(np.abs(limited.packed[k] - free.packed[k]), initial=0.0) <= 1e-9 * scale, k

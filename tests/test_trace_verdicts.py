@@ -21,30 +21,56 @@ import scipy.signal
 from turntable_env.calibration import trace_fit
 from turntable_env.calibration.calibrate import _md_trace_verdicts
 from turntable_env.calibration.residual import PredictiveComparison, compare_predictions
-from turntable_env.calibration.trace_fit import LocalFit
+from turntable_env.calibration.trace_fit import COST_TIE, LocalFit
+from turntable_env.effects import CATALOGUE
 
 
-def _fit(heldout: float, effects: dict | None = None) -> LocalFit:
-    return LocalFit(np.zeros(2), effects or {}, np.ones(2), {}, heldout, heldout, heldout, 1)
+def _fit(heldout: float, effects: dict | None = None, cost: float | None = None) -> LocalFit:
+    return LocalFit(np.zeros(2), effects or {}, np.ones(2), {},
+                    heldout if cost is None else cost, heldout, heldout, 1)  # fmt: skip
+
+
+def _start(name: str, effects: dict) -> int:
+    """Which joint start a fit began from: 0 the screened point (its main parameter as
+    screened), 1 the current model with it halfway back to neutral."""
+    p0 = CATALOGUE[name].parameters[0].name
+    return int(effects[name][p0] != _screened(name)[p0])
+
+
+def _screened(name: str) -> dict:
+    """The screened values: the main parameter moved off neutral by 0.1."""
+    vals = CATALOGUE[name].neutral()
+    p0 = CATALOGUE[name].parameters[0].name
+    return {**vals, p0: vals[p0] + 0.1}
 
 
 @pytest.fixture
 def rules(monkeypatch):
     """Each candidate's fate on each rule, set by the test; the current model's refit
-    (no free effect) stays at 15 nm."""
+    (no free effect) stays at 15 nm. A fate's ``joint``, ``z`` and ``cost`` may be pairs:
+    the two joint starts' held-out errors, z and costs (one value: both alike)."""
     fate: dict[str, dict] = {}
+
+    def pick(n: str, key: str, effects: dict):
+        v = fate[n][key]
+        return v[_start(n, effects)] if isinstance(v, tuple) else v
 
     def local_fit(_p, _x, effects, free_effects=(), **_k):
         new = [n for n in free_effects if n in fate]
-        return _fit(fate[new[-1]]["joint"] if new else 15.0, effects)
+        if not new:
+            return _fit(15.0, effects)
+        n = new[-1]
+        return _fit(pick(n, "joint", effects), effects, fate[n].get("cost") and pick(
+            n, "cost", effects))  # fmt: skip
+
+    def comparison(_p, f, w):
+        n = next(iter(f.effects))
+        return PredictiveComparison(f.heldout_rms, w.heldout_rms,
+                                    1 - f.heldout_rms / w.heldout_rms,
+                                    pick(n, "z", f.effects), 20, 400)  # fmt: skip
 
     monkeypatch.setattr(trace_fit, "local_fit", local_fit)
-    monkeypatch.setattr(
-        trace_fit, "trace_comparison",
-        lambda _p, f, w: PredictiveComparison(f.heldout_rms, w.heldout_rms,
-                                              1 - f.heldout_rms / w.heldout_rms,
-                                              fate[next(iter(f.effects))]["z"], 20, 400),
-    )  # fmt: skip
+    monkeypatch.setattr(trace_fit, "trace_comparison", comparison)
     monkeypatch.setattr(trace_fit, "consistent",
                         lambda _p, f, n, _pool: (fate[n]["ok"], f" {n}: portions"))  # fmt: skip
     monkeypatch.setattr(trace_fit, "main_at_bound", lambda n, _v: fate[n].get("pinned", ""))
@@ -55,7 +81,7 @@ def rules(monkeypatch):
 
 def _accept(fate, names):
     verdicts: list[dict] = []
-    top = [(n, _fit(fate[n]["screen"], {n: {"p": 0.1}})) for n in names]
+    top = [(n, _fit(fate[n]["screen"], {n: _screened(n)})) for n in names]
     out = trace_fit._accept_one(SimpleNamespace(), _fit(15.0), top, [], 0.05, [],
                                 lambda _m: None, None, verdicts)  # fmt: skip
     return out, verdicts
@@ -97,6 +123,37 @@ def test_the_first_candidate_passing_every_rule_is_named_and_the_rest_not_tried(
     assert [v["effect"] for v in verdicts] == ["friction_wear", "friction_asymmetry"]
     assert [v["named"] for v in verdicts] == [False, True]
     assert verdicts[1]["heldout_rms"] == 10.5  # the joint refit, better than the screen
+
+
+@pytest.mark.parametrize("cost_ratio", [1.0 + COST_TIE / 2, 1.5])
+def test_equally_good_starts_that_disagree_leave_the_candidate_undecided(rules, cost_ratio):
+    """The joint refit from its two starts: the screened point passes every rule at
+    z +3.2, the other start ends at z +2.8. Where the two fits are equally good (costs
+    within COST_TIE) the verdict flips with the start: undecided, not named, and the
+    portions are not tested past it. Where the other start ends at a clearly higher cost
+    it is a worse optimum and the lowest-cost refit's verdict stands: named."""
+    rules["friction_wear"] = {"screen": 11.0, "joint": (10.0, 10.1), "z": (3.2, 2.8),
+                              "cost": (10.0, 10.0 * cost_ratio), "ok": True}  # fmt: skip
+    out, (v,) = _accept(rules, ["friction_wear"])
+    assert [r["z"] for r in v["starts"]] == [3.2, 2.8]  # lowest cost first
+    assert [r["passes"] for r in v["starts"]] == [True, False]
+    tied = cost_ratio < 1.0 + COST_TIE
+    assert v["starts"][1]["tied"] is tied and v["undecided"] is tied
+    assert (out is None) is tied and v["named"] is not tied
+    assert v["z"] == 3.2 and v["heldout_rms"] == 10.0  # the lowest cost's refit reported
+    assert v["consistent"] is (None if tied else True)
+
+
+def test_the_lower_cost_start_is_judged_whichever_start_it_is(rules):
+    """The other start (the current model, its main parameter halfway back to neutral)
+    ends at the lower cost and fails the z rule; the screened start's z +3.5 at a far
+    higher cost does not vote: not named, and not undecided."""
+    rules["friction_asymmetry"] = {"screen": 13.0, "joint": (10.5, 12.0), "z": (3.5, 1.0),
+                                   "cost": (20.0, 12.0), "ok": True}  # fmt: skip
+    out, (v,) = _accept(rules, ["friction_asymmetry"])
+    assert out is None and not v["named"] and not v["undecided"]
+    assert v["z"] == 1.0 and v["heldout_rms"] == 12.0
+    assert [r["tied"] for r in v["starts"]] == [True, False]
 
 
 def test_report_tables_each_rule_per_candidate():

@@ -272,7 +272,8 @@ def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
     if not rows:
         return []
     out = ["", "By the held-out trace error (the best screened candidates, each refitted "
-           "jointly; named when every rule holds):", "",
+           "jointly from two starts; named when every rule holds on the lowest-cost refit "
+           "and equally good refits agree, else undecided):", "",
            f"| candidate | held-out [{u}] | model without it [{u}] | gain | held-out z "
            "(signed ranks) | portions agree | main parameter at a bound | named |",
            "|---|---:|---:|---:|---|---|---|---|"]  # fmt: skip
@@ -280,12 +281,19 @@ def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
         agree = "—" if v["consistent"] is None else ("yes" if v["consistent"] else "no")
         note = f" ({v['note'].strip()})" if v.get("note", "").strip() else ""
         dist = f"; {v['from_neutral']}" if v.get("from_neutral") else ""
+        starts = v.get("starts") or []
+        if len(starts) > 1:  # the joint refit's starts, lowest cost first
+            dist += "; starts: " + ", ".join(
+                f"z {r['z']:+.1f} at {r['heldout_rms']:.3g} {u}" + ("" if r["tied"] else
+                                                                   " (worse fit)")
+                for r in starts)  # fmt: skip
+        named = "**yes**" if v["named"] else ("undecided" if v.get("undecided") else "no")
         out.append(
             f"| {v['effect']} | {v['heldout_rms']:.3g} | {v['baseline_rms']:.3g} | "
             f"{v['gain']:+.1%} (≥ {v['min_improvement']:.0%}) | "
             f"{v['z']:+.1f} (≥ {v['z_min']:g}: {'yes' if v['significant'] else 'no'}; "
             f"{v['blocks']} blocks{dist}) | {agree}{note} | "
-            f"{v['pinned'] or 'no'} | {'**yes**' if v['named'] else 'no'} |"
+            f"{v['pinned'] or 'no'} | {named} |"
         )
     backing = [f"{v['effect']}: {v['refit_backing']}" for v in rows if v.get("refit_backing")]
     if backing:
