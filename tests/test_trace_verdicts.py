@@ -176,6 +176,24 @@ def test_report_tables_each_rule_per_candidate():
     assert _md_trace_verdicts(None, "nm") == [] and _md_trace_verdicts([], "nm") == []
 
 
+def test_report_lists_each_start_and_says_undecided(rules):
+    """report.md's verdict row for a candidate whose equally good starts disagree: each
+    start's z and held-out error (a clearly worse fit marked), and "undecided" where the
+    named column would say yes or no."""
+    rules["friction_wear"] = {"screen": 11.0, "joint": (10.0, 10.1), "z": (3.2, 2.8),
+                              "cost": (10.0, 10.0), "ok": True}  # fmt: skip
+    rules["vibration"] = {"screen": 11.0, "joint": (10.0, 9.0), "z": (3.5, 1.0),
+                          "cost": (10.0, 30.0), "ok": True}  # fmt: skip
+    _out, verdicts = _accept(rules, ["friction_wear", "vibration"])
+    text = "\n".join(_md_trace_verdicts(verdicts, "nm"))
+    wear, vib = (next(r for r in text.splitlines() if r.startswith(f"| {n} |"))
+                 for n in ("friction_wear", "vibration"))  # fmt: skip
+    assert "starts: z +3.2 at 10 nm, z +2.8 at 10.1 nm)" in wear
+    assert wear.endswith("| undecided |")
+    assert "starts: z +3.5 at 10 nm, z +1.0 at 9 nm (worse fit))" in vib
+    assert vib.endswith("| **yes** |")
+
+
 def _ar1(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
     """Unit-variance AR(1) noise: a model residual correlated over ~(1+φ)/(1−φ) samples."""
     return scipy.signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n)) * np.sqrt(1 - phi**2)
