@@ -10,7 +10,14 @@ import pytest
 from conftest import experiment
 
 from turntable_env.drive import Waveform
-from turntable_env.reduced import ReducedModel, TranslationParameters, simulate_batch
+from turntable_env.reduced import (
+    N_REC,
+    ReducedBatch,
+    ReducedModel,
+    TranslationParameters,
+    simulate_batch,
+    waveform_arrays,
+)
 from turntable_env.simulation import stepping_drive
 
 
@@ -154,6 +161,31 @@ def test_a_batch_mixes_the_two_forms_bit_for_bit():
         alone = simulate_batch([m], [drive], drive.duration)[0]
         assert np.array_equal(r.angle_rad, alone.angle_rad)
     assert not np.array_equal(both[0].angle_rad, both[1].angle_rad)
+
+
+def test_a_model_set_into_a_batch_runs_in_its_own_form():
+    """set_model may change a turntable's form (a translation model replaced by a per-axis
+    one): the batch then runs each turntable in its form, as it runs alone."""
+    ma, mb = ReducedModel("real", "B"), ReducedModel("real", "B", translation=True)
+    drive, _ps = stepping_drive("real", amplitude=2.0, frequency=2000.0, periods=2,
+                                amplifier="adapted")  # fmt: skip
+    batch = ReducedBatch([mb, mb])
+    batch.set_model(0, ma)
+    h = batch.grid
+    w = ma.full.drive_waveforms({"B": drive})["B"]
+    amp = ma.params.amplifier
+    u0 = np.clip(w(0.0)[()], -amp.input_limit, amp.input_limit) * amp.gain
+    for b, m in enumerate((ma, mb)):
+        batch.set_state(b, m.initial_state(u0))
+    n_end = round(drive.duration / h)
+    out_every = round(1e-5 / h)
+    rec = np.zeros((2, n_end // out_every + 1, N_REC))
+    n_rec = np.zeros(2, dtype=np.int64)
+    batch.advance(waveform_arrays([w, w], h), np.full(2, n_end), np.full(2, out_every), rec,
+                  n_rec)  # fmt: skip
+    for b, m in enumerate((ma, mb)):
+        alone = simulate_batch([m], [drive], drive.duration)[0]
+        assert np.array_equal(rec[b, : n_rec[b], 1], alone.angle_rad)
 
 
 def test_translation_has_no_analytic_step():

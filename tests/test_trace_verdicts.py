@@ -12,15 +12,18 @@ with a real difference, also one concentrated in a few segments."""
 
 from __future__ import annotations
 
+import itertools
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import scipy.signal
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from turntable_env.calibration import trace_fit
 from turntable_env.calibration.calibrate import _md_trace_verdicts
-from turntable_env.calibration.residual import PredictiveComparison, compare_predictions
+from turntable_env.calibration.residual import PredictiveComparison, _blocks, compare_predictions
 from turntable_env.calibration.trace_fit import COST_TIE, LocalFit
 from turntable_env.effects import CATALOGUE
 
@@ -197,6 +200,20 @@ def test_report_lists_each_start_and_says_undecided(rules):
 def _ar1(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
     """Unit-variance AR(1) noise: a model residual correlated over ~(1+φ)/(1−φ) samples."""
     return scipy.signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n)) * np.sqrt(1 - phi**2)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(1, 3000), block=st.integers(1, 400), labels=st.integers(0, 30),
+       seed=st.integers(0, 2**32 - 1))  # fmt: skip
+def test_the_blocks_split_each_segment_as_array_split_does(n, block, labels, seed):
+    """The block starts (one pass over the samples) are those of np.array_split of each run
+    of equal units into max(1, len // block) pieces, and the blocks cover every sample once."""
+    units = None if labels == 0 else np.sort(np.random.default_rng(seed).integers(0, labels, n))
+    bounds = [0, n] if units is None else [0, *(np.flatnonzero(np.diff(units)) + 1), n]
+    pieces = []
+    for s, e in itertools.pairwise(bounds):
+        pieces += np.array_split(np.arange(s, e), max(1, (e - s) // block))
+    assert _blocks(n, block, units).tolist() == [int(p[0]) for p in pieces]
 
 
 @pytest.mark.parametrize("phi", [0.0, 0.9, 0.99])

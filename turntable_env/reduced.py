@@ -39,7 +39,7 @@ from .drive import DriveSignal, Waveform
 from .kernel_types import DriveArrays, ReducedArrays, ReducedRecording, ReducedState
 from .model import SimulationError, TurntableModel, axis_index
 from .params import ParameterSet, get_parameter_set
-from .reduced_kernel import N_REC, run_reduced_batch, run_reduced_serial
+from .reduced_kernel import N_REC, form_counts, run_reduced_batch, run_reduced_serial
 from .response import SteppingMetrics
 from .threads import one_blas_thread
 from .validation import check_finite, check_positive
@@ -827,6 +827,7 @@ class ReducedBatch:
                 raise ValueError(f"models: {name} differs between models")
         self.arrays = ReducedArrays(**stacked, **{k: models[0].packed[k] for k in _SCALARS})
         self._mu = self.arrays.gms[:, 1:3].copy()  # μ_s, μ_c of each model (friction scale 1)
+        self._forms = form_counts(self.arrays.nrow)  # (per-axis, translating) turntables
         self.state = ReducedState(
             y=np.zeros((nb, max(m.n_state for m in models))),
             volt=np.zeros(nb),
@@ -889,6 +890,7 @@ class ReducedBatch:
         self._mu[b] = self.arrays.gms[b, 1:3]
         self.state.y[b, model.n_state :] = 0.0  # a narrower form's unused states
         self.models[b] = model
+        self._forms = form_counts(self.arrays.nrow)
 
     def set_friction_scale(self, rows: np.ndarray, scale: np.ndarray) -> None:
         """Scale μ_s and μ_c of turntables ``rows`` by ``scale`` [-] from their models' values
@@ -937,7 +939,7 @@ class ReducedBatch:
         kernel = run_reduced_batch if len(self) > 1 else run_reduced_serial
         kernel(
             self.state, self.arrays, drive, self.grid,
-            ReducedRecording(n_end, out_every, rec, n_rec, self.counters),
+            ReducedRecording(n_end, out_every, rec, n_rec, self.counters), self._forms,
         )  # fmt: skip
         bad_b = np.nonzero(self.counters[:, 2] != 0)[0]
         if bad_b.size:

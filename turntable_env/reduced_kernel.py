@@ -41,7 +41,7 @@ step's ends and, for the slipping elements, its mean; where it falls under a sti
 element's load the element is held at its share ν_i|s(v)| at the step's end (the 3-D
 model's rule, :mod:`turntable_env.integrator`); the ladder is unchanged and the
 analytic all-stick step is not used. Each turntable runs an integrator compiled for its
-form (:func:`_run_either`).
+form (:func:`run_reduced_batch`).
 
 Time runs on the integer grid of h_min (1/16 µs by default): drive breakpoints and
 outputs are rounded to it and transitions are located to it.
@@ -68,7 +68,7 @@ from .integrator import advance_index as _advance
 from .integrator import pwl_value as _input_at
 from .kernel_cache import CACHE
 
-__all__ = ["N_REC", "REC_FIELDS", "run_reduced_batch", "run_reduced_serial"]
+__all__ = ["N_REC", "REC_FIELDS", "form_counts", "run_reduced_batch", "run_reduced_serial"]
 
 # per-record fields (rec[b, i, :])
 REC_FIELDS = (
@@ -376,9 +376,9 @@ def _locate(lo, hi, g_lo, g_hi, h_min, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, 
     return hi
 
 
-@njit(cache=CACHE, parallel=True)
-def run_reduced_batch(state, model, drive, h_min, recording):
-    """Advance every turntable b of the batch from grid time state.n[b] to recording.n_end[b].
+def run_reduced_batch(state, model, drive, h_min, recording, forms=None) -> None:
+    """Advance every turntable b of the batch from grid time state.n[b] to recording.n_end[b],
+    the batch's turntables in parallel (``numba.prange``).
 
     Args (:mod:`turntable_env.kernel_types`):
         state: :class:`~turntable_env.kernel_types.ReducedState`, modified in place:
@@ -392,37 +392,86 @@ def run_reduced_batch(state, model, drive, h_min, recording):
             ``out_every`` grid units into rec[b, i] (fields :data:`REC_FIELDS`), n_rec[b]
             counts them; counters[b] = (accepted steps, rejected steps, status, evaluations
             of the analytic solution). Status 0 ok, 1 non-finite state.
+        forms: :func:`form_counts` of ``model.nrow`` where the caller keeps it (an env
+            steps through here: no array scan per step); None computes it.
 
-    Each turntable runs the integrator compiled for its form (:func:`_run_either`).
+    Each turntable runs the integrator compiled for its form: the per-axis model's 6 states,
+    or 30 where its sphere translates (a normal-force row is non-zero). One compiled entry
+    per form runs that form's turntables and skips the others, so a batch compiles only the
+    forms it holds (numba emits an entry's whole call tree into it: both forms in one entry
+    doubled a first step's compile, ``python experiments/first_step_compile.py``); a mixed
+    batch runs both entries, each turntable as it runs alone.
     """
-    for b in prange(state.y.shape[0]):
-        # prange's index is unsigned: cast, so the kernel's int64 compilation serves both
-        # entry points (an unsigned b compiled the whole integrator a second time)
-        _run_either(np.int64(b), state, model, drive, h_min, recording)
+    _run_forms(state, model, drive, h_min, recording, True, forms)
 
 
-@njit(cache=CACHE)
-def run_reduced_serial(state, model, drive, h_min, recording):
+def run_reduced_serial(state, model, drive, h_min, recording, forms=None) -> None:
     """:func:`run_reduced_batch` on one thread (a batch of one: no thread launch)."""
-    for b in range(state.y.shape[0]):
-        _run_either(b, state, model, drive, h_min, recording)
+    _run_forms(state, model, drive, h_min, recording, False, forms)
+
+
+def form_counts(nrow: np.ndarray) -> tuple[int, int]:
+    """(per-axis, translating) turntables of a batch whose normal-force rows are ``nrow``
+    [b, k, :] (a non-zero row: that turntable's sphere translates; :func:`_is_moved`'s rule,
+    which the compiled entries apply per turntable)."""
+    moved = np.any(nrow != 0.0, axis=(1, 2))
+    return int(np.sum(~moved)), int(np.sum(moved))
+
+
+def _run_forms(state, model, drive, h_min, recording, parallel, forms) -> None:
+    """Each form's entry over the batch; in parallel where more than one turntable has that
+    form (the others are skipped: a thread launch for one turntable buys nothing)."""
+    counts = form_counts(model.nrow) if forms is None else forms
+    for form, count in zip((False, True), counts, strict=True):
+        if count:
+            _ENTRIES[form, parallel and count > 1](state, model, drive, h_min, recording)
 
 
 @njit(cache=CACHE)
-def _run_either(b, state, model, drive, h_min, recording):
-    """Turntable b with the integrator compiled for its form: the per-axis model's 6 states,
-    or 30 where its sphere translates (a normal-force row is non-zero). The form is a
-    compile-time constant of each compilation, so the per-axis form's code holds no
-    translation (a batch's y may be wider than a turntable's states: padded with zeros)."""
-    moved = False
+def _is_moved(model, b):
+    """Turntable b's sphere translates: a normal-force row of its model is non-zero."""
     for k in range(2):
         for a in range(model.nrow.shape[2]):
             if model.nrow[b, k, a] != 0.0:
-                moved = True
-    if moved:
-        _run_one(b, state, model, drive, h_min, recording, True)
-    else:
-        _run_one(b, state, model, drive, h_min, recording, False)
+                return True
+    return False
+
+
+# the entries of each form: the form is a literal of each _run_one compilation, so the
+# per-axis form's code holds no translation (a batch's y may be wider than a turntable's
+# states: padded with zeros). prange's index is unsigned: cast, so the serial and parallel
+# entries share one int64 compilation (an unsigned b compiled the integrator a second time)
+@njit(cache=CACHE, parallel=True)
+def _axis_batch(state, model, drive, h_min, recording):
+    for b in prange(state.y.shape[0]):
+        if not _is_moved(model, np.int64(b)):
+            _run_one(np.int64(b), state, model, drive, h_min, recording, False)
+
+
+@njit(cache=CACHE)
+def _axis_serial(state, model, drive, h_min, recording):
+    for b in range(state.y.shape[0]):
+        if not _is_moved(model, b):
+            _run_one(b, state, model, drive, h_min, recording, False)
+
+
+@njit(cache=CACHE, parallel=True)
+def _moved_batch(state, model, drive, h_min, recording):
+    for b in prange(state.y.shape[0]):
+        if _is_moved(model, np.int64(b)):
+            _run_one(np.int64(b), state, model, drive, h_min, recording, True)
+
+
+@njit(cache=CACHE)
+def _moved_serial(state, model, drive, h_min, recording):
+    for b in range(state.y.shape[0]):
+        if _is_moved(model, b):
+            _run_one(b, state, model, drive, h_min, recording, True)
+
+
+# (translates, in parallel) → the compiled entry
+_ENTRIES = {(False, True): _axis_batch, (False, False): _axis_serial,
+            (True, True): _moved_batch, (True, False): _moved_serial}  # fmt: skip
 
 
 @njit(cache=CACHE)

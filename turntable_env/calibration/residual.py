@@ -394,18 +394,23 @@ MIN_BLOCKS = 5  # blocks below which a comparison is not made (z = 0: undecided)
 BLOCK_LENGTHS = 5.0  # a block spans this many correlation lengths of the loss difference
 
 
-def _blocks(n: int, block: int, units: np.ndarray | None) -> list[np.ndarray]:
-    """Sample index ranges of the blocks: each run of equal ``units`` (a segment)
-    split into pieces of at least ``block`` samples (a segment shorter than that is one
-    block); without units, the whole record is one run."""
+def _blocks(n: int, block: int, units: np.ndarray | None) -> np.ndarray:
+    """First sample index of each block: each run of equal ``units`` (a segment) split into
+    pieces of at least ``block`` samples (a segment shorter than that is one block; the
+    split of ``np.array_split``: the first pieces one sample longer); without units, the
+    whole record is one run. The blocks cover the n samples in order."""
     if units is None:
         bounds = np.array([0, n])
     else:
         bounds = np.concatenate([[0], np.flatnonzero(np.diff(units)) + 1, [n]])
-    out = []
+    starts = []
     for s, e in itertools.pairwise(bounds):
-        out += np.array_split(np.arange(s, e), max(1, (e - s) // block))
-    return out
+        k = max(1, int(e - s) // block)  # pieces of this run
+        pieces, extra = divmod(int(e - s), k)
+        sizes = np.full(k, pieces)
+        sizes[:extra] += 1
+        starts.append(s + np.concatenate([[0], np.cumsum(sizes)[:-1]]))
+    return np.concatenate(starts).astype(np.int64)
 
 
 def compare_predictions(
@@ -443,7 +448,8 @@ def compare_predictions(
     gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
     d = b**2 - a**2
     block = max(1, math.ceil(BLOCK_LENGTHS * correlation_length(d)))
-    means = np.array([d[i].mean() for i in _blocks(d.size, block, units)])
+    starts = _blocks(d.size, block, units)  # block means, in one pass over the samples
+    means = np.add.reduceat(d, starts) / np.diff(np.append(starts, d.size))
     means = means[means != 0.0]
     z = 0.0
     if means.size >= MIN_BLOCKS:
