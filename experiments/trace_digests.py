@@ -69,6 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.compare is not None:
         try:
             ref = json.loads(args.compare.read_text())["digests"]
+            if not (isinstance(ref, dict) and all(isinstance(v, dict) for v in ref.values())):
+                raise TypeError("'digests' is not {plant: {file: digest}}")
         except (OSError, ValueError, KeyError, TypeError) as e:
             print(f"--compare {args.compare}: not a digest file ({e})", file=sys.stderr)
             return 2
