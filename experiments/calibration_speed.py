@@ -26,11 +26,17 @@ from bench_compare import ROOT, worktree  # this directory is on sys.path
 TRACE = ROOT / "experiments" / "results" / "second_plant_traces" / "axis_C_20kHz.csv"
 
 
+def calibrate_command(trace: Path, report: Path, workers: int) -> list[str]:
+    """``turntable calibrate TRACE --report REPORT --workers N`` as a subprocess's argv,
+    its output unbuffered (progress lines arrive as they are printed)."""
+    return [sys.executable, "-u", "-m", "turntable_env.cli", "calibrate", str(trace),
+            "--report", str(report), "--workers", str(workers)]  # fmt: skip
+
+
 def _calibrate(tree: Path, trace: Path, out: Path, workers: int) -> dict:
     """One calibration from ``tree`` with a new numba cache: its report.json."""
     env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(out / "numba")}
-    cmd = [sys.executable, "-m", "turntable_env.cli", "calibrate", str(trace), "--report",
-           str(out / "report"), "--workers", str(workers)]  # fmt: skip
+    cmd = calibrate_command(trace, out / "report", workers)
     done = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
     if done.returncode != 0:
         last = (done.stderr.strip().splitlines() or ["no output"])[-1]

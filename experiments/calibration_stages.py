@@ -1,9 +1,10 @@
 """Where a trace calibration's wall time goes (issue 31: a 2.5 s trace at 20 kHz in under
 5 minutes on this machine's 2 cores): ``turntable calibrate TRACE --report DIR`` run once
-in a subprocess, each progress line timed as it arrives, and the seconds up to each stage's
-last line printed per stage: start-up with the prior model, the global stage with the
-nominal fit's starts, the basin hops, the signature round, the candidates on the trace and
-the refits with the verdicts.
+in a subprocess (:func:`calibration_speed.calibrate_command`), each progress line timed as
+it arrives, every gap between lines counted to the stage of the line that ends it, and the
+seconds per stage printed: start-up with the prior model, the global stage with the nominal
+fit's starts, the basin hops, the signature round, the candidates on the trace and the
+refits with the verdicts (a joint refit's hops count to the hops).
 
     python experiments/calibration_stages.py                  # the second plant's axis C
     python experiments/calibration_stages.py TRACE --workers 2 --fresh-cache
@@ -24,8 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-TRACE = ROOT / "experiments" / "results" / "second_plant_traces" / "axis_C_20kHz.csv"
+from calibration_speed import ROOT, TRACE, calibrate_command  # this directory is on sys.path
 
 # (stage, pattern of the progress lines that close it), in the order the command prints them
 STAGES = (
@@ -76,8 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         env = dict(os.environ)
         if args.fresh_cache:
             env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "numba")
-        cmd = [sys.executable, "-u", "-m", "turntable_env.cli", "calibrate", str(args.trace),
-               "--report", str(Path(tmp) / "report"), "--workers", str(args.workers)]  # fmt: skip
+        cmd = calibrate_command(args.trace, Path(tmp) / "report", args.workers)
         t0 = time.perf_counter()
         timed: list[tuple[float, str]] = []
         with subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,

@@ -120,6 +120,8 @@ def experiment(name: str):
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
+    if str(path.parent) not in sys.path:  # its imports of the scripts beside it, as when run
+        sys.path.append(str(path.parent))
     key = f"experiments.{name}"  # registered, as importlib's recipe does: dataclasses
     spec = importlib.util.spec_from_file_location(key, path)
     mod = importlib.util.module_from_spec(spec)
