@@ -82,7 +82,8 @@ class ReducedArrays(NamedTuple):
     μ_c, v_s, δ, σ2, β_t, α (sliding-direction asymmetry)]; ``amp`` [gain, τ, ideal, input
     limit, rate, fast fraction, τ_f, output lag τ_o] (as
     :meth:`~turntable_env.amplifier.Amplifier.kernel_row`); ``ctl`` [quiet length
-    [m], largest rung while an element slips]; ``nu``, ``kk`` the GMS elements; ``lvl``,
+    [m], largest rung while an element slips, 1 where a landing keeps the rung
+    (``ReducedModel.resume_rung``) else 0]; ``nu``, ``kk`` the GMS elements; ``lvl``,
     ``nlvl`` stick-configuration levels; ``phi_*``, ``gam_*`` exact step matrices per
     configuration and rung; ``qs``, ``modal_*`` the quasi-static and modal projections of
     the all-stick system; ``q2`` = A⁻¹Q[:, 0], ``modal_v``, ``modal_lam`` its eigenvectors and

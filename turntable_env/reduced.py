@@ -435,6 +435,14 @@ class ReducedModel:
             default: ``turntable bench`` measures it no faster than the ladder where no
             output is recorded (the env), since sampling the ring near a stuck element's
             capacity costs as much as the ladder steps it replaces.
+        resume_rung: a step that an output time or a breakpoint shortened (the
+            integrator lands on each) leaves the step controller's rung where it was, so
+            the next step resumes at full length, instead of growing again by one rung a
+            step from the shortened one. About half the steps of a trace recorded at
+            20 kHz (``experiments/landing_accuracy.py``); off by default: every per-axis
+            table (the benchmark, the calibration tables) ran without it, and the steps'
+            ends, where transitions are checked, move (sub-nm on a 20 kHz trace, the same
+            script).
     """
 
     def __init__(
@@ -446,6 +454,7 @@ class ReducedModel:
         model: TurntableModel | None = None,
         analytic: bool = False,
         translation: bool = False,
+        resume_rung: bool = False,
     ) -> None:
         if analytic and translation:
             raise ValueError("analytic=True: the analytic all-stick step has no translation")
@@ -461,6 +470,7 @@ class ReducedModel:
         self.axis = axis
         self.step_scale = check_positive("step_scale", step_scale)
         self.analytic = bool(analytic)
+        self.resume_rung = bool(resume_rung)
         fn = ps.contact.preload  # type: ignore[union-attr]
         condensed = AxisParameters.from_model(self.full, axis)
         self.axis_params = replace(condensed, normal_force=(fn, fn))
@@ -717,7 +727,7 @@ class ReducedModel:
             "nu": nu,
             "kk": kk,
             "amp": amp.kernel_row(c_load),
-            "ctl": np.array([QUIET_LENGTH * breakaway, r_slip]),
+            "ctl": np.array([QUIET_LENGTH * breakaway, r_slip, float(self.resume_rung)]),
             "qs": qs,
             "modal_w": np.linalg.inv(vec),
             "modal_c": (c_rel @ vec).astype(complex),

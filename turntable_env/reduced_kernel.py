@@ -30,7 +30,10 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
   loading; slip→stick when the relative velocity reverses) is rejected and retried one
   rung lower, down to h_min; after a step without one the rung grows by one; the rung is
   capped at ``r_slip`` while an element slips, at ``ring_frac`` of the fastest ringing
-  mode's period while all stick, and lands on breakpoints and output times.
+  mode's period while all stick, and lands on breakpoints and output times (a landing
+  caps the rung too, unless ``ReducedModel(resume_rung=True)``: then a landing on an
+  output time shortens only its own step, and the rung resumes after it; a breakpoint,
+  where the input's slope changes, still caps it).
 
 With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
 the ``"translation"`` fidelity) the state has 30 entries (the sphere's translation, its
@@ -539,6 +542,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
     ql2 = quiet_len * quiet_len  # its square's decision band (see _exceeds; none if tiny)
     q2_lo, q2_hi = (ql2 * (1.0 - 1e-12), ql2 * (1.0 + 1e-12)) if ql2 > 1e-280 else (-1.0, math.inf)
     r_slip = int(ctl[b, 1])
+    resume = ctl[b, 2] > 0.5  # a landing shortens its step only (ReducedModel.resume_rung)
     # the amplifier's decays over each rung's step h = h_min·2^r: exp(−h/τ), exp(−h/τ_f)
     e_tau = np.zeros(r_big)
     e_tf = np.zeros(r_big)
@@ -585,15 +589,15 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
             break
         # ---- rung caps ------------------------------------------------------------------
         target = n_end[b]
-        nxt_out = (n // out_every[b] + 1) * out_every[b]
-        if nxt_out < target:
-            target = nxt_out
         if idx + 1 < wn[b] and wg[b, idx + 1] < target:
             target = int(wg[b, idx + 1])  # breakpoints lie on the grid (integral floats)
-        span = target - n
-        r_land = 0
-        while r_land + 1 < r_big and (1 << (r_land + 1)) <= span:
-            r_land += 1
+        r_bp = 0  # the largest rung that lands on the next breakpoint (or the end)
+        while r_bp + 1 < r_big and (1 << (r_bp + 1)) <= target - n:
+            r_bp += 1
+        r_land = r_bp  # … or on the next output time, where that comes first
+        nxt_out = (n // out_every[b] + 1) * out_every[b]
+        while r_land > 0 and (1 << r_land) > nxt_out - n:
+            r_land -= 1
         any_slip = False
         for k in range(2):
             slip_k[k] = False
@@ -725,7 +729,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
         u_slope = 0.0
         if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
             u_slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
-        cap = r_land
+        cap = r_bp if resume else r_land  # the input's slope changes at a breakpoint
         if any_slip:
             cap = min(cap, r_slip)
         else:
@@ -767,6 +771,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 cap = min(cap, r_tau)
         if rung > cap:
             rung = cap
+        r_use = min(rung, r_land)  # this step's rung (rung itself where not resume)
         # configuration: stuck stiffness level of each contact
         m0 = 0
         m1 = 0
@@ -794,7 +799,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 fn_s = _normal(y[b], volt[b], 0.0, fn_s, nrow[b], k, True)
             s_start[k] = s_end[k] if s_ok else _level(xd0[k], fn_s, gms[b])
         while True:
-            dn = 1 << rung
+            dn = 1 << r_use
             h = dn * h_min
             n1 = n + dn
             # amplifier
@@ -806,15 +811,15 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 v0e = gain * u0
             else:
                 v1, vs1, vf1 = amplifier_step_decayed(v0, vs0, vf0, u0, u1, h, amp[b],
-                                                      e_tau[rung], e_tf[rung])  # fmt: skip
+                                                      e_tau[r_use], e_tf[r_use])  # fmt: skip
                 v0e = v0
             vslope = (v1 - v0e) / h
             if all_stick:  # every rung of the all-stick configuration
-                ph = phi_big[b, rung]
-                gm = gam_big[b, rung]
+                ph = phi_big[b, r_use]
+                gm = gam_big[b, r_use]
             else:  # partial slip: rung ≤ r_slip
-                ph = phi_small[b, cfg, rung]
-                gm = gam_small[b, cfg, rung]
+                ph = phi_small[b, cfg, r_use]
+                gm = gam_small[b, cfg, r_use]
             for a in range(ny):
                 s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
                 for c in range(ny):
@@ -883,12 +888,13 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                         frac = min(frac, g0 / (g0 - g1))
                     else:
                         frac = 0.0
-            if event and rung > 0:
+            if event and r_use > 0:
                 # retry below the interpolated crossing (regula falsi on the ladder)
-                r_new = rung - 1
+                r_new = r_use - 1
                 while r_new > 0 and (1 << r_new) > frac * dn:
                     r_new -= 1
                 rung = r_new
+                r_use = r_new
                 n_rej += 1
                 continue
             # accept
@@ -906,7 +912,9 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
             n = n1
             idx = _advance(wg[b], wn[b], idx, n)
             n_acc += 1
-            if not event:
+            if event:
+                rung = r_use
+            elif r_use == rung:  # a full-length step: grow (a landing's keeps the rung)
                 rung += 1
             break
         if not _finite(volt[b], y[b]):

@@ -17,7 +17,7 @@ import numpy as np
 from ..drive import Waveform
 from ..plant import Plant, PlantStepper
 
-__all__ = ["TraceResult", "simulate_trace"]
+__all__ = ["TraceResult", "drive_corners", "simulate_trace"]
 
 OUTPUT_DT_MAX = 5e-5  # s, coarsest internal sampling (then interpolated to the samples)
 
@@ -33,7 +33,7 @@ class TraceResult:
     detector_y_v: np.ndarray
 
 
-def _corners(t: np.ndarray, u: np.ndarray) -> np.ndarray:
+def drive_corners(t: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Indices of the breakpoints a piecewise-linear signal needs: the ends and every
     sample where the slope changes (collinear samples add nothing but integrator steps)."""
     if t.size < 3:
@@ -78,11 +78,11 @@ def simulate_trace(
     stepper.reset(0, 0.0, 0.0, level=float(u[0]))
     t_rel = t - t[0]
     if breakpoints is None:
-        keep = _corners(t_rel, u)
+        keep = drive_corners(t_rel, u)
         wave = Waveform(t_rel[keep], u[keep])
     else:
         bt, bu = (np.asarray(a, dtype=float) for a in breakpoints)
-        keep = _corners(bt - t[0], bu)
+        keep = drive_corners(bt - t[0], bu)
         wave = Waveform(bt[keep] - t[0], bu[keep])
     # record at the trace's typical sample spacing (each recording stops the integrator)
     dt_med = float(np.median(np.diff(t)))
