@@ -23,6 +23,11 @@ recording at a quarter of the spacing), at the trace's samples, as a length on t
 table's rim [nm] (angle × R_table, the calibration's error unit): RMS, 99th percentile of
 |·| and at the end. The reference's own uncertainty is printed beside it (``step_scale``
 1/4 against 1/16).
+
+``--bounds F`` (a diagnostic) runs the default rule again with one step bound at a time
+divided by F — the slip step (``reduced.SLIP_STEP``), the ringing step
+(``RING_FRACTION``) and the quiet length (``QUIET_LENGTH``), each patched while its model
+is built — and prints each one's steps and error, to say which bound the error comes from.
 """
 
 from __future__ import annotations
@@ -31,9 +36,11 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
+import turntable_env.reduced as reduced
 from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.trace import drive_corners
 from turntable_env.drive import Waveform
@@ -50,6 +57,7 @@ CHECK_SCALE = 0.25  # … and of its check
 
 
 RULES = {"restart": False, "resume": True}  # ReducedModel's resume_rung
+BOUNDS = ("SLIP_STEP", "RING_FRACTION", "QUIET_LENGTH")  # reduced's step bounds (--bounds)
 
 
 def _run(wave: Waveform, axis: str, duration: float, dt: float, scale: float,
@@ -68,7 +76,7 @@ def _stats(d: np.ndarray) -> dict[str, float]:
             "p99_nm": float(np.percentile(np.abs(d), 99)), "end_nm": float(d[-1])}  # fmt: skip
 
 
-def measure(path: Path, repeats: int) -> dict:
+def measure(path: Path, repeats: int, bound_factor: float | None = None) -> dict:
     """One trace's row (module docstring)."""
     m = load_measurement(path)
     t = m.time - m.time[0]
@@ -86,12 +94,18 @@ def measure(path: Path, repeats: int) -> dict:
     check = _run(wave, m.axis, dur, dt / 4.0, CHECK_SCALE)
     a_ref = _at(ref, t)
     name = str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path)
+    bounds = {}
+    for bound in BOUNDS if bound_factor else ():
+        with mock.patch.object(reduced, bound, getattr(reduced, bound) / bound_factor):
+            r = _run(wave, m.axis, dur, dt, 1.0)
+        bounds[bound] = {"steps": r.info["steps"], "error": _stats(_at(r, t) - a_ref)}
     return {"trace": name, "spacing_us": dt * 1e6,
             "rules": {rule: {"steps": rs[-1].info["steps"],
                              "kernel_s": min(r.info["wall_s"] for r in rs[1:]),
                              "error": _stats(_at(rs[-1], t) - a_ref)}
                       for rule, rs in runs.items()},
-            "reference_uncertainty": _stats(_at(check, t) - a_ref)}  # fmt: skip
+            "reference_uncertainty": _stats(_at(check, t) - a_ref),
+            "bounds": bounds, "bound_factor": bound_factor}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -99,15 +113,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("traces", nargs="*", type=Path, default=list(TRACES))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", action="store_true", help="print the rows as JSON")
+    ap.add_argument("--bounds", type=float, default=None, metavar="F",
+                    help="also each step bound divided by F, one at a time (a diagnostic)")
     args = ap.parse_args(argv)
     if args.repeats < 1:
         print(f"--repeats={args.repeats}: must be >= 1", file=sys.stderr)
+        return 2
+    if args.bounds is not None and not args.bounds > 1.0:
+        print(f"--bounds={args.bounds}: must be > 1", file=sys.stderr)
         return 2
     for p in args.traces:
         if not p.is_file():
             print(f"{p}: no such trace file (see the module docstring)", file=sys.stderr)
             return 2
-    rows = [measure(p, args.repeats) for p in args.traces]
+    rows = [measure(p, args.repeats, args.bounds) for p in args.traces]
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0
@@ -122,6 +141,11 @@ def main(argv: list[str] | None = None) -> int:
         u = r["reference_uncertainty"]
         print(f"{'':<56} {'(reference step_scale 1/4 against 1/16)':<43}  {u['rms_nm']:.3f} / "
               f"{u['p99_nm']:.3f} / {u['end_nm']:+.3f}")  # fmt: skip
+        for bound, v in r["bounds"].items():
+            e = v["error"]
+            print(f"{'':<56} {bound + ' / ' + format(r['bound_factor'], 'g'):<22} "
+                  f"{v['steps']:8d} {'':9}  {e['rms_nm']:.3f} / {e['p99_nm']:.3f} / "
+                  f"{e['end_nm']:+.3f}")  # fmt: skip
         ratio = r["rules"]["restart"]["kernel_s"] / r["rules"]["resume"]["kernel_s"]
         print(f"{'':<56} resume faster by {ratio:.2f}x")
     return 0
