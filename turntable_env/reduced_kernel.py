@@ -478,6 +478,15 @@ _ENTRIES = {(False, True): _axis_batch, (False, False): _axis_serial,
 
 
 @njit(cache=CACHE)
+def _ladder(span, r_big):
+    """The largest rung r < r_big whose step 2^r grid units fits in ``span`` (≥ 1)."""
+    r = 0
+    while r + 1 < r_big and (1 << (r + 1)) <= span:
+        r += 1
+    return r
+
+
+@njit(cache=CACHE)
 def _run_one(b, state, model, drive, h_min, recording, moved):
     """Turntable b of :func:`run_reduced_batch` (``moved``: the form, a literal)."""
     literally(moved)
@@ -591,13 +600,8 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
         target = n_end[b]
         if idx + 1 < wn[b] and wg[b, idx + 1] < target:
             target = int(wg[b, idx + 1])  # breakpoints lie on the grid (integral floats)
-        r_bp = 0  # the largest rung that lands on the next breakpoint (or the end)
-        while r_bp + 1 < r_big and (1 << (r_bp + 1)) <= target - n:
-            r_bp += 1
-        r_land = r_bp  # … or on the next output time, where that comes first
         nxt_out = (n // out_every[b] + 1) * out_every[b]
-        while r_land > 0 and (1 << r_land) > nxt_out - n:
-            r_land -= 1
+        r_land = _ladder(min(target, nxt_out) - n, r_big)  # lands on either, the first
         any_slip = False
         for k in range(2):
             slip_k[k] = False
@@ -729,7 +733,9 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
         u_slope = 0.0
         if idx + 1 < wn[b] and wg[b, idx + 1] > wg[b, idx]:
             u_slope = (wv[b, idx + 1] - wv[b, idx]) / ((wg[b, idx + 1] - wg[b, idx]) * h_min)
-        cap = r_bp if resume else r_land  # the input's slope changes at a breakpoint
+        cap = r_land
+        if resume:  # only a breakpoint caps the rung: the input's slope changes there
+            cap = _ladder(target - n, r_big)
         if any_slip:
             cap = min(cap, r_slip)
         else:
