@@ -435,13 +435,14 @@ class ReducedModel:
             default: ``turntable bench`` measures it no faster than the ladder where no
             output is recorded (the env), since sampling the ring near a stuck element's
             capacity costs as much as the ladder steps it replaces.
-        resume_rung: a step that an output time or a breakpoint shortened (the
-            integrator lands on each) leaves the step controller's rung where it was, so
-            the next step resumes at full length, instead of growing again by one rung a
-            step from the shortened one. About half the steps of a trace recorded at
-            20 kHz (``experiments/landing_accuracy.py``); off by default: every per-axis
-            table (the benchmark, the calibration tables) ran without it, and the steps'
-            ends, where transitions are checked, move (sub-nm on a 20 kHz trace, the same
+        resume_rung: a step shortened to land on an output time (the integrator stops
+            on each) leaves the step controller's rung where it was, so the next step
+            resumes at full length, instead of growing again by one rung a step from the
+            shortened one; a breakpoint, where the input's slope changes, still caps the
+            rung. About half the steps of a trace recorded at 20 kHz
+            (``experiments/landing_accuracy.py``); off by default: every per-axis table
+            (the benchmark, the calibration tables) ran without it, and the steps' ends,
+            where transitions are checked, move (sub-nm on a 20 kHz trace, the same
             script).
     """
 
