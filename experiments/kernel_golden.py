@@ -5,10 +5,12 @@ fidelities under fixed actions.
 
     python experiments/kernel_golden.py > tests/data/kernel_golden.json   # record
     python experiments/kernel_golden.py --compare    # bit for bit against the file
+    python experiments/kernel_golden.py --add        # add the runs the file lacks, keep the rest
     python -m pytest tests/test_kernel_golden.py     # within 1e-9 of each run's scale
 
 The committed file was recorded with the kernels before their split into named phases
-(commit e52b118); tests/test_kernel_golden.py checks today's kernels against it.
+(commit e52b118), the resumed rung's two runs at stop 84 (``--add``);
+tests/test_kernel_golden.py checks today's kernels against it.
 """
 
 from __future__ import annotations
@@ -33,6 +35,17 @@ ACTIONS = (  # normalised env actions: amplitude, frequency, a, slew adaptation,
 )
 
 
+# the reduced model's runs: (name, analytic all-stick step, resume_rung). The first two pin
+# the restart rule they were recorded with (commit e52b118); the resumed rung, the default
+# since stop 84, was recorded at that stop
+RUNS = (
+    ("reduced_ladder", False, False),
+    ("reduced_analytic", True, False),
+    ("reduced_ladder_resume", False, True),
+    ("reduced_analytic_resume", True, True),
+)
+
+
 def _floats(x: np.ndarray) -> list[float]:
     return [float(v) for v in np.asarray(x, dtype=float).ravel()]
 
@@ -46,8 +59,8 @@ def record() -> dict[str, list[float]]:
         out[name] = _floats(r.angle()) + _floats(r.normal_force[-1]) + [r.step_size]
     real = real_parameters()
     back, _ = stepping_drive("real", amplitude=-3.0, frequency=500.0, periods=2)
-    for name, analytic in (("reduced_ladder", False), ("reduced_analytic", True)):
-        models = [ReducedModel(real, "B", analytic=analytic)] * 2
+    for name, analytic, resume in RUNS:
+        models = [ReducedModel(real, "B", analytic=analytic, resume_rung=resume)] * 2
         runs = simulate_batch(models, [drive, back], 5e-3, output_dt=2e-5)
         out[name] = [v for r in runs for v in _floats(r.angle()) + _floats(r.friction[-1])]
     for fidelity in ("reduced", "full"):
@@ -83,9 +96,14 @@ def compare(now: dict[str, list[float]]) -> dict[str, float]:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--compare"]:
+    if sys.argv[1:] == ["--add"]:
+        kept = json.loads(GOLDEN.read_text(encoding="utf-8"))
+        new = {k: v for k, v in record().items() if k not in kept}
+        GOLDEN.write_text(json.dumps({**kept, **new}, indent=0) + "\n", encoding="utf-8")
+        print(f"{GOLDEN}: added {sorted(new) or 'nothing'}")
+    elif sys.argv[1:] == ["--compare"]:
         for name, rel in compare(record()).items():
-            print(f"{name:18s} {'bit for bit' if rel == 0.0 else f'relative difference {rel:.3g}'}")
+            print(f"{name:24s} {'bit for bit' if rel == 0.0 else f'relative difference {rel:.3g}'}")
     else:
         json.dump(record(), sys.stdout, indent=0)
         sys.stdout.write("\n")

@@ -13,19 +13,21 @@ calibration's base) from rest, recording at the trace's sample spacing, as a cal
 records it (:func:`~turntable_env.calibration.trace.simulate_trace`). Each recording
 stops the integrator: its steps land on every output time.
 
-Printed per trace and per landing rule (``restart``, the default: a step that lands on
-an output time caps the step controller's rung, which then grows again by one a step;
-``resume``: ``ReducedModel(resume_rung=True)``, the landing shortens only its own step):
+Printed per trace and per landing rule (``restart``, the default until stop 84,
+``ReducedModel(resume_rung=False)``: a step that lands on an output time caps the step
+controller's rung, which then grows again by one a step; ``resume``, the default since:
+the landing shortens only its own step):
 the spacing [µs], the integrator's accepted steps, the kernel's wall time [s] (best of
 ``--repeats``, compiled before, the two rules alternating), and the angle's difference from the
 converged reference (``step_scale`` 1/16: every step bound and the grid a sixteenth,
 recording at a quarter of the spacing), at the trace's samples, as a length on the
 table's rim [nm] (angle × R_table, the calibration's error unit): RMS, 99th percentile of
 |·| and at the end. The reference's own uncertainty is printed beside it (``step_scale``
-1/4 against 1/16). Beside them, the default rule's steps and kernel time recorded once,
-at the end: the integrator's steps without the landings.
+1/4 against 1/16). Beside them, the restart rule's steps and kernel time recorded once,
+at the end: the integrator's steps without the landings. The reference runs and the
+``--bounds`` runs take the restart rule too (as before stop 84).
 
-``--bounds F`` (a diagnostic) runs the default rule again with one step bound at a time
+``--bounds F`` (a diagnostic) runs the restart rule again with one step bound at a time
 divided by F — the slip step (``reduced.SLIP_STEP``), the ringing step
 (``RING_FRACTION``) and the quiet length (``QUIET_LENGTH``), each patched while its model
 is built — and prints each one's steps and error, to say which bound the error comes from.
@@ -88,7 +90,7 @@ def measure(path: Path, repeats: int, bound_factor: float | None = None) -> dict
     dt = float(np.median(np.diff(t)))
     dur = float(t[-1])
     runs = {rule: [] for rule in RULES}
-    once = []  # the default rule recorded once, at the end: the steps without landings
+    once = []  # the restart rule recorded once, at the end: the steps without landings
     for _ in range(repeats + 1):  # the first of each compiles; the rules alternate
         for rule, resume in RULES.items():
             runs[rule].append(_run(wave, m.axis, dur, dt, 1.0, resume))

@@ -43,8 +43,10 @@ def load(path: Path | str = REPORT) -> dict[str, Any]:
     return json.loads(Path(path).read_text(encoding="utf-8"))
 
 
-def _fmt(value: float, unit: str) -> str:
+def _fmt(value: float | None, unit: str) -> str:
     scale, shown = UNITS.get(unit, (1.0, unit))
+    if value is None:  # a report's non-finite number (plain_json writes NaN and ±inf as null)
+        return f"not finite {shown}"
     if value != value or abs(value) == float("inf"):
         return f"{value} {shown}"
     return f"{value * scale:.4g} {shown}"

@@ -215,14 +215,24 @@ def test_friction_asymmetry_makes_forward_and_backward_steps_differ(ps, drive, c
 
 def test_friction_wear_changes_the_steps_with_travel(ps, drive, clean):
     """The later (backward) block over the earlier (forward) one: friction growing with
-    travel (β > 0) shrinks it, falling friction (β < 0) enlarges it; nominal ≈ 1."""
+    travel (β > 0) shrinks it, falling friction (β < 0) enlarges it; nominal ≈ 1. Each
+    change exceeds twice the nominal model's own departure from 1 (what the protocol and
+    the integration leave without wear; :func:`_wear_floor`)."""
     ratio = {}
     for beta in (-0.3, 0.0, 0.3):
         res = _trace(ps, drive, {"friction_wear": {"beta": beta}}) if beta else clean
         fwd, back = _block_steps(ps, drive, res)
         ratio[beta] = abs(back) / abs(fwd)
     assert abs(ratio[0.0] - 1.0) < 0.01
-    assert ratio[0.3] < ratio[0.0] - 0.01 and ratio[-0.3] > ratio[0.0] + 0.01
+    floor = _wear_floor(ratio[0.0])
+    assert ratio[0.3] < ratio[0.0] - floor and ratio[-0.3] > ratio[0.0] + floor
+
+
+def _wear_floor(r0: float) -> float:
+    """The smallest change of the backward/forward block ratio the wear tests count as an
+    effect: twice the nominal model's own departure of that ratio from 1 (its symmetry is
+    exact, so the departure is the protocol's and the integrator's), at least 0.2 %."""
+    return max(2.0 * abs(r0 - 1.0), 0.002)
 
 
 @pytest.mark.parametrize("beta", [-0.3, 0.1])
@@ -261,7 +271,7 @@ def test_friction_wear_that_runs_in_changes_the_later_steps_less(ps, drive, clea
         ratio[k] = abs(back) / abs(fwd)
     fwd0, back0 = _block_steps(ps, drive, clean)
     r0 = abs(back0) / abs(fwd0)
-    assert ratio[0.0] > r0 + 0.01
+    assert ratio[0.0] > r0 + _wear_floor(r0)
     assert 0.0 < ratio[2.0] - r0 < 0.8 * (ratio[0.0] - r0)
 
 

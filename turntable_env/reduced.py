@@ -440,10 +440,11 @@ class ReducedModel:
             resumes at full length, instead of growing again by one rung a step from the
             shortened one; a breakpoint, where the input's slope changes, still caps the
             rung. About half the steps of a trace recorded at 20 kHz
-            (``experiments/landing_accuracy.py``); off by default: every per-axis table
-            (the benchmark, the calibration tables) ran without it, and the steps' ends,
-            where transitions are checked, move (sub-nm on a 20 kHz trace, the same
-            script).
+            (``experiments/landing_accuracy.py``). On by default since stop 84; False
+            is the restart rule the independent calibration tables of earlier stops ran
+            under (the steps' ends, where transitions are checked, move: sub-nm on a
+            20 kHz trace, the same script). The env's golden steps are the same bit for
+            bit under both (``experiments/kernel_golden.py --compare``).
     """
 
     def __init__(
@@ -455,7 +456,7 @@ class ReducedModel:
         model: TurntableModel | None = None,
         analytic: bool = False,
         translation: bool = False,
-        resume_rung: bool = False,
+        resume_rung: bool = True,
     ) -> None:
         if analytic and translation:
             raise ValueError("analytic=True: the analytic all-stick step has no translation")

@@ -30,10 +30,10 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
   loading; slip→stick when the relative velocity reverses) is rejected and retried one
   rung lower, down to h_min; after a step without one the rung grows by one; the rung is
   capped at ``r_slip`` while an element slips, at ``ring_frac`` of the fastest ringing
-  mode's period while all stick, and lands on breakpoints and output times (a landing
-  caps the rung too, unless ``ReducedModel(resume_rung=True)``: then a landing on an
-  output time shortens only its own step, and the rung resumes after it; a breakpoint,
-  where the input's slope changes, still caps it).
+  mode's period while all stick, and lands on breakpoints and output times (a landing on
+  an output time shortens only its own step, and the rung resumes after it, unless
+  ``ReducedModel(resume_rung=False)``: then the landing caps the rung too; a breakpoint,
+  where the input's slope changes, always caps it).
 
 With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
 the ``"translation"`` fidelity) the state has 30 entries (the sphere's translation, its
