@@ -35,6 +35,19 @@ def test_the_docs_block_is_what_the_script_prints_from_the_committed_report():
     assert _between(page, "thesis-calibration-spread").strip() == spread.strip()
 
 
+def test_the_block_prints_a_fresh_reports_non_finite_numbers():
+    """A report written today stores NaN and ±inf as null (``files.plain_json``): the block
+    prints such a figure as not finite instead of failing, and prints it in its row."""
+    import copy
+
+    mod = _script()
+    rep = copy.deepcopy(mod.load())
+    row = rep["diagnosis"]["targets"][0]
+    row["predicted_before"] = None
+    line = next(ln for ln in mod.block(rep).splitlines() if ln.startswith(f"| {row['target']} "))
+    assert "not finite" in line
+
+
 def test_the_shipped_calibrated_set_is_the_committed_reports_plant():
     from turntable_env.plant import CALIBRATED_FILE, Plant
 
