@@ -21,7 +21,9 @@ by the held-out trace error), the held-out error before (prior model), after the
 fit and at the end, the noise floor, the acceptance target max(3× floor, 2 % of the RMS
 motion), whether it is met, whether the report flags the data as unexplained (the final
 model stays above the target: ``diagnosis.unexplained``), the row's
-verdict against issue 31's acceptance and the wall time:
+verdict against issue 31's acceptance, the wall time and the commit the calibrator ran at
+(``turntable_env.provenance``: ``+`` where tracked files differed from it; ``—`` where a row
+made before stop 85 does not record it):
 
 * clean: nothing selected beyond an amplifier effect (the plant's amplifier is not the
   model's), target met (so not flagged);
@@ -46,6 +48,7 @@ from pathlib import Path
 
 from turntable_env.calibration.calibrate import calibrate, write_report
 from turntable_env.files import write_atomic
+from turntable_env.provenance import code_label, code_version
 from turntable_env.scale import BACKENDS, map_tasks
 
 # an independent plant's effect → the catalogue effect a calibrator should name
@@ -76,8 +79,8 @@ PLANTS = {  # plant → (its traces' default directory, the script that writes t
 
 HEADER = (
     "| trace | injected | expected | selected (how) | before [nm] | nominal [nm] | "
-    "after [nm] | floor [nm] | target [nm] | met | flagged | passes | wall [s] |\n"
-    "|---|---|---|---|---:|---:|---:|---:|---:|---|---|---|---:|"
+    "after [nm] | floor [nm] | target [nm] | met | flagged | passes | wall [s] | code |\n"
+    "|---|---|---|---|---:|---:|---:|---:|---:|---|---|---|---:|---|"
 )
 
 
@@ -120,6 +123,7 @@ def _calibrate_one(job: dict) -> dict:
         "structured": res.residual_structured,
         "flagged": d["unexplained"],
         "wall_s": wall,
+        "code": code_version(),  # where it ran (the tables mix rows of several commits)
     }
 
 
@@ -132,7 +136,7 @@ def print_row(row: dict) -> dict:
         f"{row['nominal_nm']:.1f} | {row['after_nm']:.1f} | {row['floor_nm']:.2f} | "
         f"{row['target_nm']:.1f} | {'yes' if row['met'] else 'no'} | "
         f"{'yes' if row['flagged'] else 'no'} | {'**yes**' if row['pass'] else 'no'} | "
-        f"{row['wall_s']:.0f} |",
+        f"{row['wall_s']:.0f} | {code_label(row.get('code'))} |",
         flush=True,
     )
     return row

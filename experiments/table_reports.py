@@ -7,7 +7,9 @@ mode a ring after the flybacks is.
 
 ``--rows`` prints the table's rows instead, one per trace, from every DIR's
 ``results.json`` (a later DIR's row replaces an earlier one's for the same trace: a
-table run in parts, or rows re-run), with the count of rows that pass.
+table run in parts, or rows re-run), with the count of rows that pass and of the rows
+at each commit the calibrator ran at (a row's own record, else its report's
+``provenance``; ``—`` for a run made before stop 85, which recorded neither).
 ``--compare OLD_DIR ...`` prints the rows the DIRs and the earlier runs share side by
 side: nominal and final held-out error, the effects named and the verdict, old → new.
 
@@ -58,6 +60,7 @@ import argparse
 import json
 import math
 import sys
+from collections import Counter
 from pathlib import Path
 
 from turntable_env.calibration.identify import (
@@ -67,6 +70,7 @@ from turntable_env.calibration.identify import (
     significance_nats,
 )
 from turntable_env.calibration.trace_fit import Z_TRACE
+from turntable_env.provenance import code_label
 
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path", "amplifier_lag"}
 
@@ -275,12 +279,22 @@ def _ring_table(reports: list[tuple[str, dict, dict]]) -> None:
 
 
 def _merged(dirs: list[Path]) -> dict[str, dict]:
-    """Each trace's row from the DIRs' results.json, a later DIR's replacing an earlier's."""
+    """Each trace's row from the DIRs' results.json, a later DIR's replacing an earlier's;
+    a row that does not record its code (made before stop 85) takes its report's."""
     rows: dict[str, dict] = {}
     for d in dirs:
         for row in json.loads((d / "results.json").read_text()):
-            rows[row["trace"]] = {**row, "run": d.name}
+            code = row.get("code") or _report_code(d / row["trace"] / "report.json")
+            rows[row["trace"]] = {**row, "run": d.name, "code": code}
     return rows
+
+
+def _report_code(path: Path) -> dict | None:
+    """The commit a report.json says it ran at (its ``provenance``), None where it does not
+    say (a report made before stop 85) or is not there."""
+    if not path.exists():
+        return None
+    return (json.loads(path.read_text()).get("provenance") or {}).get("code")
 
 
 def _compare(old: list[Path], new: list[Path]) -> int:
@@ -366,6 +380,9 @@ def _rows(dirs: list[Path]) -> int:
     done = [print_row(r) for r in rows.values()]
     n = sum(r["pass"] for r in done)
     print(f"\n{n} of {len(done)} rows pass ({100.0 * n / max(len(done), 1):.0f} %)")
+    at = Counter(code_label(r["code"]) for r in done)
+    print("rows by the code they ran at (a commit, + with uncommitted changes, — not "
+          "recorded): " + ", ".join(f"{c} × {k}" for c, k in sorted(at.items())))
     return 0
 
 

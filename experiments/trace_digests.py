@@ -17,12 +17,13 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import platform
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from independent_calibration import PLANTS
+
+from turntable_env.provenance import machine  # the processor, libraries and BLAS
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -36,27 +37,6 @@ def digests(plants: list[str]) -> dict[str, dict[str, str]]:
         if files:
             out[plant] = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
     return out
-
-
-def machine() -> dict[str, object]:
-    """What the traces were written with: processor, libraries and BLAS."""
-    import numba
-    import numpy as np
-    import scipy
-    from threadpoolctl import threadpool_info
-
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    blas = [{k: i.get(k) for k in ("internal_api", "version", "architecture")}
-            for i in threadpool_info()]  # fmt: skip
-    return {"cpu": cpu, "python": platform.python_version(), "numpy": np.__version__,
-            "scipy": scipy.__version__, "numba": numba.__version__, "blas": blas}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:

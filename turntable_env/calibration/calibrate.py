@@ -21,6 +21,7 @@ import numpy as np
 
 from ..files import output_directory, plain_json
 from ..plant import calibrated_set_toml
+from ..provenance import code_label, provenance
 from ..threads import one_blas_thread
 from .measurement import Measurement
 from .result import CalibrationResult
@@ -304,7 +305,9 @@ def _md_trace_verdicts(rows: list[dict[str, Any]] | None, u: str) -> list[str]:
 
 def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
     """``report.json``, ``report.md``, ``residual.png`` (and ``overlay.png`` for traces)
-    in ``out``; with a rig fit also ``calibrated.toml``, the calibrated parameter set
+    in ``out``, the JSON with where it ran under ``provenance`` (the commit and the
+    machine, :func:`~turntable_env.provenance.provenance`) and the Markdown with a line of
+    it; with a rig fit also ``calibrated.toml``, the calibrated parameter set
     (:func:`~turntable_env.plant.calibrated_set_toml`). The directory is complete or
     untouched (:func:`~turntable_env.files.output_directory`)."""
     final = Path(out)
@@ -316,7 +319,10 @@ def write_report(result: CalibrationResult, out: str | Path) -> dict[str, Path]:
 def _write_report_files(result: CalibrationResult, d: Path, final: Path) -> dict[str, str]:
     pj = d / "report.json"
     # strict JSON: a figure that could not be computed (no line searched, say) is null
-    pj.write_text(json.dumps(plain_json(result.to_json()), indent=2, allow_nan=False))
+    # where it ran: the commit and the machine (a fit's basin may move with either)
+    prov = provenance()
+    data = {**result.to_json(), "provenance": prov}
+    pj.write_text(json.dumps(plain_json(data), indent=2, allow_nan=False))
     plot_residual(result, d / "residual.png")
     has_overlay = plot_overlay(result, d / "overlay.png")
     floor = result.diagnosis.get("noise_floor")
@@ -330,6 +336,9 @@ def _write_report_files(result: CalibrationResult, d: Path, final: Path) -> dict
         f"- residual structured: {result.residual_structured}"
         + (f" — {result.diagnosis.get('signature', '')}" if result.residual_structured else ""),
         f"- wall time: {result.wall_s:.1f} s",
+        f"- code: turntable_env {prov['code']['package']}, commit "
+        f"{code_label(prov['code'])}; machine: {prov['machine']['cpu']}, numpy "
+        f"{prov['machine']['numpy']}, numba {prov['machine']['numba']}",
         "",
         "| round | candidate | held-out error |",
         "|---:|---|---:|",
