@@ -45,6 +45,7 @@ import numpy as np
 from turntable_env.envs.config import OBS, EnvConfig
 from turntable_env.envs.core import TurntableTask
 from turntable_env.files import output_directory, plain_json, write_atomic
+from turntable_env.provenance import provenance
 from turntable_env.scale import map_tasks, resolve_backend
 
 from .base import ControllerContext
@@ -506,8 +507,10 @@ def _result(
 
 # --- outputs -----------------------------------------------------------------------------
 def write_outputs(result: BenchmarkResult, out: str | Path) -> dict[str, Path]:
-    """Write benchmark.json, episodes.csv, leaderboard.md/.html and trajectory plots; the
-    directory is complete or untouched (:func:`~turntable_env.files.output_directory`)."""
+    """Write benchmark.json (with its ``provenance``: the commit and the machine,
+    :func:`~turntable_env.provenance.provenance`), episodes.csv, leaderboard.md/.html and
+    trajectory plots; the directory is complete or untouched
+    (:func:`~turntable_env.files.output_directory`)."""
     final = Path(out)
     with output_directory(final) as d:
         paths = _write_files(result, d)
@@ -519,7 +522,8 @@ def _write_files(result: BenchmarkResult, d: Path) -> dict[str, Path]:
 
     paths: dict[str, Path] = {}
     p = d / "benchmark.json"
-    write_atomic(p, json.dumps(result.to_json(), indent=1, allow_nan=False))
+    doc = {**result.to_json(), "provenance": plain_json(provenance())}  # the commit, machine
+    write_atomic(p, json.dumps(doc, indent=1, allow_nan=False))
     paths["json"] = p
     df = result.to_pandas()
     buf = io.StringIO()

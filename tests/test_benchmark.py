@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-import turntable_env  # noqa: F401  (registers the env)
+import turntable_env  # registers the env; its version is the provenance test's
 from agents.train import HYPERPARAMS_DIR
 from controllers import available, make
 from controllers.benchmark import QUICK, run_benchmark, write_outputs
@@ -259,6 +259,7 @@ def test_quick_benchmark_output_holds_intervals_tracking_and_held_out(tmp_path):
     paths = write_outputs(res, tmp_path)
     doc = json.loads(paths["json"].read_text())
     assert doc["version"] and doc["settings"]["seeds"] == QUICK["seeds"]
+    assert doc["provenance"]["code"]["package"] == turntable_env.__version__  # where it ran
     assert {"nominal", "held_out"} <= set(doc["results"])
     kinds = {doc["settings"]["tasks"][t]["kind"] for t in doc["results"]["held_out"]}
     assert {"point", "tracking", "disturbance"} <= kinds

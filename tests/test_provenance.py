@@ -109,3 +109,19 @@ def test_a_table_row_without_a_record_takes_its_reports(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| 1 | — |" in out and "| 1 | abababa+ |" in out
     assert "abababa+ × 1" in out and "— × 1" in out
+
+
+def test_bench_json_names_the_code_and_machine_its_figures_were_measured_on(monkeypatch, capsys):
+    """Speed figures are absolute only with the machine stated: `turntable bench --json`
+    prints them with the provenance (the figures themselves stubbed here: bench's own
+    tests time them)."""
+    import turntable_env.bench
+    from turntable_env.cli import main
+
+    monkeypatch.setattr(turntable_env.bench, "run_bench",
+                        lambda **kw: {"reduced_rtf": 25.0, "duration_s": kw["duration"]})
+    assert main(["bench", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["reduced_rtf"] == 25.0 and doc["duration_s"] == 1.0
+    assert doc["provenance"]["code"] == code_version()
+    assert doc["provenance"]["machine"]["cpu"] == machine()["cpu"]

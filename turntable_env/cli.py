@@ -241,15 +241,18 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.env_only:
         if args.duration is not None or args.quick:  # not silently ignored
             raise ValueError("--duration/--quick: not with --env-only (it times env steps only)")
-        res = env_throughput(num_envs=args.batch)
-        text = format_env_table(res)
+        res, table = env_throughput(num_envs=args.batch), format_env_table
     else:
         duration = args.duration if args.duration is not None else 1.0  # s
         res = run_bench(duration=duration, batch=args.batch, quick=args.quick)
-        text = format_table(res)
-    if args.json:
-        text = json.dumps(plain_json(res), indent=2, default=float, allow_nan=False)
-    print(text)
+        table = format_table
+    if args.json:  # with the commit and the machine the figures were measured on
+        from .provenance import provenance
+
+        doc = {**res, "provenance": provenance()}
+        print(json.dumps(plain_json(doc), indent=2, default=float, allow_nan=False))
+    else:
+        print(table(res))
     return 0
 
 
@@ -471,7 +474,8 @@ def _add_bench(sub: Any) -> None:
     )  # fmt: skip
     pb.add_argument("--batch", type=_int(1, 4096), default=64, help="turntables in the batched run")
     pb.add_argument("--quick", action="store_true", help="short references (smoke runs only)")
-    pb.add_argument("--json", action="store_true", help="print JSON")
+    pb.add_argument("--json", action="store_true",
+                    help="print JSON, with the commit and the machine (provenance)")
     pb.add_argument(
         "--env-only", action="store_true", help="only the environment throughput (about 30 s)"
     )
