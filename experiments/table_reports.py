@@ -25,7 +25,11 @@ A margin is *thin* within :data:`THIN`'s reach of its bar (3 nats, a factor 2 on
 trace-size ratio, one unit of z, 10 % of the error target: the first two are the largest
 shifts two changes of the nominal fit have moved the same rows' margins by); the last
 lines count the passing traces whose verdict rests on a thin margin and list the failing
-ones.
+ones. A second table does the same for the held-out trace route (:func:`trace_margins`,
+since stop 85): each refitted candidate's gain and z beyond their bars and the yes/no rules
+that blocked it; a candidate that missed only graded rules, each within reach, is *nearly
+named*, and a passing trace with such a candidate, or with a trace-route name near its
+bar, counts as resting on a thin margin.
 
 Each DIR is an ``--out`` directory of ``experiments/independent_calibration.py`` (its
 ``results.json`` and one report directory per trace). For every round of every trace it
@@ -205,6 +209,42 @@ def margins(report: dict) -> list[dict]:
     return out
 
 
+def trace_margins(report: dict) -> list[dict]:
+    """Per round, each candidate the held-out trace route refitted (``trace_verdicts``,
+    ``trace_fit._accept_one``): its margin on the two graded rules, the gain over the model
+    without it against ``min_improvement`` (a fraction) and z against ``z_min``, and the
+    yes/no rules that blocked it (portions disagree, main parameter at a bound, its
+    features not backed on the refits, equally good refits undecided). A named
+    candidate's verdict is thin where a rule it passed lies within its bar's reach (one
+    unit of z; the gain within ``min_improvement`` of its bar); an unnamed one is *nearly
+    named* where every graded rule it failed lies within that reach and nothing else
+    blocked it."""
+    out = []
+    for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
+        for v in rnd.get("trace_verdicts") or []:
+            z, gain = _num(v.get("z")), _num(v.get("gain"))
+            bar = _num(v.get("min_improvement"), 0.05)
+            m = {"gain": gain - bar, "z": z - _num(v.get("z_min"), Z_TRACE)}
+            reach = {"gain": bar, "z": THIN["z"]}
+            blocked = [why for why, hit in (
+                ("portions disagree", v.get("consistent") is False),
+                ("main parameter at a bound", bool(v.get("pinned"))),
+                ("features not backed", str(v.get("refit_backing", "")).endswith("not backed")),
+                ("refits undecided", bool(v.get("undecided"))),
+            ) if hit]  # fmt: skip
+            close = [r for r in m if abs(m[r]) < reach[r]]
+            failed = [r for r in m if not m[r] >= 0.0]  # nan fails
+            if v.get("named"):
+                role, thin = "named", [r for r in close if m[r] >= 0.0]
+            else:
+                role = "not named"
+                near = failed and not blocked and set(failed) <= set(close)
+                thin = failed if near else []
+            out.append({"round": rnd.get("round", 1), "effect": v["effect"], "role": role,
+                        "margins": m, "blocked": blocked, "thin": thin})  # fmt: skip
+    return out
+
+
 def _fmt(m: dict[str, float], r: str) -> str:
     if r not in m:
         return "—"
@@ -237,15 +277,41 @@ def _margins(dirs: list[Path]) -> int:
         print(f"| {label} | error | after/target {ratio:.2f} | "
               f"{'passes' if row['pass'] else 'fails'} | | | | | | | "
               f"{'error' if near else '—'} |")  # fmt: skip
+    nearly = _trace_route(merged, thin_rows)
     print("\nnats above the candidate's significance level (own, leave-one-out, all), the "
           "trace-size ratio, "
           f"the lead above {TIE_NATS} nats, z beyond the trace's bar; thin: within "
           f"{THIN['nats']:g} nats, a factor {THIN['size']:g} of the size floor, "
-          f"{THIN['z']:g} z, {THIN['error']:.0%} of the target")  # fmt: skip
+          f"{THIN['z']:g} z, {THIN['error']:.0%} of the target; the trace route: the "
+          "held-out gain over the model without it beyond its bar (thin within the bar's "
+          "own size), z beyond its bar")  # fmt: skip
     print(f"{len(thin_rows)} of {n} passing traces rest on a thin margin: "
           f"{', '.join(thin_rows) or 'none'}")  # fmt: skip
     print(f"failing: {', '.join(failing) or 'none'}")
+    print(f"nearly named by the held-out trace route (every graded rule it failed within "
+          f"reach, nothing else blocking): {', '.join(nearly) or 'none'}")  # fmt: skip
     return 0
+
+
+def _trace_route(merged: dict[str, tuple[str, dict, dict]], thin_rows: list[str]) -> list[str]:
+    """The held-out trace route's verdicts of every trace (:func:`trace_margins`), as a
+    second table; a passing trace whose trace verdict is thin joins ``thin_rows``. Returns
+    the candidates nearly named on the traces (label: effect, the rules it missed)."""
+    nearly = []
+    print("\n| trace | round | candidate (held-out trace route) | verdict | gain over its bar | "
+          "z beyond its bar | blocked by | thin |")  # fmt: skip
+    print("|---|---:|---|---|---:|---:|---|---|")
+    for label, row, rep in merged.values():
+        for r in trace_margins(rep):
+            m = r["margins"]
+            print(f"| {label} | {r['round']} | {r['effect']} | {r['role']} | "
+                  f"{100.0 * m['gain']:+.1f} % | {m['z']:+.2f} | "
+                  f"{', '.join(r['blocked']) or '—'} | {', '.join(r['thin']) or '—'} |")
+            if r["thin"] and row["pass"] and label not in thin_rows:
+                thin_rows.append(label)
+            if r["thin"] and r["role"] == "not named":
+                nearly.append(f"{label} ({r['effect']}: {', '.join(r['thin'])})")
+    return nearly
 
 
 def passes(r: dict, level: float) -> bool:

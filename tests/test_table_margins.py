@@ -104,3 +104,44 @@ def test_a_strict_json_report_reads_its_nulls_as_not_computed(tr):
     assert math.isnan(r["margins"]["size"])
     (row,) = tr.rounds(_report(rnd))
     assert row["m"] == 1 and math.isnan(row["size"])
+
+
+def _verdict(z, gain, named=False, **kw):
+    return {"effect": "friction_wear", "z": z, "z_min": 3.0, "gain": gain,
+            "min_improvement": 0.05, "named": named, "consistent": None, "pinned": "",
+            "refit_backing": "", "undecided": False, **kw}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("verdict", "role", "blocked", "thin"),
+    [
+        # named by the trace, 0.4 z above its bar: the name rests on a thin margin
+        (_verdict(3.4, 0.131, named=True, consistent=True), "named", [], ["z"]),
+        (_verdict(5.0, 0.131, named=True, consistent=True), "named", [], []),
+        # the third plant's contact wear (stop 85): +13.1 %, z +2.7 — nearly named
+        (_verdict(2.7, 0.131), "not named", [], ["z"]),
+        (_verdict(0.5, 0.131), "not named", [], []),  # 2.5 z short: out
+        (_verdict(2.7, 0.02), "not named", [], ["gain", "z"]),  # short on both, within reach
+        # a yes/no rule blocked it: not nearly named whatever z says
+        (_verdict(3.2, 0.131, consistent=False), "not named", ["portions disagree"], []),
+        (_verdict(2.9, 0.131, refit_backing="gain 0.4 nats, under 2.0: not backed"),
+         "not named", ["features not backed"], []),
+        (_verdict(2.9, 0.131, pinned="beta at its bound"), "not named",
+         ["main parameter at a bound"], []),
+    ],
+)
+def test_the_trace_routes_verdicts_carry_their_margins(tr, verdict, role, blocked, thin):
+    """The held-out trace route's graded rules (gain ≥ its bar, z ≥ its bar) get margins as
+    the signature route's do; a candidate blocked by a yes/no rule is not 'nearly named'."""
+    rnd = {"round": 1, "candidates": [], "decision": {"named": None},
+           "trace_verdicts": [verdict]}  # fmt: skip
+    (r,) = tr.trace_margins(_report(rnd))
+    assert r["role"] == role and r["blocked"] == blocked and r["thin"] == thin
+    assert r["margins"]["z"] == pytest.approx(verdict["z"] - 3.0)
+    assert r["margins"]["gain"] == pytest.approx(verdict["gain"] - 0.05)
+
+
+def test_a_report_before_the_trace_route_has_no_trace_margins(tr):
+    rnd = {"round": 1, "candidates": [_cand("piezo_creep", 12.0, 12.0, 4.0)],
+           "decision": {"named": "piezo_creep", "margin_nats": 5.0}}  # fmt: skip
+    assert tr.trace_margins(_report(rnd)) == []
