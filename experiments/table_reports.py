@@ -216,16 +216,16 @@ def trace_margins(report: dict) -> list[dict]:
     yes/no rules that blocked it (portions disagree, main parameter at a bound, its
     features not backed on the refits, equally good refits undecided). A named
     candidate's verdict is thin where a rule it passed lies within its bar's reach (one
-    unit of z; the gain within ``min_improvement`` of its bar); an unnamed one is *nearly
-    named* where every graded rule it failed lies within that reach and nothing else
-    blocked it."""
+    unit of z; the gain within half of ``min_improvement`` of its bar); an unnamed one is
+    *nearly named* where every graded rule it failed lies within that reach and nothing
+    else blocked it."""
     out = []
     for rnd in report["diagnosis"].get("signatures", {}).get("rounds", []):
         for v in rnd.get("trace_verdicts") or []:
             z, gain = _num(v.get("z")), _num(v.get("gain"))
             bar = _num(v.get("min_improvement"), 0.05)
             m = {"gain": gain - bar, "z": z - _num(v.get("z_min"), Z_TRACE)}
-            reach = {"gain": bar, "z": THIN["z"]}
+            reach = {"gain": bar / 2.0, "z": THIN["z"]}
             blocked = [why for why, hit in (
                 ("portions disagree", v.get("consistent") is False),
                 ("main parameter at a bound", bool(v.get("pinned"))),
@@ -283,8 +283,8 @@ def _margins(dirs: list[Path]) -> int:
           f"the lead above {TIE_NATS} nats, z beyond the trace's bar; thin: within "
           f"{THIN['nats']:g} nats, a factor {THIN['size']:g} of the size floor, "
           f"{THIN['z']:g} z, {THIN['error']:.0%} of the target; the trace route: the "
-          "held-out gain over the model without it beyond its bar (thin within the bar's "
-          "own size), z beyond its bar")  # fmt: skip
+          "held-out gain over the model without it beyond its bar (thin within half the "
+          "bar), z beyond its bar")  # fmt: skip
     print(f"{len(thin_rows)} of {n} passing traces rest on a thin margin: "
           f"{', '.join(thin_rows) or 'none'}")  # fmt: skip
     print(f"failing: {', '.join(failing) or 'none'}")

@@ -121,7 +121,8 @@ def _verdict(z, gain, named=False, **kw):
         # the third plant's contact wear (stop 85): +13.1 %, z +2.7 — nearly named
         (_verdict(2.7, 0.131), "not named", [], ["z"]),
         (_verdict(0.5, 0.131), "not named", [], []),  # 2.5 z short: out
-        (_verdict(2.7, 0.02), "not named", [], ["gain", "z"]),  # short on both, within reach
+        (_verdict(2.7, 0.035), "not named", [], ["gain", "z"]),  # short on both, in reach
+        (_verdict(2.7, 0.0), "not named", [], []),  # no gain at all: not nearly named
         # a yes/no rule blocked it: not nearly named whatever z says
         (_verdict(3.2, 0.131, consistent=False), "not named", ["portions disagree"], []),
         (_verdict(2.9, 0.131, refit_backing="gain 0.4 nats, under 2.0: not backed"),
