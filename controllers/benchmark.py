@@ -522,7 +522,7 @@ def _write_files(result: BenchmarkResult, d: Path) -> dict[str, Path]:
 
     paths: dict[str, Path] = {}
     p = d / "benchmark.json"
-    doc = {**result.to_json(), "provenance": plain_json(provenance())}  # the commit, machine
+    doc = {**result.to_json(), "provenance": provenance()}  # the commit, the machine
     write_atomic(p, json.dumps(doc, indent=1, allow_nan=False))
     paths["json"] = p
     df = result.to_pandas()

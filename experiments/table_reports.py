@@ -73,7 +73,7 @@ from turntable_env.calibration.identify import (
     free_parameters,
     significance_nats,
 )
-from turntable_env.calibration.trace_fit import Z_TRACE
+from turntable_env.calibration.trace_fit import Z_HELDOUT, Z_TRACE
 from turntable_env.provenance import code_label
 
 AMPLIFIER = {"amplifier_dynamics", "amplifier_fast_path", "amplifier_lag"}
@@ -224,7 +224,7 @@ def trace_margins(report: dict) -> list[dict]:
         for v in rnd.get("trace_verdicts") or []:
             z, gain = _num(v.get("z")), _num(v.get("gain"))
             bar = _num(v.get("min_improvement"), 0.05)
-            m = {"gain": gain - bar, "z": z - _num(v.get("z_min"), Z_TRACE)}
+            m = {"gain": gain - bar, "z": z - _num(v.get("z_min"), Z_HELDOUT)}
             reach = {"gain": bar / 2.0, "z": THIN["z"]}
             blocked = [why for why, hit in (
                 ("portions disagree", v.get("consistent") is False),

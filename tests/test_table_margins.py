@@ -12,7 +12,7 @@ import pytest
 from conftest import experiment
 
 from turntable_env.calibration.identify import SIGNIFICANT_NATS, TIE_NATS
-from turntable_env.calibration.trace_fit import Z_TRACE
+from turntable_env.calibration.trace_fit import Z_HELDOUT, Z_TRACE
 
 
 def _cand(effect, own, total, size, loo=None, at_neutral=False):
@@ -146,3 +146,12 @@ def test_a_report_before_the_trace_route_has_no_trace_margins(tr):
     rnd = {"round": 1, "candidates": [_cand("piezo_creep", 12.0, 12.0, 4.0)],
            "decision": {"named": "piezo_creep", "margin_nats": 5.0}}  # fmt: skip
     assert tr.trace_margins(_report(rnd)) == []
+
+
+def test_a_trace_verdict_without_its_bar_is_judged_against_the_held_out_one(tr):
+    """The trace route's z bar is Z_HELDOUT (the signature route's trace check uses
+    Z_TRACE): a verdict that does not record its bar is measured against Z_HELDOUT."""
+    v = {k: x for k, x in _verdict(2.7, 0.131).items() if k != "z_min"}
+    rnd = {"round": 1, "candidates": [], "decision": {"named": None}, "trace_verdicts": [v]}
+    (r,) = tr.trace_margins(_report(rnd))
+    assert r["margins"]["z"] == pytest.approx(2.7 - Z_HELDOUT) and r["thin"] == ["z"]
