@@ -25,12 +25,17 @@ can be a jump), else, with no jumps, by its turning points. Its
 segments are then split into a fit and a held-out portion **interleaved by condition**:
 every condition's occurrences alternate between the portions, and a condition that occurs
 once is cut in two (a burst at a period boundary), so the held-out error measures
-prediction at drive conditions the fit has seen, not extrapolation.
+prediction at drive conditions the fit has seen, not extrapolation. Every hold is one
+condition unless that alternation leaves a portion whose holds after motion all follow one
+direction while the trace has holds after both (a protocol of forward burst, hold, reverse
+burst, hold, …): then a hold's condition is the direction of the motion before it, so each
+portion holds both kinds (:func:`holds_by_motion`, :func:`one_sided`).
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -40,6 +45,8 @@ import numpy as np
 __all__ = [
     "DriveReading",
     "Segment",
+    "holds_by_motion",
+    "one_sided",
     "read_drive",
     "segment_trace",
     "split_portions",
@@ -488,13 +495,42 @@ def _halves(seg: Segment) -> tuple[Segment, Segment]:
     return replace(seg, end=mid), replace(seg, start=mid)
 
 
-def split_portions(segments: list[Segment]) -> list[Segment]:
-    """Fit and held-out portions interleaved by drive condition (module docstring): the
-    occurrences of each condition alternate fit, held-out, fit, …; a condition that occurs
-    once is cut in two (first half fit)."""
+def _motion_before(segments: list[Segment]) -> list[int]:
+    """The direction of the last motion (scan or burst) before each segment; 0 where none
+    came before. ``segments`` in time order."""
+    out: list[int] = []
+    before = 0
+    for s in segments:
+        out.append(before)
+        if s.kind != "hold":
+            before = s.direction
+    return out
+
+
+def holds_by_motion(segments: list[Segment]) -> dict[str, Counter]:
+    """portion → Counter of the direction of the motion before each of its holds (+1, −1;
+    0 where no motion came before). ``segments`` in time order, their portions set; a
+    hold cut in two counts in each portion it reaches."""
+    out: dict[str, Counter] = {"fit": Counter(), "heldout": Counter()}
+    for s, before in zip(segments, _motion_before(segments), strict=True):
+        if s.kind == "hold":
+            out[s.portion][before] += 1
+    return out
+
+
+def one_sided(counts: dict[str, Counter]) -> bool:
+    """Whether a portion's holds after motion all follow one direction while the trace
+    has holds after both (``counts`` from :func:`holds_by_motion`)."""
+    both = {d for c in counts.values() for d in c if d != 0} == {-1, 1}
+    return both and any(c[1] + c[-1] > 0 and not (c[1] and c[-1]) for c in counts.values())
+
+
+def _interleave(segments: list[Segment], conditions: list[str]) -> list[Segment]:
+    """Each condition's occurrences alternate fit, held-out, fit, …; a condition that
+    occurs once is cut in two (first half fit)."""
     by_cond: dict[str, list[int]] = {}
-    for i, s in enumerate(segments):
-        by_cond.setdefault(s.condition, []).append(i)
+    for i, c in enumerate(conditions):
+        by_cond.setdefault(c, []).append(i)
     out: list[Segment] = []
     portion: dict[int, str] = {}
     single: set[int] = set()
@@ -510,3 +546,20 @@ def split_portions(segments: list[Segment]) -> list[Segment]:
         else:
             out.append(replace(s, portion=portion[i]))  # type: ignore[arg-type]
     return [s for s in out if s.end > s.start]
+
+
+def split_portions(segments: list[Segment]) -> list[Segment]:
+    """Fit and held-out portions interleaved by drive condition (module docstring): the
+    occurrences of each condition alternate fit, held-out, fit, …; a condition that occurs
+    once is cut in two (first half fit). Where that leaves a portion with holds after one
+    direction only (:func:`one_sided`), each hold's condition is the direction of the
+    motion before it."""
+    conditions = [s.condition for s in segments]
+    out = _interleave(segments, conditions)
+    if one_sided(holds_by_motion(out)):
+        conditions = [
+            f"hold after {'+' if b > 0 else '-' if b < 0 else 'none'}" if s.kind == "hold" else c
+            for s, b, c in zip(segments, _motion_before(segments), conditions, strict=True)
+        ]
+        out = _interleave(segments, conditions)
+    return out
