@@ -4,16 +4,25 @@ answer is known by construction."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
 from turntable_env.calibration.calibrate import calibrate
 from turntable_env.calibration.identify import main_at_bound
 from turntable_env.calibration.residual import Anchoring, noise_floor
-from turntable_env.calibration.segments import read_drive, segment_trace, split_portions
+from turntable_env.calibration.segments import (
+    holds_by_motion,
+    one_sided,
+    read_drive,
+    segment_trace,
+    split_portions,
+)
 from turntable_env.calibration.trace import simulate_trace
 from turntable_env.calibration.trace_fit import correlation_length, identifiable_effects
-from turntable_env.calibration.virtual_lab import run_virtual_lab
+from turntable_env.calibration.virtual_lab import protocol_drive, run_virtual_lab
+from turntable_env.params import get_parameter_set
 from turntable_env.plant import Plant
 
 
@@ -201,6 +210,45 @@ def test_portions_interleave_every_drive_condition():
     assert held and held <= fit
     kinds = {s.kind for s in segs}
     assert kinds == {"hold", "scan", "steps"}
+
+
+# forward burst, hold, reverse burst, hold, … (the second independent plant's protocol):
+# alternating the holds as one condition gives one portion the holds after forward bursts
+# and the other those after reverse ones
+_ALTERNATING = [("hold", 0.01)] + 3 * [
+    ("steps", 2.0, 100.0, 3, 0.95, 1.0),
+    ("hold", 0.02),
+    ("steps", -2.0, 100.0, 3, 0.95, 1.0),
+    ("hold", 0.02),
+]
+
+
+@pytest.mark.parametrize("protocol", ["thesis", "alternating"])
+def test_each_portion_holds_the_holds_after_both_directions(protocol):
+    """Stop 63's confound: the held-out error must not judge the model on holds of a kind
+    (after one direction of motion) that the fit never saw."""
+    blocks = _ALTERNATING if protocol == "alternating" else protocol
+    t, u = protocol_drive(blocks, get_parameter_set("real"), "B")
+    segs = split_portions(segment_trace(read_drive(t, u), t[-1]))
+    counts = holds_by_motion(segs)
+    assert not one_sided(counts)
+    for portion in ("fit", "heldout"):
+        assert counts[portion][1] > 0 and counts[portion][-1] > 0, (portion, counts)
+    fit = {s.condition for s in segs if s.portion == "fit"}
+    held = {s.condition for s in segs if s.portion == "heldout"}
+    assert held == fit
+    # the segments still tile the trace in time order
+    assert all(a.end == pytest.approx(b.start) for a, b in itertools.pairwise(segs))
+
+
+@pytest.mark.parametrize("protocol", ["standard", "long"])
+def test_a_balanced_protocol_keeps_one_hold_condition(protocol):
+    """Where the holds already fall into both portions after both directions, every hold
+    is one condition, "hold", as before stop 87."""
+    t, u = protocol_drive(protocol, get_parameter_set("real"), "B")
+    segs = split_portions(segment_trace(read_drive(t, u), t[-1]))
+    assert {s.condition for s in segs if s.kind == "hold"} == {"hold"}
+    assert not one_sided(holds_by_motion(segs))
 
 
 def test_noise_floor_recovers_white_noise_despite_ringing_holds():
