@@ -519,8 +519,9 @@ def holds_by_motion(segments: list[Segment]) -> dict[str, Counter]:
 
 
 def one_sided(counts: dict[str, Counter]) -> bool:
-    """Whether a portion's holds after motion all follow one direction while the trace
-    has holds after both (``counts`` from :func:`holds_by_motion`)."""
+    """Whether a portion's counted segments all go one way while the trace has both
+    (``counts``: portion → Counter over +1 / −1, 0 not counted; from
+    :func:`holds_by_motion`, the holds after motion, or the scans by their sense)."""
     both = {d for c in counts.values() for d in c if d != 0} == {-1, 1}
     return both and any(c[1] + c[-1] > 0 and not (c[1] and c[-1]) for c in counts.values())
 
