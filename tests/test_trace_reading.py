@@ -11,7 +11,7 @@ import pytest
 
 from turntable_env.calibration.calibrate import calibrate
 from turntable_env.calibration.identify import main_at_bound
-from turntable_env.calibration.residual import Anchoring, noise_floor
+from turntable_env.calibration.residual import Anchoring, condition_shares, noise_floor
 from turntable_env.calibration.segments import (
     holds_by_motion,
     one_sided,
@@ -280,6 +280,39 @@ def test_anchoring_removes_each_segments_offset():
             inner[idx] = True
     assert np.allclose(out[inner], 0.0)
     assert an.fit.any() and an.heldout.any() and not (an.fit & an.heldout).any()
+
+
+def test_the_heldout_error_is_split_by_drive_condition():
+    """condition_shares: the held-out squared error per condition adds up to the whole; a
+    hold's error counts under the motion before it; an error in one burst's held-out
+    samples (and the hold after it) is that burst's condition alone."""
+    t, u = _sampled_sawtooth()
+    segs = split_portions(segment_trace(read_drive(t, u), t[-1]))
+    an = Anchoring.of(t, segs)
+    r = np.random.default_rng(0).normal(0.0, 1.0, t.size)
+    rows = condition_shares(segs, an, r, top=50)
+    assert sum(row["share"] for row in rows) == pytest.approx(1.0)
+    assert sum(row["samples"] for row in rows) == np.count_nonzero(an.heldout)
+    whole = float(np.sqrt(np.mean(r[an.heldout] ** 2)))
+    pooled = np.sqrt(sum(row["rms"] ** 2 * row["samples"] for row in rows) / an.heldout.sum())
+    assert pooled == pytest.approx(whole)
+    # every label is a steps or scan condition, or a hold under the motion before it
+    conds = {s.condition for s in segs if s.kind != "hold"}
+    for row in rows:
+        c = row["condition"]
+        assert c in conds or c == "hold" or c.removeprefix("hold after ") in conds, c
+    # a burst that is off by 10 nm in its held-out samples, and in the hold after it
+    k = next(i for i, s in enumerate(segs[:-1]) if s.kind == "steps" and s.portion == "heldout"
+             and segs[i + 1].kind == "hold" and segs[i + 1].portion == "heldout")  # fmt: skip
+    bad = np.zeros(t.size)
+    bad[an.unit == k] = 10.0
+    bad[an.unit == k + 1] = 10.0
+    top = condition_shares(segs, an, bad + 1e-3 * r)
+    names = [row["condition"] for row in top]
+    assert set(names[:2]) == {segs[k].condition, f"hold after {segs[k].condition}"}
+    assert sum(row["share"] for row in top[:2]) > 0.99
+    with pytest.raises(ValueError, match="residual"):
+        condition_shares(segs, an, r[:-1])
 
 
 @pytest.mark.parametrize("phi", [0.0, 0.5, 0.8])

@@ -163,8 +163,24 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
     lines += [f"- {k}: {v}" for k, v in d["identifiability"].items()]
     lines += ["", "## Residual", ""]
     lines.append(d.get("signature", f"at the noise floor ({result.error_after:.3g} {u})"))
+    lines += _md_by_condition(d.get("error_by_condition"), u)
     if d["warnings"]:
         lines += ["", "## Warnings", "", *[f"- {w}" for w in d["warnings"]]]
+    return lines
+
+
+def _md_by_condition(parts: list[dict[str, Any]] | None, u: str) -> list[str]:
+    """report.md lines: the final model's held-out squared error by drive condition
+    (:func:`~.residual.condition_shares`), per trace."""
+    lines: list[str] = []
+    for part in parts or []:
+        lines += [
+            "", f"Held-out error of {part['trace']} by drive condition (a hold under the "
+            "motion before it; largest share of the squared error first):", "",
+            f"| condition | held-out samples | RMS [{u}] | share |", "|---|---:|---:|---:|",
+            *[f"| {r['condition']} | {r['samples']} | {r['rms']:.3g} | {r['share']:.0%} |"
+              for r in part["rows"]],
+        ]  # fmt: skip
     return lines
 
 

@@ -19,6 +19,10 @@ structure, spectral peaks, ringing after flybacks, correlations.
   floor of an anchored error is σ·√(1 + 1/n_anchor).
 * **Structure.** The residual's excess over the floor, √(max(0, RMS² − floor²)); a
   whiteness test is not used (on 10⁴ samples any model error fails it).
+* **Where the error is.** The held-out squared error split by drive condition
+  (:func:`condition_shares`): each steps or scan segment under its own condition, each
+  hold under the motion before it (the settling after a burst is that burst's error),
+  so a report says which settings the model fails on.
 * **Signatures.** Spectral peaks above ``PEAK_MIN_HZ`` (Welch, each at least
   ``PEAK_FACTOR`` times the local median level), ringing after flybacks (the residual's
   RMS in the ``RING_WINDOW`` after each step vs elsewhere, its dominant frequency from
@@ -44,6 +48,7 @@ __all__ = [
     "Anchoring",
     "PredictiveComparison",
     "compare_predictions",
+    "condition_shares",
     "correlation_length",
     "correlation_tests",
     "noise_floor",
@@ -122,6 +127,41 @@ class Anchoring:
         ok = self.unit >= 0
         out[ok] = e[ok] - anchor[self.unit[ok]]
         return out
+
+
+def condition_shares(
+    segments: list[Segment], anchoring: Anchoring, residual: np.ndarray, top: int = 6
+) -> list[dict[str, Any]]:
+    """The held-out squared error of one anchored residual [nm] by drive condition, largest
+    share first: per condition its held-out ``samples``, ``rms`` [nm] and ``share`` of the
+    held-out sum of squares (the shares add up to 1). A steps or scan segment counts under
+    its own :attr:`~.segments.Segment.condition`; a hold under "hold after" the last steps
+    or scan before it (its settling is that motion's), or "hold" where none came before.
+    Beyond the ``top`` largest, the rest are pooled as "others"."""
+    r = np.asarray(residual, float)
+    held = anchoring.heldout
+    if r.shape != held.shape:
+        raise ValueError(f"residual: {r.size} samples, the anchoring has {held.size}")
+    labels, last = [], "hold"
+    for s in segments:
+        if s.kind == "hold":
+            labels.append("hold" if last == "hold" else f"hold after {last}")
+        else:
+            labels.append(s.condition)
+            last = s.condition
+    sums: dict[str, list[float]] = {}
+    for k in np.unique(anchoring.unit[held]):
+        m = held & (anchoring.unit == k)
+        acc = sums.setdefault(labels[int(k)], [0.0, 0.0])
+        acc[0] += float(r[m] @ r[m])
+        acc[1] += float(np.count_nonzero(m))
+    total = sum(v[0] for v in sums.values())
+    rows = sorted(sums.items(), key=lambda kv: -kv[1][0])
+    if len(rows) > top + 1:
+        rest = rows[top:]
+        rows = [*rows[:top], ("others", [sum(v[0] for _, v in rest), sum(v[1] for _, v in rest)])]
+    return [{"condition": c, "samples": int(n), "rms": math.sqrt(sq / max(n, 1.0)),
+             "share": sq / total if total > 0 else 0.0} for c, (sq, n) in rows]  # fmt: skip
 
 
 def _mad_sigma(d: np.ndarray) -> float:

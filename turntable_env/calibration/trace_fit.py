@@ -94,6 +94,7 @@ from .residual import (
     Anchoring,
     PredictiveComparison,
     compare_predictions,
+    condition_shares,
     correlation_length,
     correlation_tests,
     noise_floor,
@@ -2045,9 +2046,15 @@ def diagnose(problem: TraceProblem, fit: LocalFit, floor: float) -> dict[str, An
         or any(p["share"] > 0.1 for p in peaks)
         or (ring is not None and ring["ratio"] > 2.0 and ring["rms_after_flyback"] > 2 * floor)
     )
+    by_condition = [
+        {"trace": Path(td.m.source).name if td.m.source else f"trace {i}",
+         "rows": condition_shares(td.segments, td.anchoring, chans[0])}
+        for i, (td, chans) in enumerate(zip(problem.traces, errs, strict=True))
+    ]  # fmt: skip
     out: dict[str, Any] = {
         "rms": rms,
         "structured_rms": structured_part,
+        "error_by_condition": by_condition,
         "structured": bool(structured),
         "spectral_peaks": peaks,
         "ringing": ring,
