@@ -319,3 +319,31 @@ def test_the_problems_units_label_each_held_out_segment_apart():
         # one run per segment and channel: a segment's samples are contiguous
         channels = 2 if td.has_y and td.m.detector_y_v is not None else 1
         assert runs.size == np.unique(u).size == channels * np.unique(td.anchoring.unit[mask]).size
+
+
+@pytest.mark.parametrize(
+    ("costs", "heldout", "undetermined"),
+    [
+        ((60.72, 61.15, 84.6), (106.7, 62.1, 92.0), True),  # the third plant's 10 kHz row
+        ((60.72, 61.15, 84.6), (106.7, 100.0, 62.1), False),  # the far one costs 39 % more
+        ((60.72, 90.0), (106.7, 62.1), False),  # one start at the optimum
+        ((50.0, 50.2), (20.0, 24.0), False),  # within the ratio 1.25
+    ],
+)
+def test_equally_good_starts_that_predict_apart_make_an_undetermined_fit(
+    costs, heldout, undetermined
+):
+    """_start_spread / undetermined_starts: starts of one cost (within 1 %) whose held-out
+    errors differ by more than UNDETERMINED_RATIO are reported; a start far from the best
+    cost, or agreeing predictions, are not."""
+    fits = []
+    for k, (c, h) in enumerate(zip(costs, heldout, strict=True)):
+        f = _fit(h, cost=c)
+        f.x[0] = 10.0 * k  # far apart in every case: only the cost can make them agree
+        fits.append(f)
+    spread = trace_fit._start_spread(("a", "b"), fits, fits[int(np.argmin(costs))])
+    text = trace_fit.undetermined_starts(spread)
+    assert (text is not None) == undetermined
+    if undetermined:
+        lo, hi = sorted(h for c, h in zip(costs, heldout, strict=True) if c <= 1.01 * min(costs))
+        assert f"{lo:.3g}–{hi:.3g} nm" in text
