@@ -7,11 +7,11 @@ the first of the two on the second and third independent plants, whose code is i
 repository (``turntable_env.testing.second_plant`` and ``third_plant``). For each of a
 plant's traces with one injected effect, the plant is simulated noise-free at the trace's
 own samples with the effect (the trace without its noise) and without it; the effect-free
-plant's friction level (both coefficients × one factor) and stroke (d31 ×) are refitted by
-Nelder–Mead and its detector gain by least squares, so that it comes as close to the
-effect as the parameters a calibration fits first allow. The *visibility* is the RMS left
-[nm at R_table], measured as the calibrator measures its held-out error: each channel (x,
-and y where recorded) anchored per segment, on the trace's held-out portion
+plant's friction level (both coefficients × one factor) and stroke (d31 ×) are refitted
+within ×1/3–3 by Nelder–Mead and its detector gain by least squares, so that it comes as
+close to the effect as the parameters a calibration fits first allow. The *visibility* is
+the RMS left [nm at R_table], measured as the calibrator measures its held-out error: each
+channel (x, and y where recorded) anchored per segment, on the trace's held-out portion
 (:class:`~turntable_env.calibration.residual.Anchoring`).
 
 The *feature gap* is half the χ² of the two signals' protocol features per group
@@ -57,6 +57,11 @@ from turntable_env.testing import third_plant as tp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from second_plant_traces import CASES as SECOND_CASES  # the script that wrote the traces
+
+# the nuisance factors' range (friction level, stroke): the calibrator's stroke range
+# (``params.RIG_LIMITS["d31_factor"]``, 0.3–3); unbounded, a plant that hardly moves can
+# come nearer a trace's anchored held-out samples than one that steps wrongly
+FACTOR_RANGE = 3.0
 
 
 class _Second:
@@ -147,7 +152,8 @@ def visibility(plant: Any, name: str, traces: Path) -> dict:
 
     untouched = left(np.zeros(2))
     simplex = [[0.0, 0.0], [0.15, 0.0], [0.0, 0.1]]  # ln factors: friction, stroke
-    scipy.optimize.minimize(left, np.zeros(2), method="Nelder-Mead",
+    box = [(-math.log(FACTOR_RANGE), math.log(FACTOR_RANGE))] * 2
+    scipy.optimize.minimize(left, np.zeros(2), method="Nelder-Mead", bounds=box,
                             options={"xatol": 2e-3, "fatol": 1e-3, "initial_simplex": simplex,
                                      "maxfev": 60})  # fmt: skip
     best = min(cache, key=lambda k: cache[k][0])
