@@ -90,6 +90,14 @@ class _Second:
         return np.array(sp.detector_outputs(p, t, sim.mirror_angle_rad, effects=eff))
 
 
+@functools.cache
+def _third_protocol(name: str) -> list[Any]:
+    """A third-plant case's protocol as its trace drew it (against the plant with its
+    effect; each draw simulates a pretest, so it is drawn once per case)."""
+    case = tp.CASES[name]
+    return tp.lab_protocol(case.protocol_seed, tp.PlantParams(), effects=case.effects)
+
+
 class _Third:
     """The third plant: its cases (each protocol drawn against the plant with its effect)."""
 
@@ -101,16 +109,9 @@ class _Third:
     def effects(self, case: Any) -> list[str]:
         return [case.effect]
 
-    @functools.lru_cache(maxsize=4)  # noqa: B019 (one instance, PLANTS's, for the run)
-    def _protocol(self, name: str) -> list[Any]:
-        """The case's protocol as its trace drew it (against the plant with its effect;
-        each draw simulates a pretest, so it is drawn once)."""
-        case = tp.CASES[name]
-        return tp.lab_protocol(case.protocol_seed, tp.PlantParams(), effects=case.effects)
-
     def channels(self, case: Any, t: np.ndarray, factors: tuple[float, float] | None) -> np.ndarray:
         p, eff = tp.PlantParams(), case.effects
-        segs = self._protocol(case.name)  # the trace's drive
+        segs = _third_protocol(case.name)  # the trace's drive
         if factors is not None:
             fr, st = factors
             eff = tp.Effects()  # every default neutral
