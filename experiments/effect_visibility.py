@@ -30,8 +30,8 @@ changes the trace by less than the model's structure misses the clean trace by.
 
 The nuisance set is three parameters; a calibration fits twelve, so the visibility is an
 upper bound on what a nominal refit leaves of the effect in the plant's own structure.
-About 30 simulations per trace: under a minute on the second plant, about four minutes
-on the third (one core).
+About 30 simulations per trace; the third plant's are several times slower than the
+second's.
 """
 
 from __future__ import annotations
