@@ -50,6 +50,7 @@ import numpy as np
 import scipy.optimize
 
 from turntable_env.calibration.measurement import load_measurement
+from turntable_env.calibration.residual import structured_rms
 from turntable_env.calibration.signatures import GROUPS, SIGNATURE_GROUPS, SignatureLayout
 from turntable_env.calibration.trace_fit import trace_data
 from turntable_env.testing import second_plant as sp
@@ -192,11 +193,6 @@ def _row(dirs: list[Path], name: str) -> dict | None:
     return None
 
 
-def _structured(row: dict) -> float:
-    """A row's nominal fit's structured held-out residual √(error² − floor²) [nm]."""
-    return math.sqrt(max(row["nominal_nm"] ** 2 - row["floor_nm"] ** 2, 0.0))
-
-
 def _signature_gap(v: dict) -> str:
     """The largest signature group's feature gap, as ``group:nats``."""
     gaps = {g: n for g, n in v["feature_gap_nats"].items() if g in SIGNATURE_GROUPS}
@@ -248,7 +244,7 @@ def main(argv: list[str]) -> int:
             print(f"{d}: no results.json", file=sys.stderr)
             return 2
     clean = _row(args.rows, "clean")
-    ref = _structured(clean) if clean is not None else math.nan
+    ref = structured_rms(clean["nominal_nm"], clean["floor_nm"]) if clean is not None else math.nan
     print(f"the clean trace's nominal fit leaves {ref:.1f} nm of structure"
           if clean is not None else "no clean row given: no reference structure")  # fmt: skip
     print(f"{'trace':22} {'visible':>8} {'floor':>6} {'unrefit':>8} {'friction':>8} "
@@ -262,7 +258,7 @@ def main(argv: list[str]) -> int:
         v["over_clean_structure"] = v["visibility_nm"] / ref if clean is not None else math.nan
         tail = f"{'':8} {v['over_clean_structure']:7.2f}  (no row)"
         if row is not None:
-            v["row_structure_nm"] = _structured(row)
+            v["row_structure_nm"] = structured_rms(row["nominal_nm"], row["floor_nm"])
             v["row"] = "pass" if row["pass"] else "fail"
             v["named"] = row["selected"]
             named = ", ".join(v["named"]) or "none named"

@@ -41,7 +41,7 @@ import numpy as np
 import scipy.signal
 import scipy.stats
 
-from .segments import Segment
+from .segments import Segment, motion_before
 
 __all__ = [
     "ANCHOR",
@@ -142,13 +142,10 @@ def condition_shares(
     held = anchoring.heldout
     if r.shape != held.shape:
         raise ValueError(f"residual: {r.size} samples, the anchoring has {held.size}")
-    labels, last = [], "hold"
-    for s in segments:
-        if s.kind == "hold":
-            labels.append("hold" if last == "hold" else f"hold after {last}")
-        else:
-            labels.append(s.condition)
-            last = s.condition
+    labels = [
+        s.condition if s.kind != "hold" else "hold" if m is None else f"hold after {m.condition}"
+        for s, m in zip(segments, motion_before(segments), strict=True)
+    ]
     sums: dict[str, list[float]] = {}
     for k in np.unique(anchoring.unit[held]):
         m = held & (anchoring.unit == k)

@@ -46,6 +46,7 @@ __all__ = [
     "DriveReading",
     "Segment",
     "holds_by_motion",
+    "motion_before",
     "one_sided",
     "read_drive",
     "segment_trace",
@@ -495,16 +496,22 @@ def _halves(seg: Segment) -> tuple[Segment, Segment]:
     return replace(seg, end=mid), replace(seg, start=mid)
 
 
-def _motion_before(segments: list[Segment]) -> list[int]:
-    """The direction of the last motion (scan or burst) before each segment; 0 where none
-    came before. ``segments`` in time order."""
-    out: list[int] = []
-    before = 0
+def motion_before(segments: list[Segment]) -> list[Segment | None]:
+    """The last motion (scan or burst) before each segment; None where none came before.
+    ``segments`` in time order."""
+    out: list[Segment | None] = []
+    before = None
     for s in segments:
         out.append(before)
         if s.kind != "hold":
-            before = s.direction
+            before = s
     return out
+
+
+def _motion_before(segments: list[Segment]) -> list[int]:
+    """The direction of the last motion before each segment (:func:`motion_before`); 0
+    where none came before."""
+    return [m.direction if m is not None else 0 for m in motion_before(segments)]
 
 
 def holds_by_motion(segments: list[Segment]) -> dict[str, Counter]:
