@@ -94,6 +94,61 @@ def test_a_bursts_ramp_ratio_is_read_within_one_sample_of_flyback(f, a, periods,
     assert s.frequency == pytest.approx(f, rel=0.05) and s.periods == periods
 
 
+def _jumps_read(r) -> np.ndarray:
+    """The model drive's change across each jump the reading put in [V]."""
+    before = np.interp(r.jumps - 2e-9, r.time, r.level)
+    after = np.interp(r.jumps + 1e-9, r.time, r.level)
+    return after - before
+
+
+@pytest.mark.parametrize(
+    ("fs", "f", "a"),
+    [
+        (10e3, 2000.0, 0.98),  # 5 samples a period (the third plant's axis-A trace)
+        (25e3, 2000.0, 0.995),  # 12.5
+        (20e3, 1250.0, 0.995),  # 16
+        (10e3, 500.0, 0.995),  # 20: the run-on a sample's rise, 5 % of the span
+    ],
+)
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_ramp_runs_on_to_a_flyback_between_samples(fs, f, a, sign):
+    """A flyback within one sample interval is the generator's full span, not the samples'
+    change: the ramp fills the interval but for the flyback's own (1 − a)/f, so the step
+    read is the samples' change plus one interval of ramp, the span to within the share
+    (1 − a)/a (`segments._ramp_on`; no sample falls within a flyback in these cases).
+    Held flat to the middle, a 6 V, 2 kHz, a = 0.98 burst on a 10 kHz DAQ read as 4.9 V;
+    the burst's amplitude is read from the same levels."""
+    amp = 3.0
+    t, u = _linear_flyback_sawtooth(f, a, 6, fs=fs, amp=amp, sign=sign)
+    r = read_drive(t, u)
+    spans = -sign * _jumps_read(r)
+    samples = -sign * np.array([u[i + 1] - u[i] for i in np.searchsorted(t, r.jumps) - 1])
+    inside = (r.jumps > 0.0201234 + 0.5 / f) & (r.jumps < 0.0201234 + 5.5 / f)
+    assert inside.sum() == 5
+    # the samples alone fall a ramp interval short; the reading is the span
+    assert np.all(samples[inside] < amp * (1.0 - 0.9 * f / fs))
+    assert spans[inside] == pytest.approx(amp, rel=(1.0 - a) / a + 1e-6)
+    s = next(s for s in segment_trace(r, t[-1]) if s.kind == "steps")
+    assert s.amplitude == pytest.approx(amp, rel=(1.0 - a) / a + 0.01)
+
+
+def test_a_file_with_the_generators_corners_is_not_run_on():
+    """Rows off the sampling clock are the generator's corners (a file that adds a row at
+    every drive breakpoint): the ramp ends there, and each step is the change the file
+    records, held to the interval's middle as before."""
+    t, u = _linear_flyback_sawtooth(2000.0, 0.98, 6, fs=10e3)
+    hold, f, a, amp = 0.0201234, 2000.0, 0.98, 3.0
+    corners = hold + (np.arange(6) + a) / f  # each ramp's top, just before its flyback
+    t2 = np.concatenate([t, corners])
+    u2 = np.concatenate([u, np.full(corners.size, amp)])
+    order = np.argsort(t2)
+    t2, u2 = t2[order], u2[order]
+    r = read_drive(t2, u2)
+    assert r.recording == "sampled" and r.jumps.size >= 6
+    recorded = np.array([u2[i + 1] - u2[i] for i in np.searchsorted(t2, r.jumps) - 1])
+    np.testing.assert_allclose(_jumps_read(r), recorded, atol=1e-9)
+
+
 @pytest.mark.parametrize(
     ("fs", "f", "a", "periods"),
     [

@@ -5,7 +5,9 @@ generator's corners, a jump as two samples at nearly the same time) or as **samp
 the generator's output at the detector rate (10–100 kHz), where the sawtooth's flyback —
 a step that the amplifier shapes (§4.1.2, Fig. 4.2) — falls between two samples.
 :func:`read_drive` finds such single-sample drops and rises and turns each into a step at
-the middle of its sample interval (timing uncertainty ± half an interval): read as
+the middle of its sample interval (timing uncertainty ± half an interval), the ramp on
+either side running on to it at its slope on a uniform sampling clock (the step is the
+generator's span, not the samples' change; :func:`_ramp_on`): read as
 piecewise linear, a 2 V drop over 50 µs is a slow flyback after which the model barely
 steps. A single-sample change is a step where it is several times its neighbours'
 typical change, or, in a sawtooth of few samples per period (a 2 kHz burst on a 10 kHz
@@ -163,15 +165,16 @@ def read_drive(
         idx = np.flatnonzero(single)
         mids = 0.5 * (t[idx] + t[idx + 1])
         unc = 0.5 * dt_med
+        before, after = _ramp_on(single, t, du)
         bt_list, bu_list = (
             [t[: idx[0] + 1]] if idx.size else [t],
             [u[: idx[0] + 1]] if idx.size else [u],
         )
         for j, i in enumerate(idx):
             nxt = idx[j + 1] if j + 1 < idx.size else t.size - 1
-            # hold the level to the interval's middle, jump, hold to the next sample
+            # the ramp on to the interval's middle, the jump, the ramp on to the next sample
             bt_list.append(np.array([mids[j], mids[j] + 1e-9]))
-            bu_list.append(np.array([u[i], u[i + 1]]))
+            bu_list.append(np.array([u[i] + before[i], u[i + 1] - after[i]]))
             bt_list.append(t[i + 1 : nxt + 1])
             bu_list.append(u[i + 1 : nxt + 1])
         bt, bu = np.concatenate(bt_list), np.concatenate(bu_list)
@@ -193,6 +196,37 @@ def read_drive(
         declared=declared is not None,
         warnings=tuple(warnings),
     )
+
+
+def _ramp_on(single: np.ndarray, t: np.ndarray, du: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far the ramp runs on into each single-sample step's interval [V], before the
+    step (``before``, from the sample before it) and after it (``after``, to the sample
+    after it), the step at the interval's middle.
+
+    A sawtooth's ramp does not stop at the last sample before its flyback: it runs on at
+    its slope until the flyback, and starts again at its bottom before the next sample.
+    Held flat to the middle, a 6 V, 2 kHz, a = 0.98 sawtooth on a 10 kHz DAQ (five
+    samples a period) was read as 4.9 V, its flyback four ramp samples' size where the
+    generator's is nearly five. Wherever the flyback falls in the interval, the ramp
+    fills the interval but for the flyback's own duration, so the step is the samples'
+    change plus one interval of ramp; put at the middle, half of it lies on each side. The
+    slope on each side is that of the neighbouring interval where that is a ramp against
+    the step's sense and not itself a step. Only on a uniform sampling clock: a file
+    with rows off the clock holds the generator's corners, where the ramp ends (the second
+    independent plant's traces add a row at every drive breakpoint).
+    """
+    n = du.size
+    before, after = np.zeros(n + 1), np.zeros(n + 1)
+    dt = np.diff(t)
+    if n < 2 or np.ptp(dt) >= 0.01 * float(np.median(dt)):
+        return before, after
+    half = 0.5 * dt
+    for i in np.flatnonzero(single):
+        if i >= 1 and not single[i - 1] and du[i - 1] * du[i] < 0.0:
+            before[i] = du[i - 1] / dt[i - 1] * half[i]
+        if i + 1 < n and not single[i + 1] and du[i + 1] * du[i] < 0.0:
+            after[i] = du[i + 1] / dt[i + 1] * half[i]
+    return before, after
 
 
 def _resolved_flybacks_sampled(single: np.ndarray, du: np.ndarray) -> np.ndarray:
