@@ -10,6 +10,15 @@ changes were each six times the ramp's). Prints the net rotation of each [µrad]
 jumps the reading finds.
 
     python experiments/flyback_reading.py [--rates 10000,25000]
+    python experiments/flyback_reading.py --phases 8 [--rates 10000,20000,25000]
+
+``--phases N`` (stop 89) draws N phases of the generator's clock against the DAQ's (a
+seeded draw) for each of :data:`PHASE_CASES` and prints, per case and rate, the
+generator's mean net rotation and the reading's error against it, mean and RMS over the
+phases [µrad], for the reading (the ramp run on to each flyback at the interval's middle,
+:func:`~turntable_env.calibration.segments.read_drive`) and for the reading before stop
+89, each level held flat to the middle (:func:`held`). A single phase, as the table
+above draws, is one draw of where the flyback falls between two samples.
 
 A flyback of two sample intervals or more steps the model under the staircase where the
 generator's, slower than the tubes' period, hardly does; read linear it steps as generated
@@ -38,13 +47,21 @@ CASES = [
     (2000.0, 0.98, 3.0),
 ]
 PERIODS = 3
+# (frequency [Hz], ramp ratio a, amplitude [V]) with flybacks within one sample (--phases)
+PHASE_CASES = [
+    (2000.0, 0.98, 3.0),
+    (2000.0, 0.98, 6.0),  # the third plant's 10 kHz trace's burst
+    (1000.0, 0.99, 4.0),
+    (200.0, 0.97, 3.0),
+    (100.0, 0.99, 4.5),
+]
 HOLD = 0.0201234  # s before and after: the generator's clock at a phase of the DAQ's
 GENERATOR_RATE = 1e6  # Hz
 
 
-def sawtooth(t: np.ndarray, f: float, a: float, amp: float) -> np.ndarray:
-    """The generator's output [V] at times t [s]: PERIODS periods after HOLD."""
-    ph = (t - HOLD) * f
+def sawtooth(t: np.ndarray, f: float, a: float, amp: float, hold: float = HOLD) -> np.ndarray:
+    """The generator's output [V] at times t [s]: PERIODS periods after ``hold`` [s]."""
+    ph = (t - hold) * f
     x = ph % 1.0
     u = np.where(x < a, x / a, (1.0 - x) / (1.0 - a)) * amp
     return np.where((ph >= 0) & (ph < PERIODS), u, 0.0)
@@ -66,9 +83,48 @@ def staircase(t: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.array(bt), np.array(bu)
 
 
+def held(t: np.ndarray, u: np.ndarray, jumps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Breakpoints of the samples with a jump at the middle of each interval that holds
+    one of ``jumps`` [s], the levels held flat on either side (the reading before stop 89)."""
+    idx = set((np.searchsorted(t, jumps) - 1).tolist())
+    bt, bu = [t[0]], [u[0]]
+    for i in range(t.size - 1):
+        if i in idx:
+            mid = 0.5 * (t[i] + t[i + 1])
+            bt += [mid, mid + 1e-9]
+            bu += [u[i], u[i + 1]]
+        bt.append(t[i + 1])
+        bu.append(u[i + 1])
+    return np.array(bt), np.array(bu)
+
+
+def phase_errors(plant: Plant, f: float, a: float, amp: float, fs: float,
+                 phases: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:  # fmt: skip
+    """The generator's mean net rotation [rad] over the phases (each a fraction of the
+    DAQ's interval by which the burst starts later), and each reading's error against the
+    generator's at each phase [rad]: rows (read, held)."""
+    gens, errs = [], []
+    for ph in phases:
+        hold = 0.02 + float(ph) / fs
+        t_end = 2 * hold + PERIODS / f
+        tg = np.arange(0.0, t_end, 1.0 / GENERATOR_RATE)
+        gen = simulate_trace(plant, "B", tg, sawtooth(tg, f, a, amp, hold)).theta[-1]
+        t = np.arange(0.0, t_end, 1.0 / fs)
+        u = sawtooth(t, f, a, amp, hold)
+        r = read_drive(t, u)
+        read = simulate_trace(plant, "B", t, u, breakpoints=(r.time, r.level)).theta[-1]
+        old = simulate_trace(plant, "B", t, u, breakpoints=held(t, u, r.jumps)).theta[-1]
+        gens.append(gen)
+        errs.append((read - gen, old - gen))
+    return float(np.mean(gens)), np.array(errs).T, np.array(gens)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="flyback_reading", description=__doc__.splitlines()[0])
     ap.add_argument("--rates", default="10000,25000", help="DAQ rates [Hz], comma-separated")
+    ap.add_argument("--phases", type=int, default=0,
+                    help="draw this many clock phases per case (0: the table of one phase)")
+    ap.add_argument("--seed", type=int, default=1, help="seed of the phases' draw")
     args = ap.parse_args(argv)
     try:
         rates = [float(v) for v in args.rates.split(",")]
@@ -79,7 +135,23 @@ def main(argv: list[str] | None = None) -> int:
     if not rates or any(not 1e3 <= r <= 1e6 for r in rates):
         print(f"flyback_reading: --rates {args.rates!r}: each in 1e3..1e6 Hz", file=sys.stderr)
         return 2
+    if not 0 <= args.phases <= 1000:
+        print(f"flyback_reading: --phases {args.phases}: must be in 0..1000", file=sys.stderr)
+        return 2
     plant = Plant("real", fidelity="reduced")
+    if args.phases:
+        phases = np.random.default_rng(args.seed).uniform(0.0, 1.0, args.phases)
+        print(f"net rotation over {args.phases} clock phases [µrad]: the generator's mean, "
+              "each reading's error against it (mean, RMS)")  # fmt: skip
+        print("case                      rate   generator   read: mean    rms   held: mean    rms")
+        for f, a, amp in PHASE_CASES:
+            for fs in rates:
+                gen, (e_read, e_held), _ = phase_errors(plant, f, a, amp, fs, phases)
+                print(f"{amp:3.1f} V {f:6.0f} Hz a {a:4.2f}  {fs / 1e3:5.0f} kHz {gen * 1e6:10.3f}"
+                      f"  {np.mean(e_read) * 1e6:10.3f} {np.sqrt(np.mean(e_read**2)) * 1e6:7.3f}"
+                      f"  {np.mean(e_held) * 1e6:10.3f} {np.sqrt(np.mean(e_held**2)) * 1e6:7.3f}",
+                      flush=True)  # fmt: skip
+        return 0
     print("case                      rate     jumps  generator     read   linear  staircase")
     for f, a, amp in CASES:
         t_end = 2 * HOLD + PERIODS / f

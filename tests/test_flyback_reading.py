@@ -35,3 +35,25 @@ def test_bad_rates_are_refused_with_exit_2(script, capsys, rates):
     assert script.main(["--rates", rates]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--rates" in err
+
+
+def test_the_held_reading_jumps_by_the_samples_change(script):
+    """``held`` (the reading before stop 89) keeps each sample's level to the interval's
+    middle: its jump is the samples' change, one ramp interval short of the span that
+    ``read_drive`` runs the ramp on to."""
+    f, a, fs, amp = 2000.0, 0.98, 10e3, 6.0
+    t = np.arange(0.0, 2 * script.HOLD + script.PERIODS / f, 1.0 / fs)
+    u = script.sawtooth(t, f, a, amp)
+    jumps = script.read_drive(t, u).jumps
+    bt, bu = script.held(t, u, jumps)
+    at = np.flatnonzero(np.diff(bt) < 1e-8)
+    assert at.size == jumps.size
+    i = np.searchsorted(t, jumps) - 1
+    np.testing.assert_allclose(np.diff(bu)[at], u[i + 1] - u[i])
+
+
+@pytest.mark.parametrize("phases", ["-1", "1001"])
+def test_bad_phase_counts_are_refused_with_exit_2(script, capsys, phases):
+    assert script.main(["--phases", phases]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--phases" in err
