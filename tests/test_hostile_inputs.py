@@ -22,6 +22,7 @@ import pytest
 import turntable_env  # noqa: F401  (registers the envs)
 from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.thesis_data import THESIS_DATA_FILE
+from turntable_env.calibration.trace_fit import check_information, clipped_stretch, trace_data
 from turntable_env.cli import main
 from turntable_env.envs.config import MAX_NUM_ENVS
 from turntable_env.files import MARKER, output_directory, write_atomic
@@ -311,6 +312,105 @@ def test_a_trace_without_information_is_refused_before_fitting(case, lab_file, t
     _one_line_exit_2(capsys, rc, str(p))
     assert not out.exists()  # no report, no calibrated.toml
     assert time.perf_counter() - t0 < 120  # refused up front, not after a global stage
+
+
+@pytest.mark.parametrize("steps_per_noise", [2.0, 8.0])
+def test_a_quantised_detector_has_its_quantisation_noise_as_floor(
+    steps_per_noise, lab_file, tmp_path
+):
+    """A detector read by an ADC whose step q is larger than its noise: most quiet
+    samples read alike, the MAD of their differences is 0, and a floor of 0 ended a
+    calibration in a ZeroDivisionError after its fit (a 12-bit ±10 V ADC, q = 4.9 mV, under
+    1 mV of noise). The floor is the standard deviation of the differences, never under
+    the step's quantisation noise q/√12 (``residual.noise_floor``); an unquantised record
+    keeps its MAD estimate."""
+    src = load_measurement(lab_file)
+    plain = trace_data(src)
+    q = steps_per_noise * plain.floor / plain.scale  # [V]
+
+    def quantise(c):
+        c["detector_V"] = np.round(c["detector_V"] / q) * q
+        return c
+
+    td = trace_data(load_measurement(_rewrite(lab_file, tmp_path / "adc.csv", quantise)))
+    assert plain.floor_source == "first differences in quiet holds"
+    assert td.floor >= q / math.sqrt(12.0) * td.scale * (1.0 - 1e-9)
+    # the quantised record's noise: its own plus at most the quantisation's
+    assert td.floor <= math.hypot(plain.floor, q / math.sqrt(12.0) * td.scale) * 1.25
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_clipped_detector_is_named(side, lab_file, tmp_path):
+    """A detector that stays at its extreme while a burst moves the table is clipped at
+    its range: the calibration warns, naming the level and where it starts, and the
+    unclipped file draws no such warning."""
+    src = load_measurement(lab_file)
+    td = trace_data(src)
+    burst = next(s for s in td.segments if s.kind == "steps")
+    v = src.detector_v
+    inside = (src.time >= burst.start) & (src.time < burst.end)
+    level = float(np.median(v[inside]))  # half the burst beyond it
+
+    def clip(c):
+        c["detector_V"] = np.minimum(c["detector_V"], level) if side > 0 else np.maximum(
+            c["detector_V"], level)  # fmt: skip
+        return c
+
+    m = load_measurement(_rewrite(lab_file, tmp_path / "clipped.csv", clip))
+    msg = clipped_stretch(m.time, m.detector_v, td.segments)
+    assert f"stays at {level:.6g} V" in msg and "clipped" in msg
+    assert clipped_stretch(src.time, src.detector_v, td.segments) == ""
+
+
+def test_a_detector_without_noise_is_refused_before_fitting(lab_file, tmp_path, capsys):
+    """A held detector (one level, then another) has no noise floor to weigh the
+    residuals by: refused in one line before any fit, not divided by zero after one."""
+
+    def held(c):
+        c["detector_V"] = np.where(c["t_s"] > 0.5 * c["t_s"][-1], 0.5, 0.0)
+        return c
+
+    p = _rewrite(lab_file, tmp_path / "held.csv", held)
+    out = tmp_path / "report"
+    rc = main(["calibrate", str(p), "--report", str(out)])
+    _one_line_exit_2(capsys, rc, str(p), "shows no noise")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "needle"),
+    [
+        ("# axis: B", "# axis=B", "line 1 reads '# axis=B'"),
+        ("# axis: B", "# Axis: B", "its key in lower case"),
+        ("t_s,", "t_s;", "by semicolons"),
+        ("t_s,", ",t_s,", "an empty column name"),
+    ],
+)
+def test_a_near_miss_of_the_format_is_named(old, new, needle, lab_file, tmp_path, capsys):
+    """Files a lab writes nearly in the format (another separator, a key's case, a pandas
+    index column) are refused with what is off, not only that a key or column is unknown."""
+    text = lab_file.read_text()
+    assert old in text
+    p = tmp_path / "near.csv"
+    p.write_text(text.replace(old, new, 1))
+    rc = main(["calibrate", str(p), "--report", str(tmp_path / "report")])
+    _one_line_exit_2(capsys, rc, str(p), needle)
+
+
+def test_the_sampling_intervals_range_holds_its_ends(lab_file, tmp_path):
+    """A 1 kHz file with decimal times (0.001 apart, 0.0010000000000000009 in binary) is
+    at the range's end, not outside it ("0.001 s, outside 1e-06…0.001 s" before)."""
+    m = load_measurement(lab_file)
+    keep = np.flatnonzero(np.diff(np.floor(m.time * 1e3), prepend=-1.0) > 0)
+
+    def decimate(c):
+        c = {k: v[keep] for k, v in c.items()}
+        c["t_s"] = np.round(c["t_s"], 3)
+        return c
+
+    d = load_measurement(_rewrite(lab_file, tmp_path / "1kHz.csv", decimate))
+    assert float(np.median(np.diff(d.time))) > 1e-3
+    check_information(d)  # no ValueError
 
 
 # --- 7. Ctrl-C stops a compiled run -------------------------------------------------------

@@ -229,6 +229,33 @@ def load_measurement(path: str | Path) -> Measurement:
     return _parse(_read_text(p), p)
 
 
+def _near_miss(lines: list[str], n_meta: int, key: str) -> str:
+    """A hint for a missing metadata key that a line above the header nearly gives (another
+    separator than ':', another case), or ""."""
+    for k, line in enumerate(lines[:n_meta]):
+        body = line[1:].strip() if line.startswith("#") else ""
+        name = body.replace("=", ":").partition(":")[0].strip()
+        if name.lower() == key and (name != key or ":" not in body):
+            return (
+                f" (line {k + 1} reads {line.strip()!r}: a metadata line is '# {key}: value', "
+                "its key in lower case)"
+            )
+    return ""
+
+
+def _column_hint(column: str) -> str:
+    """Why a header cell may not be a column name: another separator, or an empty name."""
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+        if sep in column:
+            return f" (the format separates its columns by commas; this header by {name})"
+    if not column:
+        return (
+            " (an empty column name: a comma at the end of the header, or an index column "
+            "such as pandas' to_csv writes without index=False)"
+        )
+    return ""
+
+
 def _parse(text: str, p: Path) -> Measurement:
     """The measurement ``text`` holds, validated; errors name ``p`` and the line."""
     # lines end at LF, CRLF or CR only: str.splitlines would also end one at a form feed,
@@ -253,7 +280,7 @@ def _parse(text: str, p: Path) -> Measurement:
         i += 1
     for key in ("axis", *META_RANGES):
         if key not in meta:
-            raise ValueError(f"{p}:1: metadata '# {key}: ...' missing")
+            raise ValueError(f"{p}:1: metadata '# {key}: ...' missing{_near_miss(lines, i, key)}")
     ln, axis = meta["axis"]
     if axis not in AXES:
         raise ValueError(f"{p}:{ln}: metadata 'axis' = {axis!r}, must be one of {', '.join(AXES)}")
@@ -275,7 +302,9 @@ def _parse(text: str, p: Path) -> Measurement:
     known = {"t_s", "detector_V", "detector_y_V", *drive_cols}
     for c in header:
         if c not in known:
-            raise ValueError(f"{p}:{header_line}: column {c!r} is not part of the format")
+            raise ValueError(
+                f"{p}:{header_line}: column {c!r} is not part of the format{_column_hint(c)}"
+            )
     for c in ("t_s", "detector_V"):
         if c not in header:
             raise ValueError(f"{p}:{header_line}: column {c!r} missing")

@@ -41,7 +41,7 @@ import numpy as np
 import scipy.signal
 import scipy.stats
 
-from .segments import Segment, motion_before
+from .segments import Segment, motion_before, quantisation_step
 
 __all__ = [
     "ANCHOR",
@@ -165,6 +165,10 @@ def _mad_sigma(d: np.ndarray) -> float:
     return MAD_SCALE * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
 
 
+def _std_sigma(d: np.ndarray) -> float:
+    return float(np.std(d)) / math.sqrt(2.0)
+
+
 def noise_floor(
     time: np.ndarray, signal: np.ndarray, segments: list[Segment]
 ) -> tuple[float, str, int]:
@@ -174,9 +178,17 @@ def noise_floor(
 
     Each hold's second half (past ``SETTLE``) gives an estimate; a lightly damped table
     still rings in some holds, so only the holds within 1.5× of the lower quartile of
-    the estimates are pooled (robust MAD of their differences)."""
+    the estimates are pooled (robust MAD of their differences). A signal quantised by a
+    step q (an ADC's) is estimated by the standard deviation of its differences instead,
+    and never under its quantisation noise q/√12: a 12-bit ±10 V ADC under 1 mV of noise
+    reads most quiet samples alike, the MAD of their differences is 0 (a floor of 0
+    divided the feature misfits by zero), and a hold near a step's edge toggles. In an
+    unquantised record a hold whose differences are all but zero (a detector clipped at
+    its range) gives no estimate."""
     t = np.asarray(time, float)
     v = np.asarray(signal, float)
+    step = quantisation_step(v)
+    sigma = _mad_sigma if step == 0.0 else _std_sigma
     diffs, est = [], []
     for s in segments:
         if s.kind != "hold" or s.duration < 2 * SETTLE:
@@ -184,15 +196,20 @@ def noise_floor(
         sel = (t >= max(s.start + SETTLE, 0.5 * (s.start + s.end))) & (t < s.end)
         if sel.sum() > 30:
             d = np.diff(v[sel])
-            diffs.append(d)
-            est.append(_mad_sigma(d))
-    if not est:
-        return math.nan, "", 0
-    q = float(np.quantile(est, 0.25))
-    d = np.concatenate([d for d, e in zip(diffs, est, strict=True) if e <= 1.5 * q])
-    if d.size < 50:
-        return math.nan, "", 0
-    return _mad_sigma(d), "first differences in quiet holds", int(d.size)
+            e = sigma(d)
+            if e > 0.0 or step > 0.0:
+                diffs.append(d)
+                est.append(e)
+    pooled, source, n = math.nan, "", 0
+    if est:
+        q = float(np.quantile(est, 0.25))
+        d = np.concatenate([d for d, e in zip(diffs, est, strict=True) if e <= 1.5 * q])
+        if d.size >= 50:
+            pooled, source, n = sigma(d), "first differences in quiet holds", int(d.size)
+    adc = step / math.sqrt(12.0)
+    if adc > 0.0 and not pooled >= adc:
+        return adc, f"the signal's quantisation step {step:.3g} over √12", n
+    return pooled, source, n
 
 
 def residual_sigma(residual: np.ndarray) -> float:

@@ -50,6 +50,7 @@ __all__ = [
     "holds_by_motion",
     "motion_before",
     "one_sided",
+    "quantisation_step",
     "read_drive",
     "segment_trace",
     "split_portions",
@@ -129,7 +130,7 @@ def read_drive(
     du = np.diff(u)
     # a single-sample change much larger than its neighbours' typical change
     typical = _local_typical(du)
-    lsb = _resolution(u)
+    lsb = quantisation_step(u)
     big = ~explicit & (np.abs(du) > max(JUMP_MIN, 3.0 * lsb))
     # a sawtooth's flyback between two of its ramp's samples: against both neighbours'
     # sense and SAWTOOTH_RATIO times their size (a sawtooth of few samples per period,
@@ -254,9 +255,10 @@ def _resolved_flybacks_sampled(single: np.ndarray, du: np.ndarray) -> np.ndarray
     return out
 
 
-def _resolution(u: np.ndarray) -> float:
-    """The drive's quantisation step [V] (0 for an unquantised record): the smallest
-    common non-zero change, when the changes are multiples of it."""
+def quantisation_step(u: np.ndarray) -> float:
+    """A recorded signal's quantisation step (its ADC's or DAQ's least significant bit,
+    in the signal's unit; 0 for an unquantised record): the smallest common non-zero
+    change, when the changes are multiples of it."""
     d = np.abs(np.diff(u))
     d = d[d > 1e-12]
     if d.size < 10:

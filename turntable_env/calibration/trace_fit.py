@@ -115,6 +115,8 @@ __all__ = [
     "amplifier_finding",
     "at_base_gain",
     "calibrate_traces",
+    "check_information",
+    "clipped_stretch",
     "identifiable_effects",
     "on_base",
     "signature_search",
@@ -232,10 +234,16 @@ def check_information(m: Measurement, input_scale: float = 1.0) -> None:
     name = m.source or "trace"
     dt = float(np.median(np.diff(m.time)))
     lo, hi = SAMPLING_RANGE
-    if not lo <= dt <= hi:
+    # the ends belong to the range to a part in 10⁹ (a file's decimal times, 0.001 apart,
+    # differ by 0.0010000000000000009 in binary)
+    if not lo * (1.0 - 1e-9) <= dt <= hi * (1.0 + 1e-9):
+        why = (
+            "is the time column in seconds?" if dt > hi else
+            "sampled faster than the calibration reads: decimate the file, keeping the "
+            "drive's breakpoints"
+        )  # fmt: skip
         raise ValueError(
-            f"{name}: median sampling interval {dt:.3g} s, outside {lo:g}…{hi:g} s — is the "
-            "time column in seconds?"
+            f"{name}: median sampling interval {dt:.3g} s, outside {lo:g}…{hi:g} s — {why}"
         )
     drive = m.drives[m.axis]
     span = float(np.ptp(drive))
@@ -321,10 +329,50 @@ def _prepare(m: Measurement, input_scale: float = 1.0) -> tuple[TraceData, list[
             f"{Path(m.source).name or 'trace'}: no quiet hold of 10 ms: the noise floor is "
             "estimated from the whole trace's first differences (an upper bound)"
         )
+    if not floor > 0.0:
+        raise ValueError(
+            f"{m.source}: column 'detector_V' shows no noise (its first differences are "
+            "zero in the quiet holds and over the whole trace): a detector held, or clipped "
+            "at its range; the fit weighs every residual by the detector's noise"
+        )
+    clipped = clipped_stretch(m.time, m.detector_v, segs)
+    if clipped:
+        warnings.append(f"{Path(m.source).name or 'trace'}: {clipped}")
     if not anch.fit.any() or not anch.heldout.any():
         raise ValueError(f"{m.source}: the drive has no segment to fit or to hold out")
     td = TraceData(m, reading, segs, anch, scale, floor * scale, src, m.detector_y_v is not None)
     return td, warnings
+
+
+CLIP_RUN = 50  # samples: a detector at its extreme this long while the drive moves is clipped
+
+
+def clipped_stretch(time: np.ndarray, detector: np.ndarray, segments: list[Segment]) -> str:
+    """A warning where the detector sits at its largest or smallest value [V] for
+    :data:`CLIP_RUN` consecutive samples or more within a burst or a scan ("" otherwise):
+    the drive moves the table there, so a detector that does not move is clipped at its
+    range (a DAQ input or the photodiode amplifier's), and the fit reads the clipped
+    stretch as motion that stopped. A hold may sit at the extreme (a quantised detector
+    reads a still table alike)."""
+    t = np.asarray(time, float)
+    v = np.asarray(detector, float)
+    active = np.zeros(t.size, bool)
+    for s in segments:
+        if s.kind != "hold":
+            active |= (t >= s.start) & (t < s.end)
+    for level in (float(v.max()), float(v.min())):
+        at = np.concatenate([[False], (v == level) & active, [False]]).astype(np.int8)
+        edges = np.flatnonzero(np.diff(at))
+        starts, ends = edges[::2], edges[1::2]
+        if starts.size and int(np.max(ends - starts)) >= CLIP_RUN:
+            k = int(np.argmax(ends - starts))
+            return (
+                f"the detector stays at {level:.6g} V, its extreme, for {int(ends[k] - starts[k])} "
+                f"samples from t = {t[starts[k]]:.6g} s while the drive moves the table: a "
+                "detector clipped at its range? The fit reads a clipped stretch as motion "
+                "that stopped"
+            )
+    return ""
 
 
 def identifiable_effects(traces: Sequence[TraceData]) -> dict[str, str]:
