@@ -72,24 +72,23 @@ def staircase(t: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a fifth of the largest such change made a jump at mid-interval."""
     du = np.diff(u)
     fly = du < -0.2 * float(np.max(-du)) if np.any(du < 0) else np.zeros(du.size, bool)
-    bt, bu = [t[0]], [u[0]]
-    for i in range(du.size):
-        if fly[i]:
-            mid = 0.5 * (t[i] + t[i + 1])
-            bt += [mid, mid + 1e-9]
-            bu += [u[i], u[i + 1]]
-        bt.append(t[i + 1])
-        bu.append(u[i + 1])
-    return np.array(bt), np.array(bu)
+    return _jumps_held(t, u, fly)
 
 
 def held(t: np.ndarray, u: np.ndarray, jumps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Breakpoints of the samples with a jump at the middle of each interval that holds
     one of ``jumps`` [s], the levels held flat on either side (the reading before stop 89)."""
-    idx = set((np.searchsorted(t, jumps) - 1).tolist())
+    at = np.zeros(t.size - 1, bool)
+    at[np.searchsorted(t, jumps) - 1] = True
+    return _jumps_held(t, u, at)
+
+
+def _jumps_held(t: np.ndarray, u: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Breakpoints of the samples with a jump at the middle of each interval ``at`` marks,
+    each sample's level held flat to it."""
     bt, bu = [t[0]], [u[0]]
     for i in range(t.size - 1):
-        if i in idx:
+        if at[i]:
             mid = 0.5 * (t[i] + t[i + 1])
             bt += [mid, mid + 1e-9]
             bu += [u[i], u[i + 1]]

@@ -144,11 +144,12 @@ def read_drive(
     )
     single = big & ((np.abs(du) > JUMP_RATIO * np.maximum(typical, lsb)) | sawtooth)
     single = _resolved_flybacks_sampled(single, du)
+    uniform = dt.size > 0 and np.ptp(dt) < 0.01 * dt_med  # one sampling clock
     if declared is not None:
         recording = declared
     elif explicit.any():
         recording = "breakpoints"
-    elif single.any() or np.ptp(dt) < 0.01 * dt_med:
+    elif single.any() or uniform:
         recording = "sampled"
     else:
         recording = "breakpoints"
@@ -166,7 +167,7 @@ def read_drive(
         idx = np.flatnonzero(single)
         mids = 0.5 * (t[idx] + t[idx + 1])
         unc = 0.5 * dt_med
-        before, after = _ramp_on(single, t, du)
+        before, after = _ramp_on(single, t, du) if uniform else (np.zeros(t.size),) * 2
         bt_list, bu_list = (
             [t[: idx[0] + 1]] if idx.size else [t],
             [u[: idx[0] + 1]] if idx.size else [u],
@@ -212,15 +213,14 @@ def _ramp_on(single: np.ndarray, t: np.ndarray, du: np.ndarray) -> tuple[np.ndar
     fills the interval but for the flyback's own duration, so the step is the samples'
     change plus one interval of ramp; put at the middle, half of it lies on each side. The
     slope on each side is that of the neighbouring interval where that is a ramp against
-    the step's sense and not itself a step. Only on a uniform sampling clock: a file
-    with rows off the clock holds the generator's corners, where the ramp ends (the second
-    independent plant's traces add a row at every drive breakpoint).
+    the step's sense and not itself a step. For a uniform sampling clock only (the
+    caller's test): a file with rows off the clock holds the generator's corners, where
+    the ramp ends (the second independent plant's traces add a row at every drive
+    breakpoint).
     """
     n = du.size
     before, after = np.zeros(n + 1), np.zeros(n + 1)
     dt = np.diff(t)
-    if n < 2 or np.ptp(dt) >= 0.01 * float(np.median(dt)):
-        return before, after
     half = 0.5 * dt
     for i in np.flatnonzero(single):
         if i >= 1 and not single[i - 1] and du[i - 1] * du[i] < 0.0:
