@@ -6,9 +6,11 @@ number of segments and a digest of the model's drive (the reading's times, level
 jumps, rounded to 1 ps and 1 nV) and of the segments' conditions. Run it at two commits
 and compare the outputs: a file whose line differs is read differently, and every other
 file's calibration input is unchanged. ``--segments`` prints each file's non-hold
-segments (start, end [s], condition, periods, ramp ratio read) as well.
+segments (start, end [s], condition, periods, ramp ratio read) as well, and ``--floors``
+each file's noise floor [nm] as the fit reads it (stop 89: the floor of a quantised
+detector changed, and the three plants' 48 traces print theirs as before).
 
-    python experiments/drive_reading.py [--segments] [TRACE.csv ...]
+    python experiments/drive_reading.py [--segments] [--floors] [TRACE.csv ...]
 
 Default traces: every CSV of the three independent plants' trace sets
 (experiments/results/independent_traces, second_plant_traces and third_plant_traces,
@@ -29,6 +31,7 @@ import sys
 import numpy as np
 
 from turntable_env.calibration.segments import DriveReading, Segment, read_drive, segment_trace
+from turntable_env.calibration.trace_fit import trace_data
 from turntable_env.testing.trace_sets import load_traces
 
 
@@ -46,6 +49,8 @@ def fingerprint(reading: DriveReading, segments: list[Segment]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="drive_reading", description=__doc__.splitlines()[0])
     ap.add_argument("--segments", action="store_true", help="print each file's segments")
+    ap.add_argument("--floors", action="store_true",
+                    help="print each file's noise floor [nm] and its source (as the fit reads it)")
     ap.add_argument("traces", nargs="*", help="trace CSVs (default: the three plants' sets)")
     args = ap.parse_args(argv)
     try:
@@ -59,6 +64,9 @@ def main(argv: list[str] | None = None) -> int:
         name = f"{path.parent.name}/{path.name}"
         print(f"{name:48s} {reading.recording:11s} jumps {reading.jumps.size:4d} "
               f"segments {len(segs):3d} {fingerprint(reading, segs)}")  # fmt: skip
+        if args.floors:
+            td = trace_data(m)
+            print(f"    noise floor {td.floor:.6g} nm ({td.floor_source})")
         if args.segments:
             for s in segs:
                 if s.kind != "hold":

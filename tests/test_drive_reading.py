@@ -40,3 +40,19 @@ def test_a_missing_trace_is_refused_with_exit_2(script, tmp_path, capsys):
     assert script.main([str(tmp_path / "absent.csv")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("drive_reading:") and "absent.csv" in err and "\n" not in err
+
+
+def test_floors_prints_the_noise_floor_the_fit_reads(script, tmp_path, capsys):
+    """``--floors`` prints each file's noise floor as the calibration's own reading of the
+    file gives it (`trace_fit.trace_data`), so two commits' floors can be compared."""
+    from turntable_env.calibration.measurement import load_measurement
+    from turntable_env.calibration.trace_fit import trace_data
+    from turntable_env.cli import main as cli
+
+    p = tmp_path / "lab.csv"
+    assert cli(["virtual-lab", "--protocol", "standard", "--out", str(p)]) == 0
+    capsys.readouterr()
+    assert script.main(["--floors", str(p)]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if "noise floor" in ln)
+    td = trace_data(load_measurement(p))
+    assert f"noise floor {td.floor:.6g} nm ({td.floor_source})" in line
