@@ -189,3 +189,80 @@ def test_thesis_detector_is_the_parameter_sets_detector():
         p.distance,
         p.linear_range,
     )
+
+
+def _in_units(text: str, time_unit: str, volt_unit: str) -> str:
+    """GOOD with its columns renamed to ``time_unit`` / ``volt_unit`` and their cells
+    scaled to match (what a lab's logger writes in ms or mV)."""
+    tf = {"s": 1.0, "ms": 1e3, "us": 1e6}[time_unit]
+    vf = {"V": 1.0, "mV": 1e3}[volt_unit]
+    out = []
+    for line in text.splitlines():
+        if line.startswith("t_s,"):
+            line = ",".join(
+                f"t_{time_unit}" if c == "t_s" else c[:-2] + "_" + volt_unit
+                for c in line.split(",")
+            )
+        elif not line.startswith("#"):
+            cells = [float(c) for c in line.split(",")]
+            line = ",".join(repr(c * (tf if k == 0 else vf)) for k, c in enumerate(cells))
+        out.append(line)
+    return "\n".join(out) + "\n"
+
+
+@pytest.mark.parametrize(("time_unit", "volt_unit"), [("ms", "V"), ("us", "mV"), ("s", "mV")])
+def test_columns_in_other_units_load_as_si(tmp_path, time_unit, volt_unit):
+    """A column's unit is part of its name: t_ms, t_us and *_mV load to the same seconds
+    and volts as the SI file (to rounding of the scaled decimals)."""
+    si = load_measurement(_write(tmp_path, GOOD, "si.csv"))
+    m = load_measurement(_write(tmp_path, _in_units(GOOD, time_unit, volt_unit)))
+    np.testing.assert_allclose(m.time, si.time, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(m.drives["B"], si.drives["B"], rtol=1e-12)
+    np.testing.assert_allclose(m.detector_v, si.detector_v, rtol=1e-12)
+    np.testing.assert_allclose(m.detector_y_v, si.detector_y_v, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("edit", "line", "match"),
+    [
+        # a unit declared in the metadata that the columns it speaks of are not in
+        (lambda t: "# time_unit: ms\n" + t, 1, "'time_unit' = 'ms', but column 't_s' is in s"),
+        (lambda t: "# detector_unit: mV\n" + t, 1, "write 'detector_mV'"),
+        (lambda t: "# units: mV\n" + t, 1, "column 'drive_B_V' is in V"),
+        (lambda t: "# time_unit: fortnights\n" + t, 1, "not a unit of time"),
+        (lambda t: "# drive_unit: ms\n" + t, 1, "not a unit of voltage"),
+        # one quantity twice, in two units
+        (lambda t: t.replace("t_s,drive_B_V,detector_V,detector_y_V",
+                             "t_s,drive_B_V,detector_V,detector_mV"), 7,
+         "'detector_V' and 'detector_mV' are one quantity"),
+        # a drive in mV beyond the ±10 V input names the cell as written and its volts
+        (lambda t: _in_units(t, "s", "mV").replace("-2000.0", "-12000.0"), 11,
+         "'drive_B_mV' = -12000.0 = -12.0 V beyond the ±10 V"),
+    ],
+)
+def test_declared_units_must_agree_with_the_columns(tmp_path, edit, line, match):
+    """A unit in the metadata is read, not kept as text beside columns in another unit."""
+    p = _write(tmp_path, edit(GOOD))
+    with pytest.raises(ValueError, match=match) as exc:
+        load_measurement(p)
+    assert f"{p}:{line}" in str(exc.value)
+
+
+def test_units_of_other_quantities_and_agreeing_units_are_kept_as_text(tmp_path):
+    m = load_measurement(_write(tmp_path, "# temperature_unit: C\n# time_unit: ms\n"
+                                + _in_units(GOOD, "ms", "V")))  # fmt: skip
+    assert m.meta["temperature_unit"] == "C" and m.meta["time_unit"] == "ms"
+    assert m.time[1] == pytest.approx(1e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize("interval", [1e-4, 5e-5])
+def test_epoch_time_stamps_are_refused_naming_the_resolution(tmp_path, interval):
+    """Seconds since 1970 (1.7e9 s): float64 resolves 2.4e-7 s there, 0.5 % of a 20 kHz
+    interval. The file is refused with what to write (time from the record's start),
+    whether its stamps still increase (10 kHz: 0.24 % of the interval) or collide (20 kHz)."""
+    rows = [ln for ln in GOOD.splitlines() if ln[:1].isdigit()]
+    body = [f"{1.7e9 + k * interval!r}," + ln.split(",", 1)[1] for k, ln in enumerate(rows)]
+    head = [ln for ln in GOOD.splitlines() if not ln[:1].isdigit()]
+    p = _write(tmp_path, "\n".join(head + body) + "\n")
+    with pytest.raises(ValueError, match=r"resolved to 2\.4e-07 s: write time from the record"):
+        load_measurement(p)

@@ -413,6 +413,64 @@ def test_the_sampling_intervals_range_holds_its_ends(lab_file, tmp_path):
     check_information(d)  # no ValueError
 
 
+
+def test_a_trace_that_identifies_no_parameter_is_untested(lab_file, tmp_path):
+    """A millisecond of the lab's file (21 samples, the window with most motion) passes
+    the information check and meets its target at any parameters: the report says the
+    fit is untested (the data identify no nominal parameter), not only "met"."""
+    m = load_measurement(lab_file)
+    n = round(1e-3 / float(np.median(np.diff(m.time)))) + 1
+    k0 = max(range(0, m.time.size - n, n // 2), key=lambda k: np.ptp(m.detector_v[k : k + n]))
+
+    def cut(c):
+        c = {k: v[k0 : k0 + n] for k, v in c.items()}
+        c["t_s"] = c["t_s"] - c["t_s"][0]
+        return c
+
+    p = _rewrite(lab_file, tmp_path / "1ms.csv", cut)
+    out = tmp_path / "report"
+    assert main(["calibrate", str(p), "--report", str(out)]) == 0
+    diag = json.loads((out / "report.json").read_text())["diagnosis"]
+    assert diag["identified"] == 0
+    assert any(w.startswith("untested:") for w in diag["warnings"])
+    assert ": met, but untested: the data identify no nominal parameter" in (
+        out / "report.md").read_text()  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("meta", "factor", "needle"),
+    [
+        # the lab's angles on a detector 200× weaker (S ×20, L ÷10), logged in mV and
+        # written as V: the file's numbers are 5× the lab's, its detector 1000× the prior's
+        ({"detector_sensitivity_m_per_V": "0.00198", "detector_distance_m": "0.0175"}, 5.0,
+         "the detector moves 1e+03× (RMS"),
+        # S in m/mV read as m/V: the detector moves a thousandth of the prior's
+        ({"detector_sensitivity_m_per_V": "1e-7"}, 1.0, "the detector moves 0.001"),
+    ],
+)
+def test_a_detector_off_by_a_unit_is_refused_before_fitting(
+    meta, factor, needle, lab_file, tmp_path, capsys
+):
+    """A detector whose motion is 100× the prior model's or a hundredth of it (RMS and
+    range both) is refused at once, naming the file and the likely unit; the three
+    independent plants' traces read 0.44–3.5× (experiments/detector_scale.py)."""
+
+    def scaled(c):
+        c["detector_V"] = c["detector_V"] * factor
+        c["detector_y_V"] = c["detector_y_V"] * factor
+        return c
+
+    p = _rewrite(lab_file, tmp_path / "unit.csv", scaled)
+    text = p.read_text()
+    for k, v in meta.items():
+        old = next(ln for ln in text.splitlines() if ln.startswith(f"# {k}:"))
+        text = text.replace(old, f"# {k}: {v}")
+    p.write_text(text)
+    out = tmp_path / "report"
+    rc = main(["calibrate", str(p), "--report", str(out)])
+    _one_line_exit_2(capsys, rc, str(p), needle, "detector_mV")
+    assert not out.exists()
+
 # --- 7. Ctrl-C stops a compiled run -------------------------------------------------------
 def _as_a_shell_would() -> None:
     """The child's SIGINT as a terminal's shell starts a command: delivered, default action.

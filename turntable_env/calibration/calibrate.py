@@ -111,6 +111,16 @@ def _ratio(x: float, floor: float) -> str:
     return f"{x / floor:.1f}" if floor > 0 else "—"
 
 
+def _verdict(result: CalibrationResult) -> str:
+    """met / not met against the target; "untested" where the data identify no nominal
+    parameter (the diagnosis's ``identified``, absent in reports before it)."""
+    d = result.diagnosis
+    met = "met" if result.error_after <= d["target"] else "not met"
+    if d.get("identified", 1) == 0:
+        return f"{met}, but untested: the data identify no nominal parameter"
+    return met
+
+
 def _md_trace_sections(result: CalibrationResult) -> list[str]:
     """report.md lines of a trace calibration: floor, starts, parameters, diagnosis."""
     d = result.diagnosis
@@ -129,7 +139,7 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
         f"| final | {result.error_after:.3g} | {_ratio(result.error_after, floor)} |",
         "",
         f"Target max(3× floor, 2 % of the RMS motion {d['rms_motion']:.4g} {u}) = "
-        f"{d['target']:.3g} {u}: {'met' if result.error_after <= d['target'] else 'not met'}.",
+        f"{d['target']:.3g} {u}: {_verdict(result)}.",
         *(["", f"Amplifier (fitted in the nominal stage): {d['amplifier']['text']}."]
           if "amplifier" in d else []),
         "",

@@ -18,6 +18,14 @@ A measurement file is CSV in UTF-8 — only what a laboratory records:
   ``detector_y_V``    the photodiode's other output [V]                      no
   ==================  =====================================================  ==========
 
+A column's unit is part of its name, and the loader converts to SI: time may be written
+``t_ms`` or ``t_us`` (``t_µs``) and any voltage column with ``_mV`` for ``_V``
+(:data:`TIME_UNITS`, :data:`VOLTAGE_UNITS`). A metadata line that declares a unit
+(``# time_unit: ms``, ``# detector_unit: mV``, ``# units: V``; :func:`_declared_units`)
+must agree with the columns it speaks of: one that contradicts them is refused at its
+line, not kept as text beside columns read in another unit. Time from an epoch (seconds
+since 1970) is refused where float64 cannot resolve its sample interval there.
+
 Physical ranges (checked): amplifier gain 1–1000, S 1e-7–1e-2 m/V, L 1 mm–10 m,
 R_table 0.1 mm–1 m, |detector| ≤ 15 V. The watched axis must have its drive column; a
 metadata key appears once; numbers are plain ASCII decimals (``1.5e-3``; not ``1_0`` or
@@ -48,7 +56,7 @@ from ..inputs import read_input
 from ..validation import parse_decimal
 from .segments import RECORDINGS
 
-__all__ = ["AXES", "Measurement", "load_measurement"]
+__all__ = ["AXES", "TIME_UNITS", "VOLTAGE_UNITS", "Measurement", "load_measurement"]
 
 AXES = ("A", "B", "C", "Z")
 INPUT_LIMIT = 10.0  # V, amplifier input range (§4.1.1: LabView signal between ±10 V)
@@ -58,6 +66,19 @@ MAX_LINE_CHARS = 4096  # characters per line
 MAX_SAMPLES = 4_000_000  # samples per file
 MIN_SAMPLES = 16  # samples per file: a drive segment to fit and one to hold out
 MAX_GAP_FACTOR = 1000.0  # a sample interval this many times the median is a gap
+# the units a column's name may end in, and their factor to SI (s, V)
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+VOLTAGE_UNITS = {"V": 1.0, "mV": 1e-3}
+# the words a metadata line may declare a unit by: word → (quantity, unit as a suffix)
+UNIT_WORDS = {
+    **{w: ("time", "s") for w in ("s", "sec", "second", "seconds")},
+    **{w: ("time", "ms") for w in ("ms", "msec", "millisecond", "milliseconds")},
+    **{w: ("time", "us") for w in ("us", "µs", "μs", "usec", "microsecond", "microseconds")},
+    **{w: ("voltage", "V") for w in ("v", "volt", "volts")},
+    **{w: ("voltage", "mV") for w in ("mv", "millivolt", "millivolts")},
+}
+# the float64 resolution of a time stamp allowed, as a share of the median interval
+TIME_RESOLUTION = 1e-3
 META_RANGES = {  # key: (low, high, unit)
     "amplifier_gain": (1.0, 1000.0, "-"),
     "detector_sensitivity_m_per_V": (1e-7, 1e-2, "m/V"),
@@ -256,6 +277,72 @@ def _column_hint(column: str) -> str:
     return ""
 
 
+def _epoch_hint(t: float, always: bool = False) -> str:
+    """A hint for a time that float64 resolves coarsely (seconds since an epoch), or ""."""
+    if not always and t < 1e5:
+        return ""
+    return (
+        f" (time stamps {t:.4g} s from their zero, resolved to {np.spacing(t):.2g} s: write "
+        "time from the record's start, as t − t[0])"
+    )
+
+
+def _canonical(column: str) -> tuple[str, float]:
+    """A header cell's name in SI (``t_s``, ``<stem>_V``) and the factor to SI
+    (``("t_s", 1e-3)`` for ``t_ms``); the cell itself and 1.0 where its name carries no
+    unit the format reads."""
+    stem, _, unit = column.rpartition("_")
+    if stem == "t" and unit in TIME_UNITS:
+        return "t_s", TIME_UNITS[unit]
+    if (stem in ("detector", "detector_y") or stem.startswith("drive_")) and unit in VOLTAGE_UNITS:
+        return f"{stem}_V", VOLTAGE_UNITS[unit]
+    return column, 1.0
+
+
+def _declared_units(
+    p: Path, meta: dict[str, tuple[int, str]], written: list[str], canon: list[str]
+) -> None:
+    """Refuse a metadata line that declares a unit the columns it speaks of are not in
+    (``# time_unit: ms`` above ``t_s``), or a unit word the format does not read for
+    them. Keys: ``unit(s)`` alone (the word says time or voltage), ``time_unit``,
+    ``detector_unit``, ``drive_unit``, ``voltage_unit`` (``_units`` too); other keys that
+    end in ``_unit`` (a temperature's) are kept as text."""
+    times = [k for k, c in enumerate(canon) if c == "t_s"]
+    dets = [k for k, c in enumerate(canon) if c in ("detector_V", "detector_y_V")]
+    drives = [k for k, c in enumerate(canon) if c.startswith("drive_") and c.endswith("_V")]
+    for key, (ln, val) in meta.items():
+        k = key.lower()
+        what, _, tail = k.rpartition("_") if "_" in k else ("", "", k)
+        if tail not in ("unit", "units"):
+            continue
+        word = UNIT_WORDS.get(val.strip() if val.strip() in ("µs", "μs") else val.strip().lower())
+        if what in ("t", "time", "timestamp"):
+            quantity, cols = "time", times
+        elif what.startswith("detector"):
+            quantity, cols = "voltage", dets
+        elif what.startswith(("drive", "input")):
+            quantity, cols = "voltage", drives
+        elif what in ("", "voltage", "volt", "signal") and word is not None:
+            quantity, cols = word[0], times if word[0] == "time" else sorted(dets + drives)
+        else:
+            continue  # another quantity's unit, or a bare "units" the format does not read
+        if word is None or word[0] != quantity:
+            known = ", ".join(u for u in (TIME_UNITS if quantity == "time" else VOLTAGE_UNITS))
+            raise ValueError(
+                f"{p}:{ln}: metadata {key!r} = {val!r}: not a unit of {quantity} the format "
+                f"reads ({known}; a column's unit is part of its name)"
+            )
+        table = TIME_UNITS if quantity == "time" else VOLTAGE_UNITS
+        for c in cols:
+            stem, _, unit = written[c].rpartition("_")
+            if table[unit] != table[word[1]]:
+                raise ValueError(
+                    f"{p}:{ln}: metadata {key!r} = {val!r}, but column {written[c]!r} is in "
+                    f"{unit}: a column's unit is part of its name (write "
+                    f"'{stem}_{word[1]}' if it holds {word[1]})"
+                )
+
+
 def _parse(text: str, p: Path) -> Measurement:
     """The measurement ``text`` holds, validated; errors name ``p`` and the line."""
     # lines end at LF, CRLF or CR only: str.splitlines would also end one at a form feed,
@@ -294,31 +381,47 @@ def _parse(text: str, p: Path) -> Measurement:
     if i >= len(lines):
         raise ValueError(f"{p}: no header row")
     header_line = i + 1
-    header = [c.strip() for c in next(csv.reader([lines[i]]))]
+    written = [c.strip() for c in next(csv.reader([lines[i]]))]
+    canon, factor = zip(*map(_canonical, written), strict=True) if written else ((), ())
+    header = list(canon)  # the columns in SI: t_s, detector_V, drive_<X>_V
     drive_cols = [c for c in header if c.startswith("drive_") and c.endswith("_V")]
     for c in drive_cols:
         if c[6:-2] not in AXES:
-            raise ValueError(f"{p}:{header_line}: column {c!r}: unknown channel {c[6:-2]!r}")
+            w = written[header.index(c)]
+            raise ValueError(f"{p}:{header_line}: column {w!r}: unknown channel {c[6:-2]!r}")
     known = {"t_s", "detector_V", "detector_y_V", *drive_cols}
-    for c in header:
+    for c, w in zip(header, written, strict=True):
         if c not in known:
             raise ValueError(
-                f"{p}:{header_line}: column {c!r} is not part of the format{_column_hint(c)}"
+                f"{p}:{header_line}: column {w!r} is not part of the format{_column_hint(w)}"
             )
-    for c in ("t_s", "detector_V"):
+    for c, alt in (("t_s", " (or t_ms, t_us)"), ("detector_V", " (or detector_mV)")):
         if c not in header:
-            raise ValueError(f"{p}:{header_line}: column {c!r} missing")
+            raise ValueError(f"{p}:{header_line}: column {c!r}{alt} missing")
     if not drive_cols:
         raise ValueError(f"{p}:{header_line}: no drive_<axis>_V column")
-    twice = [c for i, c in enumerate(header) if c in header[:i]]
+    twice = [k for k, c in enumerate(header) if c in header[:k]]
     if twice:
-        raise ValueError(f"{p}:{header_line}: column {twice[0]!r} appears twice")
+        k = twice[0]
+        first = written[header.index(header[k])]
+        raise ValueError(
+            f"{p}:{header_line}: column {written[k]!r} appears twice" if first == written[k]
+            else f"{p}:{header_line}: columns {first!r} and {written[k]!r} are one quantity"
+        )
+    _declared_units(p, meta, written, header)
     if f"drive_{axis}_V" not in header:
         raise ValueError(
             f"{p}:{header_line}: column 'drive_{axis}_V' missing: the watched axis "
             f"({axis}, line {ln}) must be driven"
         )
     t_col = header.index("t_s")
+    tw = written[t_col]
+
+    def _as_written(c: str) -> str:
+        """'name' = (the cell as written, and its SI value's) prefix of a range message."""
+        k = header.index(c)
+        return f"{written[k]!r} = {cells[k].strip()} = " if factor[k] != 1.0 else f"{c!r} = "
+
     buf = array.array("d")  # the samples, row by row: 8 bytes a number, no list of rows
     n_rows = 0
     prev_t = -math.inf
@@ -329,7 +432,7 @@ def _parse(text: str, p: Path) -> Measurement:
         if len(cells) != len(header):
             raise ValueError(f"{p}:{j + 1}: {len(cells)} cells, the header has {len(header)}")
         row = []
-        for name, cell in zip(header, cells, strict=True):
+        for name, cell, f in zip(written, cells, factor, strict=True):
             v = parse_decimal(cell)
             if v is None and _NONFINITE.fullmatch(cell.strip()):
                 raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
@@ -337,27 +440,31 @@ def _parse(text: str, p: Path) -> Measurement:
                 raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not a number")
             if not math.isfinite(v):
                 raise ValueError(f"{p}:{j + 1}: column {name!r} = {cell!r} is not finite")
-            row.append(v)
+            row.append(v * f)
         if n_rows >= MAX_SAMPLES:
             raise ValueError(f"{p}:{j + 1}: more than {MAX_SAMPLES} samples")
         buf.extend(row)
         n_rows += 1
         rec = dict(zip(header, row, strict=True))
         if rec["t_s"] < 0.0:
-            raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is negative")
+            raise ValueError(f"{p}:{j + 1}: column {tw!r} = {cells[t_col]!r} is negative")
         if rec["t_s"] <= prev_t:
-            raise ValueError(f"{p}:{j + 1}: column 't_s' = {rec['t_s']!r} is not increasing")
+            raise ValueError(
+                f"{p}:{j + 1}: column {tw!r} = {cells[t_col]!r} is not increasing"
+                + _epoch_hint(rec["t_s"])
+            )
         prev_t = rec["t_s"]
         for c in drive_cols:
             if abs(rec[c]) > INPUT_LIMIT:
                 raise ValueError(
-                    f"{p}:{j + 1}: column {c!r} = {rec[c]!r} V beyond the ±{INPUT_LIMIT:g} V "
-                    "amplifier input"
+                    f"{p}:{j + 1}: column {_as_written(c)}{rec[c]!r} V beyond the "
+                    f"±{INPUT_LIMIT:g} V amplifier input"
                 )
         for c in ("detector_V", "detector_y_V"):
             if c in rec and abs(rec[c]) > DETECTOR_LIMIT:
                 raise ValueError(
-                    f"{p}:{j + 1}: column {c!r} = {rec[c]!r} V beyond ±{DETECTOR_LIMIT:g} V"
+                    f"{p}:{j + 1}: column {_as_written(c)}{rec[c]!r} V beyond "
+                    f"±{DETECTOR_LIMIT:g} V"
                 )
     if n_rows < MIN_SAMPLES:
         raise ValueError(f"{p}: need at least {MIN_SAMPLES} samples, found {n_rows}")
@@ -371,6 +478,13 @@ def _parse(text: str, p: Path) -> Measurement:
             f"t = {float(t[k]):.6g} s, more than "
             f"{MAX_GAP_FACTOR:g}× the median interval {float(np.median(dt)):.6g} s (a record "
             "with a gap: split it into files)"
+        )
+    worst = float(np.spacing(np.max(np.abs(t))))
+    if worst > TIME_RESOLUTION * float(np.median(dt)):
+        raise ValueError(
+            f"{p}:{header_line + 1}: column {tw!r} reaches {float(t[-1]):.6g} s, where a "
+            f"number resolves only {worst:.2g} s, over {TIME_RESOLUTION:g} of the median "
+            f"interval {float(np.median(dt)):.3g} s{_epoch_hint(float(t[-1]), always=True)}"
         )
     col = {c: data[:, k] for k, c in enumerate(header)}
     det = Detector(

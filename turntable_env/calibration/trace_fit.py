@@ -116,6 +116,7 @@ __all__ = [
     "at_base_gain",
     "calibrate_traces",
     "check_information",
+    "check_scale",
     "clipped_stretch",
     "identifiable_effects",
     "on_base",
@@ -221,6 +222,11 @@ SAMPLING_RANGE = (1e-6, 1e-3)  # s: a detector sampled outside this is a unit mi
 MIN_DRIVE_RANGE = 1e-2  # V of amplifier input: a drive that moves less steps nothing
 MIN_DETECTOR_RANGE = 1e-6  # V: below any photodiode amplifier's resolution
 MIN_SIGNAL_TO_NOISE = 10.0  # detector range over its noise floor (first differences)
+# the most a detector's motion may differ from the prior model's for the file's drive (RMS
+# about its first sample and range both): beyond, a unit (a detector logged in mV and
+# written as V is ×1000) or a detector constant is wrong; the 48 traces of the three
+# independent plants read 0.44–3.5 (``python experiments/detector_scale.py``)
+MAX_SCALE_RATIO = 100.0
 
 
 def check_information(m: Measurement, input_scale: float = 1.0) -> None:
@@ -266,6 +272,34 @@ def check_information(m: Measurement, input_scale: float = 1.0) -> None:
             f"(needs {MIN_DETECTOR_RANGE:g} V and {MIN_SIGNAL_TO_NOISE:g}× the noise): it "
             "does not respond to the drive, nothing to calibrate"
         )
+
+
+def scale_ratios(problem: TraceProblem, x: np.ndarray) -> list[tuple[float, float]]:
+    """Per trace: the detector's motion over the model's at ``x`` for the file's drive, as
+    (RMS about the first sample, peak-to-peak) ratios."""
+    out = []
+    for td, (xv, _yv) in zip(problem.traces, problem.signals(x, {}), strict=True):
+        d = td.m.detector_v
+        rms = float(np.sqrt(np.mean((d - d[0]) ** 2) / max(np.mean((xv - xv[0]) ** 2), 1e-300)))
+        out.append((rms, float(np.ptp(d) / max(float(np.ptp(xv)), 1e-300))))
+    return out
+
+
+def check_scale(problem: TraceProblem, x_prior: np.ndarray) -> None:
+    """Refuse a trace whose detector moves more than :data:`MAX_SCALE_RATIO` times, or
+    less than its inverse, what the prior model predicts for its drive, both as RMS and
+    as range (ValueError naming the file and both ratios): no fit reaches a factor the
+    nominal parameters' priors put tens of σ away, and a unit or a detector constant is
+    the likelier cause."""
+    for td, (rms, ptp) in zip(problem.traces, scale_ratios(problem, x_prior), strict=True):
+        if min(rms, ptp) > MAX_SCALE_RATIO or max(rms, ptp) < 1.0 / MAX_SCALE_RATIO:
+            raise ValueError(
+                f"{td.m.source or 'trace'}: the detector moves {rms:.3g}× (RMS; {ptp:.3g}× "
+                f"in range) what the prior model predicts for this drive, beyond "
+                f"{MAX_SCALE_RATIO:g}× either way: a detector in mV written as V (name the "
+                "column detector_mV), or a wrong detector_sensitivity_m_per_V, "
+                "detector_distance_m or amplifier_gain?"
+            )
 
 
 def at_base_gain(m: Measurement, amplifier: Any) -> tuple[Measurement, list[str]]:
@@ -1241,6 +1275,7 @@ def calibrate_traces(
     say(f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
         f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})")  # fmt: skip
     x_prior = np.zeros(len(model))
+    check_scale(problem, x_prior)
     before = problem.rms(x_prior, {}, "heldout")
     r0 = problem.residual(x_prior, {}, "fit")
     problem.weight = 1.0 / (
@@ -1287,6 +1322,15 @@ def calibrate_traces(
             f"structure the model lacks ({diag.get('signature', 'see the residual')})"
         )
     params, plant = _fitted(model, current, selected, warnings)
+    # how many nominal parameters the data identify: none, and the target tests nothing
+    # (a trace of a millisecond meets it at any parameters)
+    diag["identified"] = sum(bool(v.get("identified", True)) for v in params["nominal"].values())
+    if diag["identified"] == 0:
+        warnings.append(
+            "untested: the data identify no nominal parameter (each held at its prior), so "
+            "the held-out error against the target says nothing of the model: record "
+            "scans and bursts over a longer trace"
+        )
     diag["warnings"] = warnings
     overlay = _overlay(problem, current)
     return CalibrationResult(
