@@ -343,6 +343,43 @@ def _declared_units(
                 )
 
 
+def _header(
+    p: Path, text: str, header_line: int, meta: dict[str, tuple[int, str]]
+) -> tuple[list[str], list[str], tuple[float, ...], list[str]]:
+    """The header row ``text`` (line ``header_line``) validated: the columns in SI
+    (``t_s``, ``detector_V``, ``drive_<X>_V``), as written, each one's factor to SI, and
+    the drive columns; the metadata's declared units checked against them."""
+    written = [c.strip() for c in next(csv.reader([text]))]
+    canon, factor = zip(*map(_canonical, written), strict=True) if written else ((), ())
+    header = list(canon)  # the columns in SI: t_s, detector_V, drive_<X>_V
+    drive_cols = [c for c in header if c.startswith("drive_") and c.endswith("_V")]
+    for c in drive_cols:
+        if c[6:-2] not in AXES:
+            w = written[header.index(c)]
+            raise ValueError(f"{p}:{header_line}: column {w!r}: unknown channel {c[6:-2]!r}")
+    known = {"t_s", "detector_V", "detector_y_V", *drive_cols}
+    for c, w in zip(header, written, strict=True):
+        if c not in known:
+            raise ValueError(
+                f"{p}:{header_line}: column {w!r} is not part of the format{_column_hint(w)}"
+            )
+    for c, alt in (("t_s", " (or t_ms, t_us)"), ("detector_V", " (or detector_mV)")):
+        if c not in header:
+            raise ValueError(f"{p}:{header_line}: column {c!r}{alt} missing")
+    if not drive_cols:
+        raise ValueError(f"{p}:{header_line}: no drive_<axis>_V column")
+    twice = [k for k, c in enumerate(header) if c in header[:k]]
+    if twice:
+        k = twice[0]
+        first = written[header.index(header[k])]
+        raise ValueError(
+            f"{p}:{header_line}: column {written[k]!r} appears twice" if first == written[k]
+            else f"{p}:{header_line}: columns {first!r} and {written[k]!r} are one quantity"
+        )
+    _declared_units(p, meta, written, header)
+    return header, written, factor, drive_cols
+
+
 def _parse(text: str, p: Path) -> Measurement:
     """The measurement ``text`` holds, validated; errors name ``p`` and the line."""
     # lines end at LF, CRLF or CR only: str.splitlines would also end one at a form feed,
@@ -381,34 +418,7 @@ def _parse(text: str, p: Path) -> Measurement:
     if i >= len(lines):
         raise ValueError(f"{p}: no header row")
     header_line = i + 1
-    written = [c.strip() for c in next(csv.reader([lines[i]]))]
-    canon, factor = zip(*map(_canonical, written), strict=True) if written else ((), ())
-    header = list(canon)  # the columns in SI: t_s, detector_V, drive_<X>_V
-    drive_cols = [c for c in header if c.startswith("drive_") and c.endswith("_V")]
-    for c in drive_cols:
-        if c[6:-2] not in AXES:
-            w = written[header.index(c)]
-            raise ValueError(f"{p}:{header_line}: column {w!r}: unknown channel {c[6:-2]!r}")
-    known = {"t_s", "detector_V", "detector_y_V", *drive_cols}
-    for c, w in zip(header, written, strict=True):
-        if c not in known:
-            raise ValueError(
-                f"{p}:{header_line}: column {w!r} is not part of the format{_column_hint(w)}"
-            )
-    for c, alt in (("t_s", " (or t_ms, t_us)"), ("detector_V", " (or detector_mV)")):
-        if c not in header:
-            raise ValueError(f"{p}:{header_line}: column {c!r}{alt} missing")
-    if not drive_cols:
-        raise ValueError(f"{p}:{header_line}: no drive_<axis>_V column")
-    twice = [k for k, c in enumerate(header) if c in header[:k]]
-    if twice:
-        k = twice[0]
-        first = written[header.index(header[k])]
-        raise ValueError(
-            f"{p}:{header_line}: column {written[k]!r} appears twice" if first == written[k]
-            else f"{p}:{header_line}: columns {first!r} and {written[k]!r} are one quantity"
-        )
-    _declared_units(p, meta, written, header)
+    header, written, factor, drive_cols = _header(p, lines[i], header_line, meta)
     if f"drive_{axis}_V" not in header:
         raise ValueError(
             f"{p}:{header_line}: column 'drive_{axis}_V' missing: the watched axis "

@@ -274,6 +274,19 @@ def check_information(m: Measurement, input_scale: float = 1.0) -> None:
         )
 
 
+def _identified(params: Mapping[str, Mapping[str, Any]], warnings: list[str]) -> int:
+    """How many nominal parameters the data identify; with none, an "untested" warning
+    (the target tests nothing: a trace of a millisecond meets it at any parameters)."""
+    n = sum(bool(v.get("identified", True)) for v in params["nominal"].values())
+    if n == 0:
+        warnings.append(
+            "untested: the data identify no nominal parameter (each held at its prior), so "
+            "the held-out error against the target says nothing of the model: record "
+            "scans and bursts over a longer trace"
+        )
+    return n
+
+
 def scale_ratios(problem: TraceProblem, x: np.ndarray) -> list[tuple[float, float]]:
     """Per trace: the detector's motion over the model's at ``x`` for the file's drive, as
     (RMS about the first sample, peak-to-peak) ratios."""
@@ -1322,15 +1335,7 @@ def calibrate_traces(
             f"structure the model lacks ({diag.get('signature', 'see the residual')})"
         )
     params, plant = _fitted(model, current, selected, warnings)
-    # how many nominal parameters the data identify: none, and the target tests nothing
-    # (a trace of a millisecond meets it at any parameters)
-    diag["identified"] = sum(bool(v.get("identified", True)) for v in params["nominal"].values())
-    if diag["identified"] == 0:
-        warnings.append(
-            "untested: the data identify no nominal parameter (each held at its prior), so "
-            "the held-out error against the target says nothing of the model: record "
-            "scans and bursts over a longer trace"
-        )
+    diag["identified"] = _identified(params, warnings)
     diag["warnings"] = warnings
     overlay = _overlay(problem, current)
     return CalibrationResult(
