@@ -230,6 +230,7 @@ def test_columns_in_other_units_load_as_si(tmp_path, time_unit, volt_unit):
         (lambda t: "# detector_unit: mV\n" + t, 1, "write 'detector_mV'"),
         (lambda t: "# units: mV\n" + t, 1, "column 'drive_B_V' is in V"),
         (lambda t: "# time_unit: fortnights\n" + t, 1, "not a unit of time"),
+        (lambda t: "# Time unit: ms\n" + t, 1, "'Time unit' = 'ms', but column 't_s'"),
         (lambda t: "# drive_unit: ms\n" + t, 1, "not a unit of voltage"),
         # one quantity twice, in two units
         (lambda t: t.replace("t_s,drive_B_V,detector_V,detector_y_V",

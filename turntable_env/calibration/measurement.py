@@ -311,12 +311,12 @@ def _declared_units(
     dets = [k for k, c in enumerate(canon) if c in ("detector_V", "detector_y_V")]
     drives = [k for k, c in enumerate(canon) if c.startswith("drive_") and c.endswith("_V")]
     for key, (ln, val) in meta.items():
-        k = key.lower()
+        k = re.sub(r"[\s-]+", "_", key.strip().lower())  # "Time unit", "time-unit"
         what, _, tail = k.rpartition("_") if "_" in k else ("", "", k)
         if tail not in ("unit", "units"):
             continue
         word = UNIT_WORDS.get(val.strip() if val.strip() in ("µs", "μs") else val.strip().lower())
-        if what in ("t", "time", "timestamp"):
+        if what in ("t", "time", "timestamp") or what.endswith("_time"):
             quantity, cols = "time", times
         elif what.startswith("detector"):
             quantity, cols = "voltage", dets
