@@ -267,3 +267,94 @@ def test_epoch_time_stamps_are_refused_naming_the_resolution(tmp_path, interval)
     p = _write(tmp_path, "\n".join(head + body) + "\n")
     with pytest.raises(ValueError, match=r"resolved to 2\.4e-07 s: write time from the record"):
         load_measurement(p)
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        # units of other quantities than the columns': kept as text, the file read as is
+        "# trigger_time_unit: ms",
+        "# exposure_time_unit: us",
+        "# detector_distance_unit: m",
+        "# drive_frequency_units: Hz",
+        "# detector_noise_unit: mV",
+        "# detector_gain_unit: V/rad",
+        "# units: SI",
+        "# time: 14:32",
+        "# detector: PDQ80A",
+    ],
+)
+def test_units_of_other_quantities_leave_the_columns_alone(tmp_path, line):
+    m = load_measurement(_write(tmp_path, line + "\n" + GOOD))
+    key, _, value = line[2:].partition(": ")
+    assert m.meta[key] == value
+    assert m.time[1] == 0.001
+
+
+@pytest.mark.parametrize(
+    "line",
+    ["# time_base: ms", "# time: ms", "# unit_time: ms", "# clock_unit: ms", "# timeunit: ms",
+     "# units: s, V, mV, mV"],
+)
+def test_every_spelling_of_a_unit_declaration_is_read(tmp_path, line):
+    """Declarations a DAQ or a colleague writes (a time base, a unit list per column) are
+    read and checked against the columns, not kept as text while the cells load 1000×
+    off."""
+    p = _write(tmp_path, line + "\n" + GOOD)
+    with pytest.raises(ValueError, match=r"but column '(t_s|detector_V)' is in"):
+        load_measurement(p)
+    # the same declarations over columns in those units load as SI
+    right = _in_units(GOOD, "ms", "V") if "s, V" not in line else GOOD.replace(
+        "detector_V,detector_y_V", "detector_mV,detector_y_mV")  # fmt: skip
+    m = load_measurement(_write(tmp_path, line + "\n" + right, "right.csv"))
+    assert m.time[1] == pytest.approx(1e-3, rel=1e-12)
+
+
+def test_a_unit_list_of_another_length_is_refused(tmp_path):
+    p = _write(tmp_path, "# units: s, V, V\n" + GOOD)
+    with pytest.raises(ValueError, match="lists 3 units for 4 columns"):
+        load_measurement(p)
+
+
+@pytest.mark.parametrize(
+    ("edit", "line", "match"),
+    [
+        # a column name in another case, or of another vocabulary
+        (lambda t: t.replace("t_s,", "T_s,"), 7, "did you mean 't_s'"),
+        (lambda t: t.replace(",detector_V,", ",detector_mv,"), 7, "did you mean 'detector_mV'"),
+        (lambda t: t.replace("t_s,", "Time [s],"), 7, "its columns: t_s, t_ms or t_us"),
+        # no header row: the first data row read as one
+        (lambda t: t.replace("t_s,drive_B_V,detector_V,detector_y_V\n", ""), 7,
+         "a number where the header belongs"),
+        # a comment line among the data
+        (lambda t: t.replace("0.004,0.0,", "# re-armed\n0.004,0.0,"), 12,
+         "a comment inside the data"),
+        # a drive in millivolts under a volts name
+        (lambda t: t.replace("0.003,-2.0,", "0.003,-2000.0,"), 11,
+         r"beyond the ±10 V amplifier input \(in mV\? name the column drive_B_mV\)"),
+    ],
+)
+def test_a_misnamed_or_misplaced_line_says_what_to_write(tmp_path, edit, line, match):
+    p = _write(tmp_path, edit(GOOD))
+    with pytest.raises(ValueError, match=match) as exc:
+        load_measurement(p)
+    assert f"{p}:{line}" in str(exc.value)
+
+
+def test_metadata_under_another_comment_mark_is_named(tmp_path):
+    p = _write(tmp_path, GOOD.replace("# axis: B", "% axis: B"))
+    with pytest.raises(ValueError, match=r"line 1 reads '% axis: B': a metadata line is '# axis"):
+        load_measurement(p)
+
+
+def test_a_greek_mu_reads_as_the_micro_sign(tmp_path):
+    m = load_measurement(_write(tmp_path, _in_units(GOOD, "us", "V").replace("t_us", "t_\u03bcs")))
+    assert m.time[1] == pytest.approx(1e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize(("encoding", "name"), [("utf-16", "UTF-16"), ("cp1252", "Latin-1")])
+def test_another_encoding_is_named(tmp_path, encoding, name):
+    p = tmp_path / "enc.csv"
+    p.write_bytes(GOOD.replace("lab notebook", "Jürgen's notebook").encode(encoding))
+    with pytest.raises(ValueError, match=f"{name}.*save it so"):
+        load_measurement(p)

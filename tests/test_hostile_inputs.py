@@ -21,11 +21,21 @@ import pytest
 
 import turntable_env  # noqa: F401  (registers the envs)
 from turntable_env.calibration.measurement import load_measurement
+from turntable_env.calibration.nominal import NominalModel
 from turntable_env.calibration.thesis_data import THESIS_DATA_FILE
-from turntable_env.calibration.trace_fit import check_information, clipped_stretch, trace_data
+from turntable_env.calibration.trace_fit import (
+    TRACE_NOMINAL,
+    TraceProblem,
+    check_information,
+    clipped_stretch,
+    on_base,
+    signature_search,
+    trace_data,
+)
 from turntable_env.cli import main
 from turntable_env.envs.config import MAX_NUM_ENVS
 from turntable_env.files import MARKER, output_directory, write_atomic
+from turntable_env.plant import Plant
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -414,10 +424,11 @@ def test_the_sampling_intervals_range_holds_its_ends(lab_file, tmp_path):
 
 
 
-def test_a_trace_that_identifies_no_parameter_is_untested(lab_file, tmp_path):
+def test_a_trace_that_identifies_no_parameter_is_untested(lab_file, tmp_path, capsys):
     """A millisecond of the lab's file (21 samples, the window with most motion) passes
-    the information check and meets its target at any parameters: the report says the
-    fit is untested (the data identify no nominal parameter), not only "met"."""
+    the information check and meets its target at any parameters: the report and the
+    command line say the fit is untested (the data identify no nominal parameter), not
+    only "met", and do not flag the model as lacking a structure."""
     m = load_measurement(lab_file)
     n = round(1e-3 / float(np.median(np.diff(m.time)))) + 1
     k0 = max(range(0, m.time.size - n, n // 2), key=lambda k: np.ptp(m.detector_v[k : k + n]))
@@ -430,9 +441,13 @@ def test_a_trace_that_identifies_no_parameter_is_untested(lab_file, tmp_path):
     p = _rewrite(lab_file, tmp_path / "1ms.csv", cut)
     out = tmp_path / "report"
     assert main(["calibrate", str(p), "--report", str(out)]) == 0
+    assert "; untested: the data identify no nominal parameter" in capsys.readouterr().out
     diag = json.loads((out / "report.json").read_text())["diagnosis"]
     assert diag["identified"] == 0
     assert any(w.startswith("untested:") for w in diag["warnings"])
+    # too little data is not a model defect: no "unexplained" flag, met or not
+    assert not diag["unexplained"]
+    assert not any(w.startswith("unexplained:") for w in diag["warnings"])
     assert ": met, but untested: the data identify no nominal parameter" in (
         out / "report.md").read_text()  # fmt: skip
 
@@ -470,6 +485,42 @@ def test_a_detector_off_by_a_unit_is_refused_before_fitting(
     rc = main(["calibrate", str(p), "--report", str(out)])
     _one_line_exit_2(capsys, rc, str(p), needle, "detector_mV")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("offset", [0.05, 10.0])
+def test_time_from_any_start_is_read_from_the_first_sample(offset, lab_file, tmp_path):
+    """A record whose time starts at a trigger delay (50 ms) or a clock's reading (10 s)
+    is read as one from 0: the same segments, shifted, and the same signature features to
+    within their noise (stop 90: the segments were in the file's time and the features'
+    windows in time from the first sample, so every window missed and the calibration
+    ended in a ZeroDivisionError after its fit)."""
+    base = Plant("real", fidelity="reduced")
+    model = NominalModel(base, tuple(TRACE_NOMINAL))
+
+    def shifted(c):
+        c["t_s"] = c["t_s"] + offset
+        return c
+
+    traces = []
+    for p in (lab_file, _rewrite(lab_file, tmp_path / "late.csv", shifted)):
+        td, warns = on_base(load_measurement(p), base)
+        traces.append((td, warns))
+    (td0, w0), (td1, w1) = traces
+    assert td1.m.time[0] == 0.0
+    assert any("time starts at" in w for w in w1) and not any("time starts at" in w for w in w0)
+    assert [s.kind for s in td1.segments] == [s.kind for s in td0.segments]
+    np.testing.assert_allclose([s.start for s in td1.segments],
+                               [s.start for s in td0.segments], atol=1e-9)  # fmt: skip
+    x0 = np.zeros(len(model))
+    feats = []
+    for td in (td0, td1):
+        search = signature_search(TraceProblem([td], model))
+        search.find_lines(x0, {})
+        feats.append(search.data)
+    assert feats[0].names == feats[1].names
+    # to within their noise: t + offset − offset differs from t in the last bits, and a
+    # window's end that falls on a sample may take or leave it (the 10 s case: 0.37 σ)
+    assert np.all(np.abs(feats[1].value - feats[0].value) <= 0.5 * feats[0].noise)
 
 # --- 7. Ctrl-C stops a compiled run -------------------------------------------------------
 def _as_a_shell_would() -> None:

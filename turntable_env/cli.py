@@ -367,7 +367,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         f"selected effects: {', '.join(res.selected_effects) or 'none'}; {res.error_label} "
         f"{res.error_before:.3g} → {res.error_after:.3g} {res.error_unit}; residual structured: "
         f"{res.residual_structured}; {res.wall_s:.1f} s; report: {paths['json']}"
-    )
+        + ("; untested: the data identify no nominal parameter (a longer trace, with scans "
+           "and bursts)" if res.diagnosis.get("identified", 1) == 0 else "")
+    )  # fmt: skip
     return 0
 
 

@@ -69,7 +69,13 @@ def read_input(path: str | os.PathLike[str], what: str, max_bytes: int = MAX_INP
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise ValueError(f"{p}: not UTF-8 text (byte {exc.start}); a {what} is text") from None
+        enc = "UTF-16" if data[:2] in (b"\xff\xfe", b"\xfe\xff") or b"\x00" in data[:64] else (
+            "Latin-1 or Windows-1252, say")  # fmt: skip
+        line = data[: exc.start].count(b"\n") + 1
+        raise ValueError(
+            f"{p}:{line}: not UTF-8 text (byte {exc.start}; {enc}?); a {what} is text in "
+            "UTF-8: save it so"
+        ) from None
 
 
 def _nesting(text: str) -> int:

@@ -67,7 +67,7 @@ MAX_SAMPLES = 4_000_000  # samples per file
 MIN_SAMPLES = 16  # samples per file: a drive segment to fit and one to hold out
 MAX_GAP_FACTOR = 1000.0  # a sample interval this many times the median is a gap
 # the units a column's name may end in, and their factor to SI (s, V)
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "μs": 1e-6}  # micro sign, mu
 VOLTAGE_UNITS = {"V": 1.0, "mV": 1e-3}
 # the words a metadata line may declare a unit by: word → (quantity, unit as a suffix)
 UNIT_WORDS = {
@@ -251,12 +251,13 @@ def load_measurement(path: str | Path) -> Measurement:
 
 
 def _near_miss(lines: list[str], n_meta: int, key: str) -> str:
-    """A hint for a missing metadata key that a line above the header nearly gives (another
-    separator than ':', another case), or ""."""
-    for k, line in enumerate(lines[:n_meta]):
-        body = line[1:].strip() if line.startswith("#") else ""
+    """A hint for a missing metadata key that a line near the top nearly gives (another
+    separator than ':', another case, a comment mark other than '#'), or ""."""
+    for k, line in enumerate(lines[: max(n_meta, 1) + 20]):
+        lead = next((c for c in ("#", "%", "//", ";") if line.startswith(c)), "")
+        body = line[len(lead) :].strip() if lead else ""
         name = body.replace("=", ":").partition(":")[0].strip()
-        if name.lower() == key and (name != key or ":" not in body):
+        if name.lower() == key and (name != key or ":" not in body or lead != "#"):
             return (
                 f" (line {k + 1} reads {line.strip()!r}: a metadata line is '# {key}: value', "
                 "its key in lower case)"
@@ -274,7 +275,21 @@ def _column_hint(column: str) -> str:
             " (an empty column name: a comma at the end of the header, or an index column "
             "such as pandas' to_csv writes without index=False)"
         )
-    return ""
+    if parse_decimal(column) is not None:
+        return (
+            " (a number where the header belongs: the line after the metadata names the "
+            "columns, t_s,drive_<X>_V,detector_V)"
+        )
+    low = column.lower()
+    names = ["t_s", "t_ms", "t_us", "detector_V", "detector_mV", "detector_y_V",
+             "detector_y_mV", *(f"drive_{a}_{u}" for a in AXES for u in ("V", "mV"))]  # fmt: skip
+    for name in names:
+        if low == name.lower():
+            return f" (did you mean {name!r}? column names are case-sensitive)"
+    return (
+        " (its columns: t_s, t_ms or t_us; drive_<A|B|C|Z>_V, detector_V and detector_y_V,"
+        " each voltage also as _mV; delete any other column)"
+    )
 
 
 def _epoch_hint(t: float, always: bool = False) -> str:
@@ -299,48 +314,104 @@ def _canonical(column: str) -> tuple[str, float]:
     return column, 1.0
 
 
+# the words a unit key's subject may be (its words other than "unit", "units", "base"):
+# the columns it declares; any other subject (a trigger time, a distance) is kept as text
+UNIT_SUBJECTS = {
+    **{w: "time" for w in ("t", "time", "timestamp", "timestamps", "clock")},
+    **{w: "detector" for w in ("detector", "detector_v", "detector_voltage", "detector_y",
+                               "photodiode")},
+    **{w: "drive" for w in ("drive", "drive_v", "drive_voltage", "drives", "input",
+                            "amplifier_input")},
+    **{w: "voltage" for w in ("voltage", "voltages", "volt", "signal", "signals")},
+    "": "any",
+}
+_UNIT_WORDS_IN_KEY = ("unit", "units", "base")
+
+
+def _unit_key(key: str) -> tuple[str, bool] | None:
+    """A metadata key as a unit declaration: (its subject, whether it says "unit"), or
+    None. "time_unit", "Time unit", "timeunit", "unit_time", "time_base" and "units" are
+    declarations; "time" is one only with a unit word for value (the caller's check)."""
+    words = [w for w in re.split(r"[\s_-]+", key.strip().lower()) if w]
+    split: list[str] = []
+    for w in words:  # "timeunit", "timebase": a subject glued to its unit word
+        glued = next((u for u in _UNIT_WORDS_IN_KEY if w.endswith(u) and w != u), None)
+        split += [w[: -len(glued)], glued] if glued and w[: -len(glued)] in UNIT_SUBJECTS else [w]
+    says = any(w in _UNIT_WORDS_IN_KEY for w in split)
+    subject = "_".join(w for w in split if w not in _UNIT_WORDS_IN_KEY)
+    return (subject, says) if subject in UNIT_SUBJECTS else None
+
+
+def _unit_word(text: str) -> tuple[str, str] | None:
+    """(quantity, unit suffix) of a unit word (:data:`UNIT_WORDS`), or None."""
+    t = text.strip()
+    return UNIT_WORDS.get(t if t in ("µs", "μs") else t.lower())
+
+
 def _declared_units(
     p: Path, meta: dict[str, tuple[int, str]], written: list[str], canon: list[str]
 ) -> None:
     """Refuse a metadata line that declares a unit the columns it speaks of are not in
     (``# time_unit: ms`` above ``t_s``), or a unit word the format does not read for
-    them. Keys: ``unit(s)`` alone (the word says time or voltage), ``time_unit``,
-    ``detector_unit``, ``drive_unit``, ``voltage_unit`` (``_units`` too); other keys that
-    end in ``_unit`` (a temperature's) are kept as text."""
-    times = [k for k, c in enumerate(canon) if c == "t_s"]
-    dets = [k for k, c in enumerate(canon) if c in ("detector_V", "detector_y_V")]
-    drives = [k for k, c in enumerate(canon) if c.startswith("drive_") and c.endswith("_V")]
+    them. A declaration's key is a subject (:data:`UNIT_SUBJECTS`: time, the detector,
+    the drives, voltages, or none) with "unit", "units" or "base" (:func:`_unit_key`),
+    or a bare subject with a unit word for value (``# time: ms``); ``# units: s, V, mV``
+    lists one unit per column, in the header's order. Other keys, a trigger time's unit
+    or a distance's, are kept as text."""
+    cols_of = {
+        "time": [k for k, c in enumerate(canon) if c == "t_s"],
+        "detector": [k for k, c in enumerate(canon) if c in ("detector_V", "detector_y_V")],
+        "drive": [k for k, c in enumerate(canon) if c.startswith("drive_")],
+    }
+    cols_of["voltage"] = sorted(cols_of["detector"] + cols_of["drive"])
     for key, (ln, val) in meta.items():
-        k = re.sub(r"[\s-]+", "_", key.strip().lower())  # "Time unit", "time-unit"
-        what, _, tail = k.rpartition("_") if "_" in k else ("", "", k)
-        if tail not in ("unit", "units"):
+        parsed = _unit_key(key)
+        if parsed is None:
             continue
-        word = UNIT_WORDS.get(val.strip() if val.strip() in ("µs", "μs") else val.strip().lower())
-        if what in ("t", "time", "timestamp") or what.endswith("_time"):
-            quantity, cols = "time", times
-        elif what.startswith("detector"):
-            quantity, cols = "voltage", dets
-        elif what.startswith(("drive", "input")):
-            quantity, cols = "voltage", drives
-        elif what in ("", "voltage", "volt", "signal") and word is not None:
-            quantity, cols = word[0], times if word[0] == "time" else sorted(dets + drives)
-        else:
-            continue  # another quantity's unit, or a bare "units" the format does not read
-        if word is None or word[0] != quantity:
-            known = ", ".join(u for u in (TIME_UNITS if quantity == "time" else VOLTAGE_UNITS))
-            raise ValueError(
-                f"{p}:{ln}: metadata {key!r} = {val!r}: not a unit of {quantity} the format "
-                f"reads ({known}; a column's unit is part of its name)"
-            )
-        table = TIME_UNITS if quantity == "time" else VOLTAGE_UNITS
-        for c in cols:
-            stem, _, unit = written[c].rpartition("_")
-            if table[unit] != table[word[1]]:
+        subject, says = parsed
+        items = re.split(r"[,;]", val) if "," in val or ";" in val else [val]
+        if subject == "" and len(items) > 1:  # one unit per column, in order
+            if len(items) != len(written):
                 raise ValueError(
-                    f"{p}:{ln}: metadata {key!r} = {val!r}, but column {written[c]!r} is in "
-                    f"{unit}: a column's unit is part of its name (write "
-                    f"'{stem}_{word[1]}' if it holds {word[1]})"
+                    f"{p}:{ln}: metadata {key!r} = {val!r} lists {len(items)} units for "
+                    f"{len(written)} columns ({', '.join(written)})"
                 )
+            for c, item in enumerate(items):
+                quantity = "time" if canon[c] == "t_s" else "voltage"
+                _agree(p, ln, key, val, _unit_word(item), quantity, [c], written)
+            continue
+        word = _unit_word(val)
+        if not says and word is None:
+            continue  # "# time: 14:32", "# detector: PDQ80A": text
+        kind = UNIT_SUBJECTS[subject]
+        if kind == "any":
+            if word is None:
+                continue  # "# units: SI": text
+            kind = "time" if word[0] == "time" else "voltage"
+        quantity = "time" if kind == "time" else "voltage"
+        _agree(p, ln, key, val, word, quantity, cols_of[kind], written)
+
+
+def _agree(
+    p: Path, ln: int, key: str, val: str, word: tuple[str, str] | None, quantity: str,
+    cols: list[int], written: list[str],
+) -> None:
+    """ValueError unless ``word`` is a unit of ``quantity`` that every column ``cols``
+    (indices into ``written``) is written in."""
+    table = TIME_UNITS if quantity == "time" else VOLTAGE_UNITS
+    if word is None or word[0] != quantity:
+        raise ValueError(
+            f"{p}:{ln}: metadata {key!r} = {val!r}: not a unit of {quantity} the format "
+            f"reads ({', '.join(table)}; a column's unit is part of its name)"
+        )
+    for c in cols:
+        stem, _, unit = written[c].rpartition("_")
+        if table[unit] != table[word[1]]:
+            raise ValueError(
+                f"{p}:{ln}: metadata {key!r} = {val!r}, but column {written[c]!r} is in "
+                f"{unit}: a column's unit is part of its name (write "
+                f"'{stem}_{word[1]}' if it holds {word[1]})"
+            )
 
 
 def _header(
@@ -427,6 +498,13 @@ def _parse(text: str, p: Path) -> Measurement:
     t_col = header.index("t_s")
     tw = written[t_col]
 
+    def _mv_hint(c: str, v: float, limit: float) -> str:
+        """A hint where the column, read as millivolts, would be in range."""
+        k = header.index(c)
+        if factor[k] != 1.0 or abs(v) * 1e-3 > limit:
+            return ""
+        return f" (in mV? name the column {c[:-2]}_mV)"
+
     def _as_written(c: str) -> str:
         """'name' = (the cell as written, and its SI value's) prefix of a range message."""
         k = header.index(c)
@@ -440,7 +518,13 @@ def _parse(text: str, p: Path) -> Measurement:
             continue
         cells = next(csv.reader([lines[j]]))
         if len(cells) != len(header):
-            raise ValueError(f"{p}:{j + 1}: {len(cells)} cells, the header has {len(header)}")
+            where = (
+                " (a comment inside the data: metadata lines go above the header)"
+                if lines[j].lstrip().startswith(("#", "%")) else ""
+            )  # fmt: skip
+            raise ValueError(
+                f"{p}:{j + 1}: {len(cells)} cells, the header has {len(header)}{where}"
+            )
         row = []
         for name, cell, f in zip(written, cells, factor, strict=True):
             v = parse_decimal(cell)
@@ -468,13 +552,13 @@ def _parse(text: str, p: Path) -> Measurement:
             if abs(rec[c]) > INPUT_LIMIT:
                 raise ValueError(
                     f"{p}:{j + 1}: column {_as_written(c)}{rec[c]!r} V beyond the "
-                    f"±{INPUT_LIMIT:g} V amplifier input"
+                    f"±{INPUT_LIMIT:g} V amplifier input{_mv_hint(c, rec[c], INPUT_LIMIT)}"
                 )
         for c in ("detector_V", "detector_y_V"):
             if c in rec and abs(rec[c]) > DETECTOR_LIMIT:
                 raise ValueError(
                     f"{p}:{j + 1}: column {_as_written(c)}{rec[c]!r} V beyond "
-                    f"±{DETECTOR_LIMIT:g} V"
+                    f"±{DETECTOR_LIMIT:g} V{_mv_hint(c, rec[c], DETECTOR_LIMIT)}"
                 )
     if n_rows < MIN_SAMPLES:
         raise ValueError(f"{p}: need at least {MIN_SAMPLES} samples, found {n_rows}")

@@ -59,6 +59,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import threading
@@ -246,7 +247,7 @@ def check_information(m: Measurement, input_scale: float = 1.0) -> None:
         why = (
             "is the time column in seconds?" if dt > hi else
             "sampled faster than the calibration reads: decimate the file, keeping the "
-            "drive's breakpoints"
+            "drive's breakpoints (or is the time column's unit, t_s, t_ms or t_us, right?)"
         )  # fmt: skip
         raise ValueError(
             f"{name}: median sampling interval {dt:.3g} s, outside {lo:g}…{hi:g} s — {why}"
@@ -309,9 +310,9 @@ def check_scale(problem: TraceProblem, x_prior: np.ndarray) -> None:
             raise ValueError(
                 f"{td.m.source or 'trace'}: the detector moves {rms:.3g}× (RMS; {ptp:.3g}× "
                 f"in range) what the prior model predicts for this drive, beyond "
-                f"{MAX_SCALE_RATIO:g}× either way: a detector in mV written as V (name the "
-                "column detector_mV), or a wrong detector_sensitivity_m_per_V, "
-                "detector_distance_m or amplifier_gain?"
+                f"{MAX_SCALE_RATIO:g}× either way: the detector column in the wrong unit "
+                "(millivolts name it detector_mV, volts detector_V), or a wrong "
+                "detector_sensitivity_m_per_V, detector_distance_m or amplifier_gain?"
             )
 
 
@@ -364,6 +365,12 @@ def _prepare(m: Measurement, input_scale: float = 1.0) -> tuple[TraceData, list[
             "Z axis needs the full 3-D model; run it with `turntable simulate --axis Z`)"
         )
     check_information(m, input_scale)
+    if m.time[0] != 0.0:
+        # time from the first sample, as every reader of the trace counts it (the model
+        # starts at rest there; the segments, features and residual share one clock)
+        warnings.append(f"{Path(m.source).name or 'trace'}: time starts at "
+                        f"{float(m.time[0]):.6g} s; counted from its first sample")  # fmt: skip
+        m = dataclasses.replace(m, time=m.time - m.time[0])
     reading = read_drive(m.time, m.drives[m.axis], m.meta)
     warnings += [f"{Path(m.source).name or 'trace'}: {w}" for w in reading.warnings]
     segs = split_portions(segment_trace(reading, float(m.time[-1])))
@@ -1324,9 +1331,12 @@ def calibrate_traces(
         error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
         drive_recording=[td.reading.recording for td in traces],
     )  # fmt: skip
+    params, plant = _fitted(model, current, selected, warnings)
+    diag["identified"] = _identified(params, warnings)
     # flagged: the final model (nominal and named effects) does not explain the data to
-    # the target — something the catalogue lacks, or a model-structure mismatch
-    diag["unexplained"] = bool(current.heldout_rms > diag["target"])
+    # the target — something the catalogue lacks, or a model-structure mismatch; not
+    # where the data identify no parameter (too little data says nothing of the model)
+    diag["unexplained"] = bool(current.heldout_rms > diag["target"] and diag["identified"])
     if diag["unexplained"]:
         warnings.append(
             f"unexplained: the held-out error {current.heldout_rms:.3g} {ERROR_UNIT} stays above "
@@ -1334,8 +1344,6 @@ def calibrate_traces(
             f"{', '.join(selected) or 'no effect'}: an effect outside the catalogue or a "
             f"structure the model lacks ({diag.get('signature', 'see the residual')})"
         )
-    params, plant = _fitted(model, current, selected, warnings)
-    diag["identified"] = _identified(params, warnings)
     diag["warnings"] = warnings
     overlay = _overlay(problem, current)
     return CalibrationResult(
