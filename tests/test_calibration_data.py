@@ -45,6 +45,15 @@ def _write(tmp_path, text, name="m.csv"):
     return p
 
 
+def _refused_at(tmp_path, text: str, line: int, match: str) -> None:
+    """The file ``text`` is refused with a message matching ``match`` that names the
+    file and ``line``."""
+    p = _write(tmp_path, text)
+    with pytest.raises(ValueError, match=match) as exc:
+        load_measurement(p)
+    assert f"{p}:{line}" in str(exc.value)
+
+
 def test_loads_every_field(tmp_path):
     m = load_measurement(_write(tmp_path, GOOD))
     assert m.axis == "B" and m.amplifier_gain == 45.0
@@ -142,10 +151,7 @@ def test_save_refuses_what_the_loader_would_and_writes_nothing(tmp_path, change,
     ],
 )
 def test_malformed_file_names_file_line_and_column(tmp_path, edit, line, match):
-    p = _write(tmp_path, edit(GOOD))
-    with pytest.raises(ValueError, match=match) as exc:
-        load_measurement(p)
-    assert f"{p}:{line}" in str(exc.value)
+    _refused_at(tmp_path, edit(GOOD), line, match)
 
 
 def test_unreadable_or_empty_files(tmp_path):
@@ -243,10 +249,7 @@ def test_columns_in_other_units_load_as_si(tmp_path, time_unit, volt_unit):
 )
 def test_declared_units_must_agree_with_the_columns(tmp_path, edit, line, match):
     """A unit in the metadata is read, not kept as text beside columns in another unit."""
-    p = _write(tmp_path, edit(GOOD))
-    with pytest.raises(ValueError, match=match) as exc:
-        load_measurement(p)
-    assert f"{p}:{line}" in str(exc.value)
+    _refused_at(tmp_path, edit(GOOD), line, match)
 
 
 def test_units_of_other_quantities_and_agreeing_units_are_kept_as_text(tmp_path):
@@ -335,10 +338,7 @@ def test_a_unit_list_of_another_length_is_refused(tmp_path):
     ],
 )
 def test_a_misnamed_or_misplaced_line_says_what_to_write(tmp_path, edit, line, match):
-    p = _write(tmp_path, edit(GOOD))
-    with pytest.raises(ValueError, match=match) as exc:
-        load_measurement(p)
-    assert f"{p}:{line}" in str(exc.value)
+    _refused_at(tmp_path, edit(GOOD), line, match)
 
 
 def test_metadata_under_another_comment_mark_is_named(tmp_path):
