@@ -519,7 +519,7 @@ def test_time_from_any_start_is_read_from_the_first_sample(offset, lab_file, tmp
         feats.append(search.data)
     assert feats[0].names == feats[1].names
     # to within their noise: t + offset − offset differs from t in the last bits, and a
-    # window's end that falls on a sample may take or leave it (the 10 s case: 0.37 σ)
+    # window's end that falls on a sample may take or leave it
     assert np.all(np.abs(feats[1].value - feats[0].value) <= 0.5 * feats[0].noise)
 
 # --- 7. Ctrl-C stops a compiled run -------------------------------------------------------

@@ -288,24 +288,33 @@ def _identified(params: Mapping[str, Mapping[str, Any]], warnings: list[str]) ->
     return n
 
 
-def scale_ratios(problem: TraceProblem, x: np.ndarray) -> list[tuple[float, float]]:
+def scale_ratios(
+    problem: TraceProblem, x: np.ndarray,
+    signals: list[tuple[np.ndarray, np.ndarray]] | None = None,
+) -> list[tuple[float, float]]:
     """Per trace: the detector's motion over the model's at ``x`` for the file's drive, as
-    (RMS about the first sample, peak-to-peak) ratios."""
+    (RMS about the first sample, peak-to-peak) ratios (``signals``: the model's at x,
+    where already simulated)."""
     out = []
-    for td, (xv, _yv) in zip(problem.traces, problem.signals(x, {}), strict=True):
+    sig = problem.signals(x, {}) if signals is None else signals
+    for td, (xv, _yv) in zip(problem.traces, sig, strict=True):
         d = td.m.detector_v
         rms = float(np.sqrt(np.mean((d - d[0]) ** 2) / max(np.mean((xv - xv[0]) ** 2), 1e-300)))
         out.append((rms, float(np.ptp(d) / max(float(np.ptp(xv)), 1e-300))))
     return out
 
 
-def check_scale(problem: TraceProblem, x_prior: np.ndarray) -> None:
+def check_scale(
+    problem: TraceProblem, x_prior: np.ndarray,
+    signals: list[tuple[np.ndarray, np.ndarray]] | None = None,
+) -> None:
     """Refuse a trace whose detector moves more than :data:`MAX_SCALE_RATIO` times, or
     less than its inverse, what the prior model predicts for its drive, both as RMS and
     as range (ValueError naming the file and both ratios): no fit reaches a factor the
     nominal parameters' priors put tens of σ away, and a unit or a detector constant is
     the likelier cause."""
-    for td, (rms, ptp) in zip(problem.traces, scale_ratios(problem, x_prior), strict=True):
+    ratios = scale_ratios(problem, x_prior, signals)
+    for td, (rms, ptp) in zip(problem.traces, ratios, strict=True):
         if min(rms, ptp) > MAX_SCALE_RATIO or max(rms, ptp) < 1.0 / MAX_SCALE_RATIO:
             raise ValueError(
                 f"{td.m.source or 'trace'}: the detector moves {rms:.3g}× (RMS; {ptp:.3g}× "
@@ -562,11 +571,14 @@ class TraceProblem:
         return out
 
     def errors(
-        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]]
+        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]],
+        signals: list[tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> list[list[np.ndarray]]:
-        """Per trace: the anchored errors [nm] of its channels (x, and y if recorded)."""
+        """Per trace: the anchored errors [nm] of its channels (x, and y if recorded);
+        ``signals``: :meth:`signals` at (x, effects) where already simulated."""
         res = []
-        for td, (xv, yv) in zip(self.traces, self.signals(x, effects), strict=True):
+        sig = self.signals(x, effects) if signals is None else signals
+        for td, (xv, yv) in zip(self.traces, sig, strict=True):
             m = td.m
             chans = [td.anchoring.apply((m.detector_v - xv) * td.scale)]
             if td.has_y and m.detector_y_v is not None:
@@ -575,12 +587,14 @@ class TraceProblem:
         return res
 
     def portions(
-        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]]
+        self, x: np.ndarray, effects: Mapping[str, Mapping[str, float]],
+        signals: list[tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> dict[str, np.ndarray]:
         """Concatenated anchored errors [nm] on the ``"fit"`` and the ``"heldout"``
-        samples, both from one evaluation of the detector signals."""
+        samples, both from one evaluation of the detector signals (``signals``, as for
+        :meth:`errors`)."""
         parts: dict[str, list[np.ndarray]] = {"fit": [], "heldout": []}
-        for td, chans in zip(self.traces, self.errors(x, effects), strict=True):
+        for td, chans in zip(self.traces, self.errors(x, effects, signals), strict=True):
             parts["fit"] += [c[td.anchoring.fit] for c in chans]
             parts["heldout"] += [c[td.anchoring.heldout] for c in chans]
         return {k: np.concatenate(v) for k, v in parts.items()}
@@ -1295,9 +1309,11 @@ def calibrate_traces(
     say(f"{len(traces)} trace(s), {sum(len(td.segments) for td in traces)} segments; noise "
         f"floor {floor:.3g} {ERROR_UNIT} ({traces[0].floor_source})")  # fmt: skip
     x_prior = np.zeros(len(model))
-    check_scale(problem, x_prior)
-    before = problem.rms(x_prior, {}, "heldout")
-    r0 = problem.residual(x_prior, {}, "fit")
+    prior = problem.signals(x_prior, {})  # one simulation for the checks and "before"
+    check_scale(problem, x_prior, prior)
+    at_prior = problem.portions(x_prior, {}, prior)
+    before = _rms(at_prior["heldout"])
+    r0 = at_prior["fit"]
     problem.weight = 1.0 / (
         max(float(np.sqrt(np.mean(r0**2))), floor) * math.sqrt(correlation_length(r0))
     )
