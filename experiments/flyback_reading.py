@@ -112,9 +112,11 @@ def phase_errors(plant: Plant, f: float, a: float, amp: float, fs: float,
         u = sawtooth(t, f, a, amp, hold)
         r = read_drive(t, u)
         read = simulate_trace(plant, "B", t, u, breakpoints=(r.time, r.level)).theta[-1]
+        m = read_drive(t, u, landing=False)
+        mid = simulate_trace(plant, "B", t, u, breakpoints=(m.time, m.level)).theta[-1]
         old = simulate_trace(plant, "B", t, u, breakpoints=held(t, u, r.jumps)).theta[-1]
         gens.append(gen)
-        errs.append((read - gen, old - gen))
+        errs.append((read - gen, mid - gen, old - gen))
     return float(np.mean(gens)), np.array(errs).T, np.array(gens)
 
 
@@ -124,6 +126,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--phases", type=int, default=0,
                     help="draw this many clock phases per case (0: the table of one phase)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the phases' draw")
+    ap.add_argument("--aligned", action="store_true",
+                    help="with --phases: the one phase at which each flyback ends on a DAQ "
+                         "sample (the third independent plant's clocks) instead of the draw")
     args = ap.parse_args(argv)
     try:
         rates = [float(v) for v in args.rates.split(",")]
@@ -140,16 +145,19 @@ def main(argv: list[str] | None = None) -> int:
     plant = Plant("real", fidelity="reduced")
     if args.phases:
         phases = np.random.default_rng(args.seed).uniform(0.0, 1.0, args.phases)
-        print(f"net rotation over {args.phases} clock phases [µrad]: the generator's mean, "
+        if args.aligned:
+            phases = np.zeros(1)
+        print(f"net rotation over {phases.size} clock phases [µrad]: the generator's mean, "
               "each reading's error against it (mean, RMS)")  # fmt: skip
-        print("case                      rate   generator   read: mean    rms   held: mean    rms")
+        print("case                      rate   generator   read: mean    rms"
+              "    mid: mean    rms   held: mean    rms")  # fmt: skip
         for f, a, amp in PHASE_CASES:
             for fs in rates:
-                gen, (e_read, e_held), _ = phase_errors(plant, f, a, amp, fs, phases)
+                gen, errs, _ = phase_errors(plant, f, a, amp, fs, phases)
+                cols = "".join(f"  {np.mean(e) * 1e6:10.3f} {np.sqrt(np.mean(e**2)) * 1e6:7.3f}"
+                               for e in errs)  # fmt: skip
                 print(f"{amp:3.1f} V {f:6.0f} Hz a {a:4.2f}  {fs / 1e3:5.0f} kHz {gen * 1e6:10.3f}"
-                      f"  {np.mean(e_read) * 1e6:10.3f} {np.sqrt(np.mean(e_read**2)) * 1e6:7.3f}"
-                      f"  {np.mean(e_held) * 1e6:10.3f} {np.sqrt(np.mean(e_held**2)) * 1e6:7.3f}",
-                      flush=True)  # fmt: skip
+                      f"{cols}", flush=True)  # fmt: skip
         return 0
     print("case                      rate     jumps  generator     read   linear  staircase")
     for f, a, amp in CASES:

@@ -132,6 +132,68 @@ def test_the_ramp_runs_on_to_a_flyback_between_samples(fs, f, a, sign):
     assert s.amplitude == pytest.approx(amp, rel=(1.0 - a) / a + 0.01)
 
 
+def _generator_flybacks(f, a, periods, hold):
+    """The generator's flybacks as (start, end) times [s] of each period's drop."""
+    n = np.arange(periods)
+    return hold + (n + a) / f, hold + (n + 1) / f
+
+
+@pytest.mark.parametrize(
+    ("fs", "f", "a", "periods"),
+    [
+        (10e3, 2000.0, 0.98, 4),  # the third plant's axis-A trace: 5 samples a period
+        (10e3, 1000.0, 0.99, 6),
+        (25e3, 2000.0, 0.99, 8),  # 12.5 samples a period: the phase moves each period
+        (20e3, 500.0, 0.995, 3),
+    ],
+)
+# the generator's start after a sample [intervals]
+@pytest.mark.parametrize("offset", [0.0, 0.3, 0.75])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_sawtooths_flybacks_are_read_where_they_land(fs, f, a, periods, offset, sign):
+    """Every flyback of a burst lands on the level of the hold after it (the sawtooth's
+    bottom, its offset): the ramp after each, run back to that level, says where the
+    flyback ended, and the last one falls where the ramp before it reaches the level plus
+    the span (`segments.landing_phase`). Each step is read within the generator's flyback
+    (to the ramp's rise over it), where the interval's middle is up to half an interval
+    off, and lands on the hold's level; at offset 0 every flyback ends on a sample (the
+    third independent plant's clocks)."""
+    hold = 0.02 + offset / fs
+    t, u = _linear_flyback_sawtooth(f, a, periods, fs=fs, hold=hold, sign=sign)
+    start, end = _generator_flybacks(f, a, periods, hold)
+    assert not np.any((t[:, None] > start + 1e-12) & (t[:, None] < end - 1e-12))  # none inside
+    r = read_drive(t, u)
+    assert r.jumps.size == periods
+    edge = 2e-3 / fs  # segments.LANDING_EDGE
+    assert np.all(r.jumps >= start - edge) and np.all(r.jumps <= end + edge), (r.jumps - end) * fs
+    after = np.interp(r.jumps + 1e-9, r.time, r.level)
+    np.testing.assert_allclose(after, 0.0, atol=3.0 / a * f * edge)  # the ramp over the edge
+    before = sign * np.interp(r.jumps - 2e-9, r.time, r.level)
+    assert np.all(before >= 3.0 * (1 - 1e-9)) and np.all(before <= 3.0 / a * (1 + 1e-9))
+    mid = read_drive(t, u, landing=False)  # each step at its interval's middle
+    assert np.max(np.abs(mid.jumps - end)) >= np.max(np.abs(r.jumps - end))
+
+
+@pytest.mark.parametrize(
+    "shape",
+    ["centred", "one_period"],  # a bottom that is not the hold's level; no earlier flyback
+)
+def test_a_flyback_whose_landing_the_samples_do_not_give_stays_at_mid_interval(shape):
+    """Where the sawtooth's bottom is not the hold's level (a burst centred on it) or the
+    burst has one flyback only, nothing places the step: it stays at the interval's
+    middle, as read before."""
+    fs, f, a = 10e3, 2000.0, 0.98
+    periods = 1 if shape == "one_period" else 4
+    t, u = _linear_flyback_sawtooth(f, a, periods, fs=fs, hold=0.02 + 0.3 / fs)
+    if shape == "centred":
+        on = (t >= 0.02 + 0.3 / fs) & (t < 0.02 + 0.3 / fs + periods / f)
+        u = np.where(on, u - 1.5, 0.0)
+    r = read_drive(t, u)
+    i = np.searchsorted(t, r.jumps) - 1
+    assert r.jumps.size >= 1
+    np.testing.assert_allclose(r.jumps, 0.5 * (t[i] + t[i + 1]), atol=2e-9)
+
+
 def test_a_file_with_the_generators_corners_is_not_run_on():
     """Rows off the sampling clock are the generator's corners (a file that adds a row at
     every drive breakpoint): the ramp ends there, and each step is the change the file

@@ -7,7 +7,8 @@ a step that the amplifier shapes (§4.1.2, Fig. 4.2) — falls between two sampl
 :func:`read_drive` finds such single-sample drops and rises and turns each into a step at
 the middle of its sample interval (timing uncertainty ± half an interval), the ramp on
 either side running on to it at its slope on a uniform sampling clock (the step is the
-generator's span, not the samples' change; :func:`_ramp_on`): read as
+generator's span, not the samples' change; :func:`_ramp_on`), or, in a burst that lands
+on the hold after it, where that level places it (:func:`landing_phase`): read as
 piecewise linear, a 2 V drop over 50 µs is a slow flyback after which the model barely
 steps. A single-sample change is a step where it is several times its neighbours'
 typical change, or, in a sawtooth of few samples per period (a 2 kHz burst on a 10 kHz
@@ -48,6 +49,7 @@ __all__ = [
     "DriveReading",
     "Segment",
     "holds_by_motion",
+    "landing_phase",
     "motion_before",
     "one_sided",
     "quantisation_step",
@@ -67,6 +69,10 @@ RESOLVED_SAMPLES = 1.9  # a flyback of two sample intervals (less the ramp's ris
 # ones) or more is resolved by the samples and read linear between them
 SINGLE_FLYBACK = 0.1  # a lone return within this share of its stretch is a flyback (a ≥ 0.9)
 FLYBACK_MERGE = 0.2  # jumps closer than this fraction of the burst period form one flyback
+LANDING_TOL = 0.25  # a flyback's landing read this far outside its interval [intervals]: the
+# burst's sawtooth does not share the hold's level, and its steps stay at mid-interval
+LANDING_EDGE = 1e-3  # a step read at an interval's edge is put this far inside it [intervals]
+HOLD_SAMPLES = 3  # samples within QUIET_TOL after a burst's last flyback: it lands on a hold
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,7 +114,11 @@ def _local_typical(du: np.ndarray, half: int = 5) -> np.ndarray:
 
 
 def read_drive(
-    time: np.ndarray, drive: np.ndarray, meta: Mapping[str, str] | None = None
+    time: np.ndarray,
+    drive: np.ndarray,
+    meta: Mapping[str, str] | None = None,
+    *,
+    landing: bool = True,
 ) -> DriveReading:
     """How the model reads a recorded drive (module docstring).
 
@@ -116,6 +126,9 @@ def read_drive(
         time: sample times [s], strictly increasing; drive: amplifier input [V].
         meta: the file's metadata; ``drive_recording`` = ``breakpoints`` | ``sampled``
             overrides the detection (ValueError for another value).
+        landing: place a sampled sawtooth's steps where its burst's landing level says
+            (:func:`landing_phase`); False puts each at its interval's middle (the
+            reading before stop 91, for comparison).
     """
     t = np.asarray(time, float)
     u = np.asarray(drive, float)
@@ -165,9 +178,12 @@ def read_drive(
             )
     else:
         idx = np.flatnonzero(single)
-        mids = 0.5 * (t[idx] + t[idx + 1])
+        # where in its interval each step falls [-]: the middle, or where the level its
+        # burst lands on says (:func:`landing_phase`), on a uniform sampling clock
+        phase = landing_phase(single, t, u) if uniform and landing else np.full(du.size, 0.5)
+        mids = t[idx] + phase[idx] * dt[idx]
         unc = 0.5 * dt_med
-        before, after = _ramp_on(single, t, du) if uniform else (np.zeros(t.size),) * 2
+        before, after = _ramp_on(single, t, du, phase) if uniform else (np.zeros(t.size),) * 2
         bt_list, bu_list = (
             [t[: idx[0] + 1]] if idx.size else [t],
             [u[: idx[0] + 1]] if idx.size else [u],
@@ -182,9 +198,12 @@ def read_drive(
         bt, bu = np.concatenate(bt_list), np.concatenate(bu_list)
         jumps = mids + 1e-9
         if idx.size:
+            placed = int(np.count_nonzero(phase[idx] != 0.5))
+            where = (f"{placed} where their burst's landing level places them, the rest at "
+                     "mid-interval" if placed else "at mid-interval")  # fmt: skip
             warnings.append(
                 f"drive sampled every {dt_med * 1e6:.3g} µs: {idx.size} single-sample changes "
-                f"read as steps at mid-interval (timing ± {unc * 1e6:.3g} µs); flyback "
+                f"read as steps ({where}; timing ± {unc * 1e6:.3g} µs); flyback "
                 f"shapes shorter than {dt_med * 1e6:.3g} µs (the Fig. 4.3 adapted hold) are "
                 "not resolved — declare the drive as breakpoints if you have them"
             )
@@ -200,7 +219,9 @@ def read_drive(
     )
 
 
-def _ramp_on(single: np.ndarray, t: np.ndarray, du: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ramp_on(
+    single: np.ndarray, t: np.ndarray, du: np.ndarray, phase: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """How far the ramp runs on into each single-sample step's interval [V], before the
     step (``before``, from the sample before it) and after it (``after``, to the sample
     after it), the step at the interval's middle.
@@ -221,13 +242,93 @@ def _ramp_on(single: np.ndarray, t: np.ndarray, du: np.ndarray) -> tuple[np.ndar
     n = du.size
     before, after = np.zeros(n + 1), np.zeros(n + 1)
     dt = np.diff(t)
-    half = 0.5 * dt
+    ph = np.full(n, 0.5) if phase is None else phase
+    slope_b, slope_a = _ramp_slopes(single, t, du)
+    for i in np.flatnonzero(single):
+        before[i] = slope_b[i] * ph[i] * dt[i]
+        after[i] = slope_a[i] * (1.0 - ph[i]) * dt[i]
+    return before, after
+
+
+def _ramp_slopes(
+    single: np.ndarray, t: np.ndarray, du: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ramp's slope [V/s] in the interval before (``slope_b``) and after (``slope_a``)
+    each single-sample step, where that interval is a ramp against the step's sense and not
+    itself a step; 0 elsewhere."""
+    n = du.size
+    dt = np.diff(t)
+    slope_b, slope_a = np.zeros(n), np.zeros(n)
     for i in np.flatnonzero(single):
         if i >= 1 and not single[i - 1] and du[i - 1] * du[i] < 0.0:
-            before[i] = du[i - 1] / dt[i - 1] * half[i]
+            slope_b[i] = du[i - 1] / dt[i - 1]
         if i + 1 < n and not single[i + 1] and du[i + 1] * du[i] < 0.0:
-            after[i] = du[i + 1] / dt[i + 1] * half[i]
-    return before, after
+            slope_a[i] = du[i + 1] / dt[i + 1]
+    return slope_b, slope_a
+
+
+def landing_phase(single: np.ndarray, t: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Where in its sample interval each single-sample step of a sampled sawtooth falls,
+    as a fraction of the interval [-] (0.5, the middle, where the samples do not say).
+
+    A sawtooth's periods share one bottom: every flyback of a burst lands on the level its
+    last flyback lands on, the hold after the burst (a generator's burst superimposed on
+    its offset). The ramp after each earlier flyback, run back at its slope, reaches that
+    level where the flyback ended; the generator's span (the ramp before it, run on to
+    there, less the level) is then known, and the last flyback falls where the ramp before
+    it runs on to the level plus that span. Between two samples this is the flyback's
+    place to the drive samples' resolution, where the middle of the interval is up to
+    half an interval off: the third independent plant's generator ends each flyback on a
+    DAQ sample, and a 6 V, 2 kHz, a = 0.98 burst at 10 kHz read at the middle lands its
+    last flyback from 5.5 V, a tenth short of the generator's span. A burst of one
+    flyback, one that does not end in a hold, or one whose flybacks' landings fall outside
+    their intervals by more than :data:`LANDING_TOL` of one (a sawtooth whose bottom is
+    not the hold's level) keeps the middle.
+    """
+    du = np.diff(u)
+    n = du.size
+    dt = np.diff(t)
+    phase = np.full(n, 0.5)
+    slope_b, slope_a = _ramp_slopes(single, t, du)
+    for burst in _bursts(single, du, u):
+        last = burst[-1]
+        level = u[last + 1]  # the hold's level, where every flyback lands
+        inner = burst[:-1]
+        if inner.size == 0 or np.any(slope_a[inner] == 0.0) or slope_b[last] == 0.0:
+            continue
+        ph = 1.0 - (u[inner + 1] - level) / (slope_a[inner] * dt[inner])
+        ok = slope_b[inner] != 0.0
+        if not ok.any():
+            continue
+        span = float(np.median(u[inner][ok] + slope_b[inner][ok] * ph[ok] * dt[inner][ok] - level))
+        ph_last = (level + span - u[last]) / (slope_b[last] * dt[last])
+        both = np.append(ph, ph_last)
+        if np.any(both < -LANDING_TOL) or np.any(both > 1.0 + LANDING_TOL):
+            continue
+        phase[burst] = np.clip(both, LANDING_EDGE, 1.0 - LANDING_EDGE)
+    return phase
+
+
+def _bursts(single: np.ndarray, du: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+    """The single-sample steps grouped by burst: runs of steps of one sense whose
+    intervals between are ramps against it, each ending in a step onto a hold (its next
+    :data:`HOLD_SAMPLES` samples within :data:`QUIET_TOL`)."""
+    idx = np.flatnonzero(single)
+    out: list[np.ndarray] = []
+    start = 0
+    for k in range(idx.size):
+        i = idx[k]
+        nxt = idx[k + 1] if k + 1 < idx.size else None
+        sgn = np.sign(du[i])
+        if nxt is not None and np.sign(du[nxt]) == sgn:
+            between = du[i + 1 : nxt] * sgn
+            if between.size and np.all(between <= 0.0) and np.mean(between < 0.0) > 0.5:
+                continue  # the next step is this burst's next flyback
+        stop = i + 1 + HOLD_SAMPLES
+        if stop <= u.size and np.ptp(u[i + 1 : stop]) <= QUIET_TOL:
+            out.append(idx[start : k + 1])
+        start = k + 1
+    return out
 
 
 def _resolved_flybacks_sampled(single: np.ndarray, du: np.ndarray) -> np.ndarray:
