@@ -19,7 +19,10 @@ changed the lines of the second plant's ``axis_A_10kHz.csv`` and the third plant
 ``clean_axis_A_10kHz.csv`` alone; stop 72's description of bursts whose jumps mark only
 some of their flybacks changed the latter's line alone (its segments, not its drive), and
 its reading of flybacks the samples resolve (``segments.RESOLVED_SAMPLES``: linear, not a
-staircase of jumps) the third plant's 13 lines alone.
+staircase of jumps) the third plant's 13 lines alone. Stop 91's landing of a sampled
+sawtooth's flybacks (``segments.landing_phase``) changed the lines of the third plant's 13
+traces, the second plant's ``sampled.csv`` and the first plant's ``sampled_12bit.csv``, as
+stop 89's run-on had.
 """
 
 from __future__ import annotations

@@ -10,15 +10,18 @@ changes were each six times the ramp's). Prints the net rotation of each [µrad]
 jumps the reading finds.
 
     python experiments/flyback_reading.py [--rates 10000,25000]
-    python experiments/flyback_reading.py --phases 8 [--rates 10000,20000,25000]
+    python experiments/flyback_reading.py --phases 8 [--rates 10000,20000,25000] [--aligned]
 
 ``--phases N`` (stop 89) draws N phases of the generator's clock against the DAQ's (a
 seeded draw) for each of :data:`PHASE_CASES` and prints, per case and rate, the
-generator's mean net rotation and the reading's error against it, mean and RMS over the
-phases [µrad], for the reading (the ramp run on to each flyback at the interval's middle,
-:func:`~turntable_env.calibration.segments.read_drive`) and for the reading before stop
-89, each level held flat to the middle (:func:`held`). A single phase, as the table
-above draws, is one draw of where the flyback falls between two samples.
+generator's mean net rotation and each reading's error against it, mean and RMS over the
+phases [µrad]: the reading (since stop 91 each flyback where its burst's landing level
+places it, :func:`~turntable_env.calibration.segments.landing_phase`), ``mid`` (stop
+89's: the ramp run on to each flyback at its interval's middle, ``read_drive(...,
+landing=False)``) and ``held`` (before stop 89: each level held flat to the middle,
+:func:`held`). A single phase, as the table above draws, is one draw of where the
+flyback falls between two samples; ``--aligned`` takes the one phase at which every
+flyback ends on a DAQ sample, as the third independent plant's generator and DAQ do.
 
 A flyback of two sample intervals or more steps the model under the staircase where the
 generator's, slower than the tubes' period, hardly does; read linear it steps as generated

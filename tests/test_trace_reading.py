@@ -150,26 +150,32 @@ def _generator_flybacks(f, a, periods, hold):
 # the generator's start after a sample [intervals]
 @pytest.mark.parametrize("offset", [0.0, 0.3, 0.75])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
-def test_a_sawtooths_flybacks_are_read_where_they_land(fs, f, a, periods, offset, sign):
+@pytest.mark.parametrize("lsb", [None, 20.0 / 4096])  # ideal, and a 12-bit ±10 V DAQ
+def test_a_sawtooths_flybacks_are_read_where_they_land(fs, f, a, periods, offset, sign, lsb):
     """Every flyback of a burst lands on the level of the hold after it (the sawtooth's
     bottom, its offset): the ramp after each, run back to that level, says where the
     flyback ended, and the last one falls where the ramp before it reaches the level plus
     the span (`segments.landing_phase`). Each step is read within the generator's flyback
     (to the ramp's rise over it), where the interval's middle is up to half an interval
     off, and lands on the hold's level; at offset 0 every flyback ends on a sample (the
-    third independent plant's clocks)."""
+    third independent plant's clocks); a quantised drive's levels move the steps by the
+    least significant bit over the ramp's rise in a sample."""
     hold = 0.02 + offset / fs
     t, u = _linear_flyback_sawtooth(f, a, periods, fs=fs, hold=hold, sign=sign)
     start, end = _generator_flybacks(f, a, periods, hold)
     assert not np.any((t[:, None] > start + 1e-12) & (t[:, None] < end - 1e-12))  # none inside
+    rise = 3.0 / a * f / fs  # the ramp's rise in one sample interval [V]
+    q = 0.0
+    if lsb is not None:
+        u, q = np.round(u / lsb) * lsb, lsb
     r = read_drive(t, u)
     assert r.jumps.size == periods
-    edge = 2e-3 / fs  # segments.LANDING_EDGE
-    assert np.all(r.jumps >= start - edge) and np.all(r.jumps <= end + edge), (r.jumps - end) * fs
+    tol = (2e-3 + 2.0 * q / rise) / fs  # segments.LANDING_EDGE, and the quantisation's share
+    assert np.all(r.jumps >= start - tol) and np.all(r.jumps <= end + tol), (r.jumps - end) * fs
     after = np.interp(r.jumps + 1e-9, r.time, r.level)
-    np.testing.assert_allclose(after, 0.0, atol=3.0 / a * f * edge)  # the ramp over the edge
+    np.testing.assert_allclose(after, 0.0, atol=rise * tol * fs + q)  # the ramp over the edge
     before = sign * np.interp(r.jumps - 2e-9, r.time, r.level)
-    assert np.all(before >= 3.0 * (1 - 1e-9)) and np.all(before <= 3.0 / a * (1 + 1e-9))
+    assert np.all(before >= 3.0 - 2 * q - 1e-9) and np.all(before <= 3.0 / a + 2 * q + 1e-9)
     mid = read_drive(t, u, landing=False)  # each step at its interval's middle
     assert np.max(np.abs(mid.jumps - end)) >= np.max(np.abs(r.jumps - end))
 
