@@ -8,7 +8,9 @@ and compare the outputs: a file whose line differs is read differently, and ever
 file's calibration input is unchanged. ``--segments`` prints each file's non-hold
 segments (start, end [s], condition, periods, ramp ratio read) as well, and ``--floors``
 each file's noise floor [nm] as the fit reads it (stop 89: the floor of a quantised
-detector changed, and the three plants' 48 traces print theirs as before).
+detector changed, and the three plants' 48 traces print theirs as before). Since stop 91
+the model's drive is the fit's (``TraceData.breakpoints``: the reading with its resolved
+flybacks' corners, ``segments.flyback_corners``).
 
     python experiments/drive_reading.py [--segments] [--floors] [TRACE.csv ...]
 
@@ -38,12 +40,15 @@ from turntable_env.calibration.trace_fit import trace_data
 from turntable_env.testing.trace_sets import load_traces
 
 
-def fingerprint(reading: DriveReading, segments: list[Segment]) -> str:
-    """A 12-hex-digit digest of the model's drive (times to 1 ps, levels to 1 nV, jumps)
-    and of the segments' conditions and periods."""
+def fingerprint(
+    reading: DriveReading, segments: list[Segment], drive: tuple[np.ndarray, np.ndarray]
+) -> str:
+    """A 12-hex-digit digest of the model's drive (``drive``, the fit's breakpoints:
+    times to 1 ps, levels to 1 nV), the reading's jumps and the segments' conditions and
+    periods."""
     h = hashlib.sha1()
-    h.update(np.round(reading.time, 12).tobytes())
-    h.update(np.round(reading.level, 9).tobytes())
+    h.update(np.round(drive[0], 12).tobytes())
+    h.update(np.round(drive[1], 9).tobytes())
     h.update(np.round(reading.jumps, 12).tobytes())
     h.update(repr([(s.condition, s.periods) for s in segments]).encode())
     return h.hexdigest()[:12]
@@ -65,10 +70,10 @@ def main(argv: list[str] | None = None) -> int:
         reading = read_drive(m.time, m.drives[m.axis], m.meta)
         segs = segment_trace(reading, float(m.time[-1]))
         name = f"{path.parent.name}/{path.name}"
+        td = trace_data(m)
         print(f"{name:48s} {reading.recording:11s} jumps {reading.jumps.size:4d} "
-              f"segments {len(segs):3d} {fingerprint(reading, segs)}")  # fmt: skip
+              f"segments {len(segs):3d} {fingerprint(reading, segs, td.breakpoints)}")  # fmt: skip
         if args.floors:
-            td = trace_data(m)
             print(f"    noise floor {td.floor:.6g} nm ({td.floor_source})")
         if args.segments:
             for s in segs:

@@ -3,20 +3,23 @@
 A function generator's sawtooth (linear ramp over a/f, linear flyback over (1 − a)/f, three
 periods between two holds) is sampled at a DAQ rate and run through the calibration's base
 plant (``real``, per-axis) four ways: the generator's own drive at 1 MS/s, the drive as the
-calibrator reads the samples (:func:`~turntable_env.calibration.segments.read_drive`), the
-samples linear between them, and a staircase: each of the flyback's samples a jump at
+calibrator reads the samples (:func:`~turntable_env.calibration.segments.read_drive`; with
+``--corners`` through the resolved flybacks' corners, stop 91), the samples linear between
+them, and a staircase: each of the flyback's samples a jump at
 mid-interval, the level held on either side (the reading before stop 72, wherever those
 changes were each six times the ramp's). Prints the net rotation of each [µrad] and the
 jumps the reading finds.
 
-    python experiments/flyback_reading.py [--rates 10000,25000]
+    python experiments/flyback_reading.py [--rates 10000,25000] [--corners]
     python experiments/flyback_reading.py --phases 8 [--rates 10000,20000,25000] [--aligned]
+        [--corners]
 
 ``--phases N`` (stop 89) draws N phases of the generator's clock against the DAQ's (a
 seeded draw) for each of :data:`PHASE_CASES` and prints, per case and rate, the
 generator's mean net rotation and each reading's error against it, mean and RMS over the
 phases [µrad]: the reading (since stop 91 each flyback where its burst's landing level
-places it, :func:`~turntable_env.calibration.segments.landing_phase`), ``mid`` (stop
+places it, :func:`~turntable_env.calibration.segments.landing_phase`; with ``--corners``
+the model's drive through each resolved flyback's corners, :func:`model_drive`), ``mid`` (stop
 89's: the ramp run on to each flyback at its interval's middle, ``read_drive(...,
 landing=False)``) and ``held`` (before stop 89: each level held flat to the middle,
 :func:`held`). A single phase, as the table above draws, is one draw of where the
@@ -36,7 +39,7 @@ import sys
 
 import numpy as np
 
-from turntable_env.calibration.segments import read_drive
+from turntable_env.calibration.segments import flyback_corners, read_drive, segment_trace
 from turntable_env.calibration.trace import simulate_trace
 from turntable_env.plant import Plant
 
@@ -100,8 +103,17 @@ def _jumps_held(t: np.ndarray, u: np.ndarray, at: np.ndarray) -> tuple[np.ndarra
     return np.array(bt), np.array(bu)
 
 
-def phase_errors(plant: Plant, f: float, a: float, amp: float, fs: float,
-                 phases: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:  # fmt: skip
+def model_drive(r, t: np.ndarray, corners: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The calibration's model drive from a reading: its breakpoints, with the resolved
+    flybacks' corners where ``corners`` (as for a file that declares ``drive_flybacks:
+    linear``, :func:`~turntable_env.calibration.segments.flyback_corners`)."""
+    if not corners:
+        return r.time, r.level
+    return flyback_corners(r, segment_trace(r, float(t[-1])))
+
+
+def phase_errors(plant: Plant, f: float, a: float, amp: float, fs: float, phases: np.ndarray,
+                 corners: bool = False) -> tuple[float, np.ndarray, np.ndarray]:  # fmt: skip
     """The generator's mean net rotation [rad] over the phases (each a fraction of the
     DAQ's interval by which the burst starts later), and each reading's error against the
     generator's at each phase [rad]: rows (read, held)."""
@@ -114,7 +126,8 @@ def phase_errors(plant: Plant, f: float, a: float, amp: float, fs: float,
         t = np.arange(0.0, t_end, 1.0 / fs)
         u = sawtooth(t, f, a, amp, hold)
         r = read_drive(t, u)
-        read = simulate_trace(plant, "B", t, u, breakpoints=(r.time, r.level)).theta[-1]
+        drive = model_drive(r, t, corners)
+        read = simulate_trace(plant, "B", t, u, breakpoints=drive).theta[-1]
         m = read_drive(t, u, landing=False)
         mid = simulate_trace(plant, "B", t, u, breakpoints=(m.time, m.level)).theta[-1]
         old = simulate_trace(plant, "B", t, u, breakpoints=held(t, u, r.jumps)).theta[-1]
@@ -129,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--phases", type=int, default=0,
                     help="draw this many clock phases per case (0: the table of one phase)")
     ap.add_argument("--seed", type=int, default=1, help="seed of the phases' draw")
+    ap.add_argument("--corners", action="store_true",
+                    help="the reading's drive through each resolved flyback's corners (a file "
+                         "declaring drive_flybacks: linear)")
     ap.add_argument("--aligned", action="store_true",
                     help="with --phases: the one phase at which each flyback ends on a DAQ "
                          "sample (the third independent plant's clocks) instead of the draw")
@@ -156,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
               "    mid: mean    rms   held: mean    rms")  # fmt: skip
         for f, a, amp in PHASE_CASES:
             for fs in rates:
-                gen, errs, _ = phase_errors(plant, f, a, amp, fs, phases)
+                gen, errs, _ = phase_errors(plant, f, a, amp, fs, phases, args.corners)
                 cols = "".join(f"  {np.mean(e) * 1e6:10.3f} {np.sqrt(np.mean(e**2)) * 1e6:7.3f}"
                                for e in errs)  # fmt: skip
                 print(f"{amp:3.1f} V {f:6.0f} Hz a {a:4.2f}  {fs / 1e3:5.0f} kHz {gen * 1e6:10.3f}"
@@ -171,7 +187,8 @@ def main(argv: list[str] | None = None) -> int:
             t = np.arange(0.0, t_end, 1.0 / fs)
             u = sawtooth(t, f, a, amp)
             r = read_drive(t, u)
-            read = simulate_trace(plant, "B", t, u, breakpoints=(r.time, r.level)).theta[-1]
+            drive = model_drive(r, t, args.corners)
+            read = simulate_trace(plant, "B", t, u, breakpoints=drive).theta[-1]
             lin = simulate_trace(plant, "B", t, u).theta[-1]
             stair = simulate_trace(plant, "B", t, u, breakpoints=staircase(t, u)).theta[-1]
             print(f"{amp:3.1f} V {f:6.0f} Hz a {a:4.2f}  {fs / 1e3:5.0f} kHz {r.jumps.size:5d}"

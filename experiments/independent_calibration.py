@@ -40,6 +40,7 @@ rows of the traces it does not calibrate (a table run in parts, row by row).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import subprocess
 import sys
@@ -47,6 +48,7 @@ import time
 from pathlib import Path
 
 from turntable_env.calibration.calibrate import calibrate, write_report
+from turntable_env.calibration.measurement import Measurement, load_measurement
 from turntable_env.files import write_atomic
 from turntable_env.provenance import code_label, code_version
 from turntable_env.scale import BACKENDS, map_tasks
@@ -102,7 +104,11 @@ def _calibrate_one(job: dict) -> dict:
     injected = list(job["info"]["effects"])
     expected = [EXPECTED.get(e, "outside") for e in injected] or ["none"]
     t0 = time.perf_counter()
-    res = calibrate([Path(job["file"])], base=job["base"], workers=job["workers"],
+    data: Path | Measurement = Path(job["file"])
+    if job.get("corners"):  # the model's drive through resolved flybacks' corners
+        m = load_measurement(data)
+        data = dataclasses.replace(m, meta={**m.meta, "drive_flybacks": "linear"})
+    res = calibrate([data], base=job["base"], workers=job["workers"],
                     seed=job.get("seed", 0), progress=None)  # fmt: skip
     wall = time.perf_counter() - t0
     write_report(res, Path(job["out"]))
@@ -152,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--seed", type=int, default=0,
                     help="the calibration's seed, as turntable calibrate --seed (default 0)")
+    ap.add_argument("--corners", action="store_true",
+                    help="read each file as declaring '# drive_flybacks: linear' (the model's "
+                         "drive through resolved flybacks' corners, segments.flyback_corners)")
     ap.add_argument("--out", default=None, help="default experiments/results/<plant>_calibration")
     ap.add_argument(
         "--backend", choices=BACKENDS, default=None,
@@ -172,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     jobs = [
         {"name": name, "file": str(traces / f"{name}.csv"), "info": truth[f"{name}.csv"],
-         "base": args.base, "workers": args.workers, "seed": args.seed, "out": str(out / name)}
+         "base": args.base, "workers": args.workers, "seed": args.seed, "corners": args.corners,
+         "out": str(out / name)}
         for name in names
     ]  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)

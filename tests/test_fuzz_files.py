@@ -167,6 +167,7 @@ def _good(n: int = 40, axis: str = "B", drives: tuple[str, ...] = ("B",)) -> str
         (_good().replace("\n0.0001,", "\n10.0001,"), "not increasing"),
         (_good(drives=("B", "B")), "column 'drive_B_V' appears twice"),  # which one, named
         ("# drive_recording: bogus\n" + _good(), r"m.csv:1: metadata 'drive_recording' = 'bogus'"),
+        ("# drive_flybacks: ramp\n" + _good(), r"m.csv:1: metadata 'drive_flybacks' = 'ramp'"),
     ],
 )
 def test_the_loader_refuses_what_the_calibrator_cannot_use(text, match, tmp_path):

@@ -11,8 +11,10 @@ import pytest
 
 from turntable_env.calibration.calibrate import calibrate
 from turntable_env.calibration.identify import main_at_bound
+from turntable_env.calibration.measurement import load_measurement
 from turntable_env.calibration.residual import Anchoring, condition_shares, noise_floor
 from turntable_env.calibration.segments import (
+    flyback_corners,
     holds_by_motion,
     one_sided,
     read_drive,
@@ -20,7 +22,11 @@ from turntable_env.calibration.segments import (
     split_portions,
 )
 from turntable_env.calibration.trace import simulate_trace
-from turntable_env.calibration.trace_fit import correlation_length, identifiable_effects
+from turntable_env.calibration.trace_fit import (
+    correlation_length,
+    identifiable_effects,
+    trace_data,
+)
 from turntable_env.calibration.virtual_lab import protocol_drive, run_virtual_lab
 from turntable_env.params import get_parameter_set
 from turntable_env.plant import Plant
@@ -293,7 +299,8 @@ def test_a_burst_whose_flybacks_are_partly_resolved_keeps_its_periods(
     ("fs", "f", "amp", "tol"),
     [
         (10e3, 50.0, 6.0, 1e-6),  # 200 µs of flyback, two samples: two 3 V jumps slipped
-        (25e3, 100.0, 4.5, 0.25),  # 100 µs, 2.5 samples
+        (25e3, 100.0, 4.5, 0.01),  # 100 µs, 2.5 samples (0.15 read linear, before stop 91)
+        (20e3, 100.0, 4.5, 0.03),  # 100 µs, 2 samples
     ],
 )
 def test_a_flyback_the_samples_resolve_is_read_linear_and_steps_as_generated(fs, f, amp, tol):
@@ -312,9 +319,67 @@ def test_a_flyback_the_samples_resolve_is_read_linear_and_steps_as_generated(fs,
     assert r.jumps.size == 0, r.jumps
     plant = Plant("real", fidelity="reduced")
     gen = simulate_trace(plant, "B", t_gen[: u_gen.size], u_gen).theta[-1]
-    read = simulate_trace(plant, "B", t, u, breakpoints=(r.time, r.level)).theta[-1]
+    drive = flyback_corners(r, segment_trace(r, float(t[-1])))
+    read = simulate_trace(plant, "B", t, u, breakpoints=drive).theta[-1]
     bound = tol if tol < 1e-3 else tol * abs(gen)
     assert abs(read - gen) <= bound, (read, gen)
+
+
+@pytest.mark.parametrize(("fs", "f", "a"), [(25e3, 100.0, 0.99), (20e3, 200.0, 0.97),
+                                            (10e3, 500.0, 0.75), (25e3, 50.0, 0.99)])  # fmt: skip
+@pytest.mark.parametrize("phase", [0.0, 0.37, 0.81])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_resolved_flyback_is_the_line_through_its_samples(fs, f, a, phase, sign):
+    """The model's drive of a flyback with two or more samples on it is the generator's
+    (`segments.flyback_corners`): the line through those samples meets the ramp on either
+    side at its corners, where read linear from the ramp's last sample to its next first
+    one the flyback lasts up to one interval more and the drive misses the generator's by
+    up to the ramp's span over the flyback's last interval. The burst's description is the
+    samples' and does not change."""
+    hold = 0.0201234 + phase / fs
+    t, u = _linear_flyback_sawtooth(f, a, 3, fs=fs, hold=hold, sign=sign)
+    r = read_drive(t, u)
+    segs = segment_trace(r, float(t[-1]))
+    bt, bu = flyback_corners(r, segs)
+    assert np.all(np.diff(bt) > 0.0)
+    tg, ug = _linear_flyback_sawtooth(f, a, 3, fs=1e6, hold=hold, sign=sign)
+    inside = (tg > hold + 0.5 / f) & (tg < hold + 3.5 / f)  # from the first flyback on
+    # but for the samples around a change read as a jump (the last flyback into the hold
+    # may be), which the landing places (`segments.landing_phase`)
+    near = np.abs(tg[:, None] - r.jumps[None, :]).min(axis=1, initial=np.inf) < 2.0 / fs
+    inside &= ~near
+    off = np.abs(np.interp(tg, bt, bu) - ug)[inside]
+    linear = np.abs(np.interp(tg, r.time, r.level) - ug)[inside]
+    assert off.max() <= 1e-6 * 3.0, off.max()
+    assert linear.max() >= 0.01 * 3.0  # what the corners mend
+    assert segment_trace(r, float(t[-1])) == segs
+
+
+@pytest.mark.parametrize("declared", [None, "as_sampled", "linear"])
+def test_the_fit_runs_through_the_corners_where_the_file_declares_linear_flybacks(
+    declared, tmp_path
+):
+    """`# drive_flybacks: linear` (stop 91, not yet the default) makes the fit's drive
+    (`TraceData.breakpoints`) the reading through its resolved flybacks' corners; without
+    it, or with ``as_sampled``, the fit's drive is the reading."""
+    fs, f, a = 25e3, 100.0, 0.99
+    t, u = _linear_flyback_sawtooth(f, a, 3, fs=fs, amp=4.5)
+    x = 0.02 * u + np.random.default_rng(0).normal(0.0, 1e-3, t.size)  # a spot that moves
+    head = "# axis: B\n# amplifier_gain: 20\n# detector_sensitivity_m_per_V: 1e-4\n"
+    head += "# detector_distance_m: 0.5\n# table_radius_m: 0.01\n"
+    if declared:
+        head += f"# drive_flybacks: {declared}\n"
+    rows = "\n".join(f"{ti:.9g},{ui:.9g},{xi:.9g}" for ti, ui, xi in zip(t, u, x, strict=True))
+    path = tmp_path / "m.csv"
+    path.write_text(head + "t_s,drive_B_V,detector_V\n" + rows + "\n")
+    td = trace_data(load_measurement(path))
+    bt, bu = td.breakpoints
+    corners = flyback_corners(td.reading, td.segments)
+    assert corners[0].size == td.reading.time.size + 6  # three flybacks, two corners each
+    assert np.all(np.diff(corners[0]) > 0.0)  # once each, the burst cut between the portions
+    want = corners if declared == "linear" else (td.reading.time, td.reading.level)
+    np.testing.assert_array_equal(bt, want[0])
+    np.testing.assert_array_equal(bu, want[1])
 
 
 def test_declared_recording_is_honoured_and_a_bad_one_is_named():

@@ -54,7 +54,7 @@ from ..detector import Detector
 from ..files import write_atomic
 from ..inputs import read_input
 from ..validation import parse_decimal
-from .segments import RECORDINGS
+from .segments import FLYBACK_SHAPES, RECORDINGS
 
 __all__ = ["AXES", "TIME_UNITS", "VOLTAGE_UNITS", "Measurement", "load_measurement"]
 
@@ -480,12 +480,12 @@ def _parse(text: str, p: Path) -> Measurement:
     if axis not in AXES:
         raise ValueError(f"{p}:{ln}: metadata 'axis' = {axis!r}, must be one of {', '.join(AXES)}")
     values = {k: _meta_float(p, meta[k][0], k, meta[k][1]) for k in META_RANGES}
-    if "drive_recording" in meta and meta["drive_recording"][1] not in RECORDINGS:
-        ln, rec = meta["drive_recording"]
-        raise ValueError(
-            f"{p}:{ln}: metadata 'drive_recording' = {rec!r}, must be one of "
-            f"{', '.join(RECORDINGS)}"
-        )
+    for key, allowed in (("drive_recording", RECORDINGS), ("drive_flybacks", FLYBACK_SHAPES)):
+        if key in meta and meta[key][1] not in allowed:
+            ln, val = meta[key]
+            raise ValueError(
+                f"{p}:{ln}: metadata '{key}' = {val!r}, must be one of {', '.join(allowed)}"
+            )
     if i >= len(lines):
         raise ValueError(f"{p}: no header row")
     header_line = i + 1

@@ -10,11 +10,13 @@ either side running on to it at its slope on a uniform sampling clock (the step 
 generator's span, not the samples' change; :func:`_ramp_on`), or, in a burst that lands
 on the hold after it, where that level places it (:func:`landing_phase`): read as
 piecewise linear, a 2 V drop over 50 µs is a slow flyback after which the model barely
-steps. A single-sample change is a step where it is several times its neighbours'
-typical change, or, in a sawtooth of few samples per period (a 2 kHz burst on a 10 kHz
-DAQ: five samples, the flyback four ramp samples' size), where it runs against both
-neighbours' sense at :data:`SAWTOOTH_RATIO` times their size; a flyback spread over
-several samples of one size (a triangle, a resolved ramp) is neither. A file may declare
+steps. A flyback the samples resolve is read linear between them, and the model's drive
+runs through its corners, where the line through its samples meets the ramps
+(:func:`flyback_corners`). A single-sample change is a step where it is several times
+its neighbours' typical change, or, in a sawtooth of few samples per period (a 2 kHz
+burst on a 10 kHz DAQ: five samples, the flyback four ramp samples' size), where it runs
+against both neighbours' sense at :data:`SAWTOOTH_RATIO` times their size; a flyback
+spread over several samples of one size (a triangle, a resolved ramp) is neither. A file may declare
 its recording with the metadata key ``drive_recording`` (``breakpoints`` or
 ``sampled``); otherwise it is detected.
 
@@ -48,6 +50,7 @@ import numpy as np
 __all__ = [
     "DriveReading",
     "Segment",
+    "flyback_corners",
     "holds_by_motion",
     "landing_phase",
     "motion_before",
@@ -59,6 +62,9 @@ __all__ = [
 ]
 
 RECORDINGS = ("breakpoints", "sampled")
+# metadata ``drive_flybacks``: a resolved flyback read linear between its samples (the
+# default), or declared a linear ramp, whose corners the model's drive runs through
+FLYBACK_SHAPES = ("as_sampled", "linear")
 JUMP_GAP = 1e-3  # a sample interval under this fraction of the median one is a jump [-]
 JUMP_RATIO = 6.0  # a single-sample change this many times the local typical one is a step
 JUMP_MIN = 0.05  # V, smallest input change read as a step
@@ -66,7 +72,8 @@ SAWTOOTH_RATIO = 2.5  # a change against both neighbours this many times their s
 QUIET_MIN = 2e-3  # s, shortest constant stretch that separates two segments
 QUIET_TOL = 0.02  # V, input variation still read as constant (DAQ resolution, noise)
 RESOLVED_SAMPLES = 1.9  # a flyback of two sample intervals (less the ramp's rise within its partial
-# ones) or more is resolved by the samples and read linear between them
+# ones) or more is resolved by the samples and read linear between them (the model's drive
+# then through the flyback's corners, :func:`flyback_corners`)
 SINGLE_FLYBACK = 0.1  # a lone return within this share of its stretch is a flyback (a ≥ 0.9)
 FLYBACK_MERGE = 0.2  # jumps closer than this fraction of the burst period form one flyback
 LANDING_TOL = 0.25  # a flyback's landing read this far outside its interval [intervals]: the
@@ -125,7 +132,9 @@ def read_drive(
     Args:
         time: sample times [s], strictly increasing; drive: amplifier input [V].
         meta: the file's metadata; ``drive_recording`` = ``breakpoints`` | ``sampled``
-            overrides the detection (ValueError for another value).
+            overrides the detection (ValueError for another value); ``drive_flybacks`` =
+            ``as_sampled`` | ``linear`` is checked here and read by the fit
+            (:func:`flyback_corners`).
         landing: place a sampled sawtooth's steps where its burst's landing level says
             (:func:`landing_phase`); False puts each at its interval's middle (the
             reading before stop 91, for comparison).
@@ -138,6 +147,12 @@ def read_drive(
     if declared is not None and declared not in RECORDINGS:
         raise ValueError(
             f"metadata 'drive_recording' = {declared!r}: must be 'breakpoints' or 'sampled'"
+        )
+    shape = (meta or {}).get("drive_flybacks")
+    if shape is not None and shape not in FLYBACK_SHAPES:
+        raise ValueError(
+            f"metadata 'drive_flybacks' = {shape!r}: must be 'as_sampled' or 'linear' (the "
+            "generator's flybacks linear: the model's drive through their corners)"
         )
     explicit = dt < JUMP_GAP * dt_med
     du = np.diff(u)
@@ -598,6 +613,78 @@ def _describe_by_turns(
         ramp_ratio=max(up_time, dn_time) / (up_time + dn_time) if up_time + dn_time > 0
         else math.nan, flyback_resolution=jump_s * freq,
     )  # fmt: skip
+
+
+def flyback_corners(
+    reading: DriveReading, segments: list[Segment]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The model's drive [s], [V]: the reading's breakpoints with the corners of each
+    flyback the samples resolve, in a sampled drive's bursts.
+
+    A flyback with two or more samples on it (a = 0.99 at 100 Hz on a 25 kHz DAQ: 2.5
+    samples) is a line through them; read linear from the ramp's last sample to its next
+    first one, it lasts up to one interval more than the generator's, and the model,
+    slipping on the flyback's speed, steps differently (4.5 V, 100 Hz at 25 kHz: −84.7
+    µrad over three periods against the generator's −73.4). The line through the flyback's
+    samples meets the ramp before it, run on from its last sample at its slope, and the
+    ramp after it, run back: each corner is put where it falls within its interval (stop
+    91). The segments' descriptions stay those of the samples (:func:`segment_trace`). The
+    fit's drive where a file declares ``drive_flybacks: linear``
+    (:attr:`~.trace_fit.TraceData.breakpoints`); not yet the default.
+    """
+    t, u = reading.time, reading.level
+    if reading.recording != "sampled" or t.size < 4:
+        return t, u
+    dt = reading.sample_interval
+    add_t: list[float] = []
+    add_u: list[float] = []
+    for seg in segments:
+        if seg.kind != "steps" or not seg.direction:
+            continue
+        i0, i1 = np.searchsorted(t, [seg.start, seg.end])
+        i0, i1 = max(i0 - 3, 0), min(i1 + 4, t.size)  # three samples of the holds beside it
+        ts, us = t[i0:i1], u[i0:i1]
+        du, dts = np.diff(us), np.diff(ts)
+        against = du * seg.direction < 0.0
+        k = 0
+        while k < du.size:
+            if not against[k]:
+                k += 1
+                continue
+            j = k
+            while j + 1 < du.size and against[j + 1]:
+                j += 1
+            # changes k..j against the ramp: samples k+1..j lie on the flyback; the samples
+            # beside it, k and j + 1, may lie on it too, with the ramp's rise in their
+            # interval outweighing its share of the drop: each ramp is the line through the
+            # sample next to them and its outer interval's slope
+            on = slice(k + 1, j + 1)
+            if j - k >= 2 and np.all(dts[k + 1 : j] > 0.5 * dt):  # two samples on it
+                slope, icpt = np.polyfit(ts[on] - ts[k + 1], us[on], 1)
+                # (anchor sample, its ramp interval, the corner's interval), each side on
+                # the sampling clock (not beside a change read as a jump)
+                ends = ((k - 1, k - 2, k - 1, k + 1), (j + 2, j + 2, j, j + 2))
+                for anchor, nb, lo, hi in ends:
+                    if not (0 <= min(nb, lo) and max(nb, hi) < du.size) or np.any(
+                        dts[min(nb, lo) : max(nb, hi) + 1] < 0.5 * dt
+                    ):
+                        continue
+                    s_r = du[nb] / dts[nb]
+                    if du[nb] * seg.direction < 0.0 or s_r == slope:
+                        continue  # not a ramp (or the hold) beside the flyback
+                    x = (icpt - us[anchor] + s_r * ts[anchor] - slope * ts[k + 1]) / (s_r - slope)
+                    if ts[lo] < x < ts[hi] and not np.any(np.isclose(x, ts[lo : hi + 1])):
+                        add_t.append(float(x))
+                        add_u.append(float(us[anchor] + s_r * (x - ts[anchor])))
+            k = j + 1
+    if not add_t:
+        return t, u
+    # a burst cut between the portions at a flyback finds that flyback's corners twice
+    _, first = np.unique(np.round(add_t, 12), return_index=True)  # to 1 ps
+    add_t = np.asarray(add_t)[first]
+    at = np.concatenate([t, add_t])
+    order = np.argsort(at, kind="stable")
+    return at[order], np.concatenate([u, np.asarray(add_u)[first]])[order]
 
 
 def segment_trace(reading: DriveReading, t_end: float | None = None) -> list[Segment]:
