@@ -41,11 +41,14 @@ from turntable_env.testing.trace_sets import load_traces
 
 
 def fingerprint(
-    reading: DriveReading, segments: list[Segment], drive: tuple[np.ndarray, np.ndarray]
+    reading: DriveReading,
+    segments: list[Segment],
+    drive: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> str:
-    """A 12-hex-digit digest of the model's drive (``drive``, the fit's breakpoints:
-    times to 1 ps, levels to 1 nV), the reading's jumps and the segments' conditions and
-    periods."""
+    """A 12-hex-digit digest of the model's drive (``drive``, the fit's breakpoints;
+    default the reading's own: times to 1 ps, levels to 1 nV), the reading's jumps and the
+    segments' conditions and periods."""
+    drive = (reading.time, reading.level) if drive is None else drive
     h = hashlib.sha1()
     h.update(np.round(drive[0], 12).tobytes())
     h.update(np.round(drive[1], 9).tobytes())

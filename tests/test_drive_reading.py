@@ -34,6 +34,9 @@ def test_the_fingerprint_follows_the_models_drive(script):
     later = replace(r, jumps=r.jumps + 1e-9)
     assert script.fingerprint(moved, segs) != script.fingerprint(r, segs)
     assert script.fingerprint(later, segs) != script.fingerprint(r, segs)
+    # the fit's drive where it is not the reading's (a declared linear flyback's corners)
+    cornered = (np.append(r.time, r.time[-1] + 1e-6), np.append(r.level, r.level[-1]))
+    assert script.fingerprint(r, segs, cornered) != script.fingerprint(r, segs)
 
 
 def test_a_missing_trace_is_refused_with_exit_2(script, tmp_path, capsys):
