@@ -625,12 +625,14 @@ def flyback_corners(
     samples) is a line through them; read linear from the ramp's last sample to its next
     first one, it lasts up to one interval more than the generator's, and the model,
     slipping on the flyback's speed, steps differently (4.5 V, 100 Hz at 25 kHz: −84.7
-    µrad over three periods against the generator's −73.4). The line through the flyback's
-    samples meets the ramp before it, run on from its last sample at its slope, and the
-    ramp after it, run back: each corner is put where it falls within its interval (stop
-    91). The segments' descriptions stay those of the samples (:func:`segment_trace`). The
-    fit's drive where a file declares ``drive_flybacks: linear``
-    (:attr:`~.trace_fit.TraceData.breakpoints`); not yet the default.
+    µrad over three periods against the generator's −73.4). The line through the samples
+    between its first and last change meets the ramp before it and the ramp after it, each
+    the line through the sample one further out and its outer interval's slope (the sample
+    next to the flyback may lie on it already, its interval's ramp outweighing the drop):
+    each corner is put where it falls between those samples (stop 91). The segments'
+    descriptions stay those of the samples (:func:`segment_trace`). The fit's drive where
+    a file declares ``drive_flybacks: linear`` (:attr:`~.trace_fit.TraceData.breakpoints`);
+    not yet the default.
     """
     t, u = reading.time, reading.level
     if reading.recording != "sampled" or t.size < 4:
