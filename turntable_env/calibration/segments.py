@@ -295,10 +295,10 @@ def landing_phase(single: np.ndarray, t: np.ndarray, u: np.ndarray) -> np.ndarra
     place to the drive samples' resolution, where the middle of the interval is up to
     half an interval off: the third independent plant's generator ends each flyback on a
     DAQ sample, and a 6 V, 2 kHz, a = 0.98 burst at 10 kHz read at the middle lands its
-    last flyback from 5.5 V, a tenth short of the generator's span. A burst of one
-    flyback, one that does not end in a hold, or one whose flybacks' landings fall outside
-    their intervals by more than :data:`LANDING_TOL` of one (a sawtooth whose bottom is
-    not the hold's level) keeps the middle.
+    last flyback half an interval of ramp (0.61 V), a tenth, short of the generator's
+    span. A burst of one flyback, one that does not end in a hold, or one whose flybacks'
+    landings fall outside their intervals by more than :data:`LANDING_TOL` of one (a
+    sawtooth whose bottom is not the hold's level) keeps the middle.
     """
     du = np.diff(u)
     n = du.size
