@@ -10,6 +10,16 @@ not fit the period).
     python experiments/reduced_sweep.py            # writes experiments/results/reduced_sweep.csv
     python experiments/reduced_sweep.py --translation   # reduced_sweep_translation.csv: the
                                                         # reduced model with the translation
+    python experiments/reduced_sweep.py --both --check-reference 6   # both files on one
+        # 3-D reference; the 6 worst cases of each rerun at half the reference's step
+
+    python experiments/reduced_sweep.py --both --periods 8 --settle 3   # the steady step,
+        # |mean step| over periods 4-8 from rest: reduced_sweep_p8_s3.csv and
+        # reduced_sweep_translation_p8_s3.csv
+
+The 3-D model is the reference, run at its fixed fine step (``bench.full_reference_steps``).
+The default measure is the bench's, the mean |step| over three periods from rest; the
+start from rest is in it, so a 20 V triangle "steps" 1.7 nm there and 0 once settled.
 
 Prints the summary (``reduced_vs_full_max`` and its case, median, share within 5 %).
 """
@@ -24,34 +34,49 @@ from pathlib import Path
 
 import numpy as np
 
-from turntable_env.bench import VS_FULL, reduced_vs_full_sweep, vs_full_summary
+from turntable_env.bench import (
+    FULL_REFERENCE_DT_FACTOR,
+    VS_FULL,
+    VS_FULL_PERIODS,
+    full_reference_steps,
+    period_step,
+    reduced_vs_full_sweep,
+    vs_full_summary,
+)
+from turntable_env.reduced import ReducedModel
+from turntable_env.simulation import stepping_drive
 
 OUT = Path(__file__).parent / "results" / "reduced_sweep.csv"
 OUT_TRANSLATION = OUT.with_name("reduced_sweep_translation.csv")
-KEYS = ["amplifier", "amplitude_V", "frequency_Hz", "a", "full_step_nm", "reduced_step_nm",
-        "rel_diff", "note"]  # fmt: skip
+SHOWN = 8  # cases over 5 % printed, the worst first
+KEYS = ["amplifier", "amplitude_V", "frequency_Hz", "a", "periods", "settle", "full_step_nm",
+        "reduced_step_nm", "rel_diff", "note", "full_period_steps_nm",
+        "reduced_period_steps_nm"]  # fmt: skip
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--translation", action="store_true",
-                    help="the reduced model with the sphere's translation")  # fmt: skip
-    args = ap.parse_args(argv)
-    t0 = time.perf_counter()
-    rows = reduced_vs_full_sweep(translation=args.translation)
-    out = OUT_TRANSLATION if args.translation else OUT
+def _cell(v: object) -> object:
+    """A CSV cell: empty for None, a list of per-period steps as ';'-separated nm."""
+    if v is None:
+        return ""
+    return ";".join(f"{x:.4f}" for x in v) if isinstance(v, list) else v
+
+
+def _write(rows: list[dict], out: Path) -> None:
     out.parent.mkdir(exist_ok=True)
-    tmp = out.with_suffix(".tmp")
+    tmp = out.with_suffix(".tmp")  # written whole, then moved: never half a file
     with tmp.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=KEYS)
         w.writeheader()
         for r in rows:
-            w.writerow({k: ("" if r.get(k) is None else r.get(k, "")) for k in KEYS})
+            w.writerow({k: _cell(r.get(k)) for k in KEYS})
     tmp.replace(out)
+
+
+def _summary(rows: list[dict], label: str) -> None:
     s = vs_full_summary(rows)
     wc = s["reduced_vs_full_worst_case"]
-    print(f"{len(rows)} cases, {s['reduced_vs_full_cases']} with a full step >= 1 nm: "
-          f"{100 * s['reduced_vs_full_within_5pct']:.0f} % within 5 %, median |difference| "
+    print(f"{label}: {len(rows)} cases, {s['reduced_vs_full_cases']} with a full step >= 1 nm: "
+          f"{100 * s['reduced_vs_full_within_5pct']:.1f} % within 5 %, median |difference| "
           f"{100 * s['reduced_vs_full_median']:.1f} %, max {100 * s['reduced_vs_full_max']:.1f} %"
           f" ({wc['amplifier']}, {wc['amplitude_V']:+g} V, {wc['frequency_Hz']:g} Hz, "
           f"a = {wc['a']})")  # fmt: skip
@@ -60,6 +85,76 @@ def main(argv: list[str] | None = None) -> int:
                if r["amplifier"] == mode and r["rel_diff"] is not None]  # fmt: skip
         print(f"  {mode:<10} median |diff| {100 * np.median(sub):.1f} %  "
               f"max {100 * max(sub):.1f} %")  # fmt: skip
+    over = sorted((r for r in rows if r["rel_diff"] is not None and abs(r["rel_diff"]) > 0.05),
+                  key=lambda r: -abs(r["rel_diff"]))  # fmt: skip
+    for r in over[:SHOWN]:
+        print(f"  over 5 %: {r['amplifier']:<10} {r['amplitude_V']:+6g} V {r['frequency_Hz']:6g} Hz"
+              f" a = {r['a']:<5} 3-D {r['full_step_nm']:9.3f} nm, reduced "
+              f"{r['reduced_step_nm']:9.3f} nm, {100 * r['rel_diff']:+.1f} %")  # fmt: skip
+        full, red = (" ".join(f"{x:+.2f}" for x in r[k])
+                     for k in ("full_period_steps_nm", "reduced_period_steps_nm"))  # fmt: skip
+        print(f"    per period [nm]: 3-D {full}; reduced {red}")
+    if len(over) > SHOWN:
+        print(f"  ... and {len(over) - SHOWN} more cases over 5 % (the CSV has every case)")
+
+
+def _check_reference(rows: list[dict], n: int, periods: int, settle: int) -> None:
+    """The n worst cases' 3-D step again at half the reference's step: how converged the
+    reference is where the verdict is decided."""
+    ok = sorted((r for r in rows if r["rel_diff"] is not None),
+                key=lambda r: -abs(r["rel_diff"]))[:n]  # fmt: skip
+    for r in ok:
+        drive, ps = stepping_drive("real", amplitude=r["amplitude_V"] / 45.0,
+                                   frequency=r["frequency_Hz"], periods=periods,
+                                   a=r["a"], amplifier=r["amplifier"])  # fmt: skip
+        rm = ReducedModel(ps, "B")
+        odt = min(1e-5, 0.01 / r["frequency_Hz"])
+        half = 1e9 * period_step(
+            full_reference_steps(rm, drive, odt, FULL_REFERENCE_DT_FACTOR / 2), settle
+        )
+        change = 100 * (r["full_step_nm"] / half - 1)
+        print(f"  reference check: {r['amplifier']:<10} {r['amplitude_V']:+6g} V "
+              f"{r['frequency_Hz']:6g} Hz a = {r['a']:<5} 3-D {r['full_step_nm']:.4f} nm, "
+              f"at half the step {half:.4f} nm ({change:+.2f} %)")  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    form = ap.add_mutually_exclusive_group()
+    form.add_argument("--translation", action="store_true",
+                      help="the reduced model with the sphere's translation")  # fmt: skip
+    form.add_argument("--both", action="store_true",
+                      help="both forms on one 3-D reference (both files)")  # fmt: skip
+    ap.add_argument("--check-reference", type=int, default=0, metavar="N",
+                    help="rerun the N worst cases' 3-D reference at half its step")  # fmt: skip
+    ap.add_argument("--periods", type=int, default=VS_FULL_PERIODS,
+                    help=f"periods from rest (default {VS_FULL_PERIODS}, the bench's)")  # fmt: skip
+    ap.add_argument("--settle", type=int, default=0,
+                    help="the steady step: |mean step| after this many periods (default 0: "
+                         "the bench's mean |step| over every period)")  # fmt: skip
+    args = ap.parse_args(argv)
+    if args.check_reference < 0:
+        ap.error(f"--check-reference={args.check_reference}: must be >= 0")
+    if args.periods < 1:
+        ap.error(f"--periods={args.periods}: must be >= 1")
+    if not 0 <= args.settle < args.periods:
+        ap.error(f"--settle={args.settle}: must lie in 0…{args.periods - 1} (--periods - 1)")
+    run = {"periods": args.periods, "settle": args.settle}
+    bench_measure = run == {"periods": VS_FULL_PERIODS, "settle": 0}
+    tail = "" if bench_measure else f"_p{args.periods}_s{args.settle}"
+    t0 = time.perf_counter()
+    plain = None if args.translation else reduced_vs_full_sweep(**run)
+    moved = (reduced_vs_full_sweep(translation=True, reference=plain, **run)
+             if args.translation or args.both else None)  # fmt: skip
+    for rows, out, label in ((plain, OUT, "per-axis"),
+                             (moved, OUT_TRANSLATION, "translation")):  # fmt: skip
+        if rows is None:
+            continue
+        _write(rows, out.with_name(out.stem + tail + out.suffix))
+        _summary(rows, label)
+        if args.check_reference:
+            _check_reference(rows, args.check_reference, args.periods, args.settle)
+    rows = plain if plain is not None else moved
     pairs = {}
     for r in rows:
         if r["full_step_nm"] is not None:
@@ -68,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     asym = [abs(p[True] - p[False]) / (0.5 * (p[True] + p[False])) for p in pairs.values()
             if len(p) == 2 and min(p.values()) >= 1.0]  # fmt: skip
     print(
-        f"  the 3-D model's direction asymmetry |s+ − s−|/mean: median "
+        f"the 3-D model's direction asymmetry |s+ − s−|/mean: median "
         f"{100 * np.median(asym):.1f} %, max {100 * max(asym):.1f} %; wall "
         f"{time.perf_counter() - t0:.0f} s"
     )

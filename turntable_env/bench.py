@@ -29,7 +29,7 @@ import dataclasses
 import itertools
 import time
 import tracemalloc
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -45,6 +45,8 @@ __all__ = [
     "accuracy_sweep",
     "converge",
     "env_throughput",
+    "full_reference_steps",
+    "period_step",
     "reduced_vs_full_sweep",
     "run_bench",
     "vs_full_summary",
@@ -77,6 +79,9 @@ VS_FULL_QUICK = {"amplifier": ("adapted",), "amplitude_V": (90.0,), "frequency_H
                  "a": (0.95,)}  # fmt: skip
 VS_FULL_PERIODS = 3
 STEP_FLOOR_NM = 1.0  # nm per period: below it a relative difference measures nothing
+# the 3-D reference's fixed step (fraction of 1/ω_max): the fine step throughout, where
+# the adaptive step's coarse quiet stretches move a 1–2 nm step by up to 5 %
+FULL_REFERENCE_DT_FACTOR = FULL_FINE
 
 
 def converge(
@@ -161,38 +166,101 @@ def accuracy_sweep(ps: Any, full: Any, quick: bool = False) -> list[dict[str, An
     return rows
 
 
-def reduced_vs_full_sweep(quick: bool = False, translation: bool = False) -> list[dict[str, Any]]:
-    """Mean |step| per period [nm] of the reduced and the 3-D model (real parameters, axis
-    B, :data:`VS_FULL_PERIODS` periods, the 3-D model's adaptive step) for every case of
-    :data:`VS_FULL` (``quick``: :data:`VS_FULL_QUICK`), both directions, and their relative
-    difference (reduced/full − 1; None where the full step is under
-    :data:`STEP_FLOOR_NM` or the adapted flyback does not fit the period, with the note);
-    ``translation``: the reduced model with the sphere's translation and tilts
-    (:class:`~turntable_env.reduced.TranslationParameters`)."""
+def period_step(steps: np.ndarray, settle: int = 0) -> float:
+    """A run's step per period [its unit] from its per-period steps: with ``settle`` = 0
+    the mean |step| over every period (``turntable bench``'s measure, the start from rest
+    included); with ``settle`` = k, |mean step| over the periods after the first k, the
+    steady step (a table that settles after a start-up slip, as under a 20 V triangle,
+    steps 0 there). nan without periods after ``settle``."""
+    s = np.asarray(steps, dtype=float)[settle:]
+    if not s.size:
+        return float("nan")
+    return float(np.mean(np.abs(s))) if settle == 0 else float(abs(np.mean(s)))
+
+
+def full_reference_steps(
+    rm: ReducedModel, drive: Any, output_dt: float, dt_factor: float | None = None
+) -> np.ndarray:
+    """The 3-D model's step in each period of ``drive`` [m] (axis B), converged: a fixed
+    step of ``dt_factor`` (default :data:`FULL_REFERENCE_DT_FACTOR`) of 1/ω_max throughout,
+    the reference of :func:`reduced_vs_full_sweep` (:func:`period_step` reduces it)."""
+    factor = FULL_REFERENCE_DT_FACTOR if dt_factor is None else dt_factor
+    r = simulate(rm.params, drive, axis="B", model=rm.full, dt_factor=factor,
+                 coarse_factor=None, output_dt=output_dt)  # fmt: skip
+    return np.asarray(r.steps, dtype=float)
+
+
+def reduced_vs_full_sweep(
+    quick: bool = False,
+    translation: bool = False,
+    reference: Sequence[Mapping[str, Any]] | None = None,
+    periods: int = VS_FULL_PERIODS,
+    settle: int = 0,
+) -> list[dict[str, Any]]:
+    """Step per period [nm] of the reduced and the 3-D model (real parameters, axis B,
+    ``periods`` periods from rest; :func:`period_step`: the mean |step| over them, or with
+    ``settle`` = k the steady step after k) for every case of :data:`VS_FULL` (``quick``:
+    :data:`VS_FULL_QUICK`), both directions, and their relative difference (reduced/full −
+    1; None where the full step is under :data:`STEP_FLOOR_NM` or the adapted flyback does
+    not fit the period, with the note); ``translation``: the reduced model with the
+    sphere's translation and tilts (:class:`~turntable_env.reduced.TranslationParameters`).
+    ``turntable bench`` runs the defaults, :data:`VS_FULL_PERIODS` periods and no settling.
+
+    The 3-D model is the reference, so it runs converged: at its fixed fine step
+    (:data:`FULL_REFERENCE_DT_FACTOR` of 1/ω_max), not the adaptive step the speed figures
+    time, whose coarse steps through quiet stretches move a 1–2 nm step by up to 5 %
+    (``python experiments/reduced_sweep.py --check-reference N`` halves the step on the N
+    worst cases). Each row carries both models' step in every period
+    (``full_period_steps_nm``, ``reduced_period_steps_nm``). ``reference``: the rows of an
+    earlier sweep over the same grid, whose 3-D steps are taken instead of running the 3-D
+    model again (the 3-D model does not depend on the reduced model's form).
+
+    Raises:
+        ValueError: ``reference`` is not a sweep over this grid (naming the first case
+            that differs); ``periods`` < 1 or ``settle`` outside 0…periods − 1.
+    """
+    n_periods = check_int("periods", periods, lo=1)
+    n_settle = check_int("settle", settle, lo=0, hi=n_periods - 1)
     grid = VS_FULL_QUICK if quick else VS_FULL
+    keys = ("amplifier", "amplitude_V", "frequency_Hz", "a", "periods", "settle")
+    combos = itertools.product(*grid.values(), (1.0, -1.0))
+    cases = [dict(zip(keys, (mode, sgn * amp, f, a, n_periods, n_settle), strict=True))
+             for mode, amp, f, a, sgn in combos]  # fmt: skip
+    if reference is not None:
+        if len(reference) != len(cases):
+            raise ValueError(f"reference: {len(reference)} rows, the sweep has {len(cases)}")
+        for case, r in zip(cases, reference, strict=True):
+            got = {k: r.get(k) for k in keys}
+            if got != case:
+                raise ValueError(f"reference: row {got!r} where the sweep has {case!r}")
     rows: list[dict[str, Any]] = []
     models: dict[str, ReducedModel] = {}
-    for mode, amp, f, a, sgn in itertools.product(*grid.values(), (1.0, -1.0)):
-        row: dict[str, Any] = {"amplifier": mode, "amplitude_V": sgn * amp, "frequency_Hz": f,
-                               "a": a}  # fmt: skip
+    for k, row in enumerate(cases):
+        mode, amp, f, a = row["amplifier"], row["amplitude_V"], row["frequency_Hz"], row["a"]
         try:
-            drive, ps = stepping_drive("real", amplitude=sgn * amp / 45.0, frequency=f,
-                                       periods=VS_FULL_PERIODS, a=a, amplifier=mode)  # fmt: skip
+            drive, ps = stepping_drive("real", amplitude=amp / 45.0, frequency=f,
+                                       periods=n_periods, a=a, amplifier=mode)  # fmt: skip
             if mode not in models:
                 models[mode] = ReducedModel(ps, "B", translation=translation)
             rm = models[mode]
             odt = min(1e-5, 0.01 / f)
-            s_full = simulate(rm.params, drive, axis="B", model=rm.full,
-                              coarse_factor=FULL_COARSE, output_dt=odt).step_size  # fmt: skip
-            s_red = simulate_batch([rm], [drive], drive.duration, output_dt=odt)[0].step_size
+            if reference is not None and reference[k]["full_step_nm"] is not None:
+                full = 1e-9 * np.asarray(reference[k]["full_period_steps_nm"], dtype=float)
+            else:
+                full = full_reference_steps(rm, drive, odt)  # m per period
+            red = simulate_batch([rm], [drive], drive.duration, output_dt=odt)[0].steps
         except ValueError as exc:  # the adapted flyback does not fit the period
-            rows.append({**row, "full_step_nm": None, "reduced_step_nm": None,
-                         "rel_diff": None, "note": str(exc)[:80]})  # fmt: skip
+            none = dict.fromkeys(("full_step_nm", "reduced_step_nm", "rel_diff",
+                                  "full_period_steps_nm", "reduced_period_steps_nm"))  # fmt: skip
+            rows.append({**row, **none, "note": str(exc)[:80]})
             continue
+        s_full, s_red = period_step(full, n_settle), period_step(red, n_settle)
         ok = s_full * 1e9 >= STEP_FLOOR_NM
         rows.append({**row, "full_step_nm": 1e9 * s_full, "reduced_step_nm": 1e9 * s_red,
                      "rel_diff": s_red / s_full - 1.0 if ok else None,
-                     "note": "" if ok else f"full step < {STEP_FLOOR_NM} nm"})  # fmt: skip
+                     "note": "" if ok else f"full step < {STEP_FLOOR_NM} nm",
+                     "full_period_steps_nm": [1e9 * x for x in full],
+                     "reduced_period_steps_nm": [1e9 * x for x in red]})  # fmt: skip
     return rows
 
 
@@ -316,8 +384,10 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     out["reduced_translation_vs_full"] = (
         out["reduced_translation_step_um"] / out["full_step_um"] - 1.0
     )
-    out.update(vs_full_summary(reduced_vs_full_sweep(quick)))
-    out.update(vs_full_summary(reduced_vs_full_sweep(quick, translation=True),
+    plain_rows = reduced_vs_full_sweep(quick)
+    out.update(vs_full_summary(plain_rows))
+    out.update(vs_full_summary(reduced_vs_full_sweep(quick, translation=True,
+                                                     reference=plain_rows),
                                "reduced_translation"))  # fmt: skip
     sweep = accuracy_sweep(ps, full, quick=quick)
     out["reduced_step_error_sweep"] = sweep
