@@ -41,10 +41,10 @@ from turntable_env.bench import (
     full_reference_steps,
     period_step,
     reduced_vs_full_sweep,
+    sweep_drive,
     vs_full_summary,
 )
 from turntable_env.reduced import ReducedModel
-from turntable_env.simulation import stepping_drive
 
 OUT = Path(__file__).parent / "results" / "reduced_sweep.csv"
 OUT_TRANSLATION = OUT.with_name("reduced_sweep_translation.csv")
@@ -104,11 +104,8 @@ def _check_reference(rows: list[dict], n: int, periods: int, settle: int) -> Non
     ok = sorted((r for r in rows if r["rel_diff"] is not None),
                 key=lambda r: -abs(r["rel_diff"]))[:n]  # fmt: skip
     for r in ok:
-        drive, ps = stepping_drive("real", amplitude=r["amplitude_V"] / 45.0,
-                                   frequency=r["frequency_Hz"], periods=periods,
-                                   a=r["a"], amplifier=r["amplifier"])  # fmt: skip
+        drive, ps, odt = sweep_drive(r, periods)
         rm = ReducedModel(ps, "B")
-        odt = min(1e-5, 0.01 / r["frequency_Hz"])
         half = 1e9 * period_step(
             full_reference_steps(rm, drive, odt, FULL_REFERENCE_DT_FACTOR / 2), settle
         )

@@ -225,16 +225,15 @@ def test_sweep_reference_is_converged(amplifier, amplitude, frequency, a):
     the speed figures time is off by more than that, and on a 500 nm step."""
     from turntable_env.bench import (
         FULL_REFERENCE_DT_FACTOR,
-        VS_FULL_PERIODS,
         full_reference_steps,
         period_step,
+        sweep_drive,
     )
     from turntable_env.simulation import simulate
 
-    drive, ps = stepping_drive("real", amplitude=amplitude / 45.0, frequency=frequency,
-                               periods=VS_FULL_PERIODS, a=a, amplifier=amplifier)  # fmt: skip
+    case = {"amplifier": amplifier, "amplitude_V": amplitude, "frequency_Hz": frequency, "a": a}
+    drive, ps, odt = sweep_drive(case)
     rm = ReducedModel(ps, "B")
-    odt = min(1e-5, 0.01 / frequency)
     ref = period_step(full_reference_steps(rm, drive, odt))
     half = period_step(full_reference_steps(rm, drive, odt, FULL_REFERENCE_DT_FACTOR / 2))
     assert ref == pytest.approx(half, rel=0.005)

@@ -49,6 +49,7 @@ __all__ = [
     "period_step",
     "reduced_vs_full_sweep",
     "run_bench",
+    "sweep_drive",
     "vs_full_summary",
 ]
 
@@ -178,6 +179,22 @@ def period_step(steps: np.ndarray, settle: int = 0) -> float:
     return float(np.mean(np.abs(s))) if settle == 0 else float(abs(np.mean(s)))
 
 
+def sweep_drive(case: Mapping[str, Any], periods: int = VS_FULL_PERIODS) -> tuple[Any, Any, float]:
+    """One case of :func:`reduced_vs_full_sweep` (``amplifier``, ``amplitude_V`` on the tubes,
+    ``frequency_Hz``, ``a``) as its drive of ``periods`` periods, its parameter set (real,
+    the case's amplifier) and its output interval [s] (10 µs, or a hundredth of a period
+    where that is shorter).
+
+    Raises:
+        ValueError: the drive cannot be built (the adapted flyback does not fit the period).
+    """
+    f = float(case["frequency_Hz"])
+    amplitude = float(case["amplitude_V"]) / 45.0  # V input (the tubes' ÷ the gain)
+    drive, ps = stepping_drive("real", amplitude=amplitude, frequency=f, periods=periods,
+                               a=case["a"], amplifier=case["amplifier"])  # fmt: skip
+    return drive, ps, min(1e-5, 0.01 / f)
+
+
 def full_reference_steps(
     rm: ReducedModel, drive: Any, output_dt: float, dt_factor: float | None = None
 ) -> np.ndarray:
@@ -236,14 +253,12 @@ def reduced_vs_full_sweep(
     rows: list[dict[str, Any]] = []
     models: dict[str, ReducedModel] = {}
     for k, row in enumerate(cases):
-        mode, amp, f, a = row["amplifier"], row["amplitude_V"], row["frequency_Hz"], row["a"]
+        mode = row["amplifier"]
         try:
-            drive, ps = stepping_drive("real", amplitude=amp / 45.0, frequency=f,
-                                       periods=n_periods, a=a, amplifier=mode)  # fmt: skip
+            drive, ps, odt = sweep_drive(row, n_periods)
             if mode not in models:
                 models[mode] = ReducedModel(ps, "B", translation=translation)
             rm = models[mode]
-            odt = min(1e-5, 0.01 / f)
             if reference is not None and reference[k]["full_step_nm"] is not None:
                 full = 1e-9 * np.asarray(reference[k]["full_period_steps_nm"], dtype=float)
             else:
