@@ -32,7 +32,9 @@ tangent plane's two and its axis), linearised about the rest state, all derived 
 
 It is built in the world frame from the 3-D model's packed arrays, independently of the
 kernel's :meth:`~turntable_env.reduced.ReducedModel.translation_matrices` (which hold the
-non-driving directions stuck; ``--variant side_stuck`` does that here). Variants:
+axis contact stuck; since stop 93 the kernel's driving contacts are under the 2-D law,
+``--variant friction_2d`` here, where stop 67–92's kernel held their directions along the
+axis stuck, ``--variant side_stuck``). Variants:
 ``series`` (the ball's axial motion massless: Hertz's spring in series with the tube's
 axial one, s V in the normal force), ``no_tilt`` (series, x normal to n, φ along n: stop
 66's translation), ``tilts_held`` (the same against the 3-D model with its tilts held by

@@ -135,6 +135,35 @@ def test_gms_2d_equals_1d_for_collinear_motion(angle):
     assert np.array_equal(stick2, r1.flags)
 
 
+@pytest.mark.parametrize("angle", [0.0, 0.7, math.pi / 2, 2.5, -2.0])
+@pytest.mark.parametrize("stuck", [1, 0])
+def test_planar_element_step_is_the_1d_step_for_collinear_motion(angle, stuck):
+    """The translating reduced model's element step in its contact plane
+    (``gms_element_step2``) is the per-axis one (``gms_element_step``) turned by the angle
+    of a collinear motion: force, target and displacement along one direction. Loading
+    along the force is capped at the element spring in both."""
+    from turntable_env.friction.kernels import gms_element_step, gms_element_step2
+
+    u = np.array([math.cos(angle), math.sin(angle)])
+    for f, dx, target, decay in [(0.3, 2e-7, 0.8, 0.4), (0.3, 1e-9, 0.8, 0.1),
+                                 (-0.5, -3e-8, -0.2, 0.7), (0.0, 1e-8, 0.5, 0.5)]:  # fmt: skip
+        one = gms_element_step(f, stuck, 1e6, dx, target, decay)
+        fx, fy = gms_element_step2(f * u[0], f * u[1], stuck, 1e6, dx * u[0], dx * u[1],
+                                   target * u[0], target * u[1], decay)  # fmt: skip
+        assert (fx, fy) == pytest.approx((one * u[0], one * u[1]), abs=1e-12)
+
+
+def test_planar_element_turns_toward_the_sliding_direction():
+    """A slipping element loaded across its sliding direction (force along x, sliding
+    along y) relaxes toward ν s along y: its x part decays by the step's factor and its
+    y part grows toward the target, where a per-direction law would keep the x load."""
+    from turntable_env.friction.kernels import gms_element_step2
+
+    fx, fy = gms_element_step2(0.4, 0.0, 0, 1e6, 0.0, 1e-6, 0.0, 0.5, 0.25)
+    assert fx == pytest.approx(0.1)
+    assert fy == pytest.approx(0.375)
+
+
 def test_gms_2d_isotropic_sliding():
     """Circular sliding at constant speed: every slipping element tracks ν_i s(|v|) v̂ with
     time constant τ = |s|/C (Eq. 2.25 in the plane), so the total force is a first-order lag of

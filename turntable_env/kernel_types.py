@@ -57,7 +57,10 @@ class ReducedState(NamedTuple):
             the balls along their tubes' axes a1, a2, a_n after them, each with its rate
             (:class:`~turntable_env.reduced.TranslationParameters`).
         volt: (N,) amplifier output on the channel [V].
-        f: (N, 2, n_e) GMS element forces of the two contacts [N].
+        f: (N, 4, n_e) GMS element forces [N]: the two driving contacts' along their
+            driving directions, then (with the translation) their components along the
+            axis n, each element a 2-vector in its contact plane (§3.3.2); zero in the
+            per-axis form.
         st: (N, 2, n_e) 1 stick / 0 slip.
         n: (N,) time in grid units.
         vslow, vfast: (N,) the amplifier's slow and fast paths [V]
@@ -89,8 +92,11 @@ class ReducedArrays(NamedTuple):
     the all-stick system; ``q2`` = A⁻¹Q[:, 0], ``modal_v``, ``modal_lam`` its eigenvectors and
     eigenvalues (the analytic all-stick step); ``ring_frac`` the largest step as a fraction
     of the fastest ringing mode's period; ``use_modal`` whether all-stick phases take the
-    analytic step (else the ladder, as a check); ``srow`` (2, 2, n_y) each driving
-    contact's slip and slip rate as rows over the state, ``nrow`` (2, n_y + 2) its normal
+    analytic step (else the ladder, as a check); ``gam_*`` and ``qs`` take the inputs
+    (V, V̇, f1, f2) of the per-axis form, (V, V̇, f1, f2, g1, g2) with the translation (the
+    driving contacts' constant forces along n after theirs; ``qs`` without V̇); ``srow``
+    (2, 2, n_y) each driving contact's slip and slip rate as rows over the state, (4, 2,
+    n_y) with the translation (rows 2 and 3: the slips along n), ``nrow`` (2, n_y + 2) its normal
     force less F_N as a row over (y, V, V̇) (zero without the sphere's translation).
     """
 

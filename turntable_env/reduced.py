@@ -190,15 +190,22 @@ class TranslationParameters:
     its axial mass and stiffness, driven by the stroke s V), and each contact's normal
     force is F_N + k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) (Eq. 3.21's k_c δ^e + d_c δ̇ linearised
     at F_N; x_n, a_n on the axis); a driving contact's sets its Stribeck level (Eq. 2.13).
-    The contacts' other tangent directions never slip: the tube on the axis holds x_1,
-    x_2 and the tilts at its contact point ρn (slip b_j − d_j·(x + φ × ρn)), each driving
-    tube holds x_n and the tilts along n at ρd_k (slip w_k − n·(x + φ × ρd_k)), each a
-    stuck GMS contact (Σk_i with micro-damping β_tΣk_i, Eq. 2.24) in series with the
-    tube's bending there, condensed at its contact point as the driving direction is;
-    the axis contact's normal spring holds x_n. The table's inertia couples rotation
-    and translation through the centre of mass c, 3R/8 below the centre (App. C): T =
-    ½m|ẋ + φ̇ × c|² + ½φ̇ᵀJ_cφ̇ (J_c about the centre of mass), and gravity's pendulum
-    stiffness on φ is m g (|c| I − c cᵀ/|c|) (Eq. C.16's lever).
+    The axis contact never slips: the tube on the axis holds x_1, x_2 and the tilts at
+    its contact point ρn (slip b_j − d_j·(x + φ × ρn)), a stuck GMS contact (Σk_i with
+    micro-damping β_tΣk_i, Eq. 2.24) in series with the tube's bending there, condensed
+    at its contact point as the driving direction is; its normal spring holds x_n. Each
+    driving tube holds x_n and the tilts along n at ρd_k (slip w_k − n·(x + φ × ρd_k),
+    the tube condensed there too) through its contact's second tangent direction, whose
+    GMS elements are the driving direction's: each element is a 2-vector in the contact
+    plane under the 2-D law (§3.3.2, :mod:`turntable_env.friction.gms2d`), so the load
+    the side tubes' bending puts on it along n takes its share of the element's
+    capacity and is given up whenever it slips, as in the 3-D model (stop 93; held
+    stuck before, the settled step at +90 V, 100 Hz was 11 % short).
+
+    The table's inertia couples rotation and translation through the centre of mass c,
+    3R/8 below the centre (App. C): T = ½m|ẋ + φ̇ × c|² + ½φ̇ᵀJ_cφ̇ (J_c about the centre
+    of mass), and gravity's pendulum stiffness on φ is m g (|c| I − c cᵀ/|c|) (Eq. C.16's
+    lever).
 
     Attributes:
         mass: m, the table's mass [kg].
@@ -220,7 +227,8 @@ class TranslationParameters:
             driving tube condensed at its contact point along n [kg], [N/m], [N·s/m],
             and its free deflection there per channel volt [m/V].
         stuck_stiffness, stuck_damping: each stuck contact direction (the axis
-            contact's two, the driving contacts' along n) [N/m], [N·s/m].
+            contact's two; the driving contacts' along n while every element sticks, as
+            at rest) [N/m], [N·s/m].
     """
 
     mass: float
@@ -492,17 +500,42 @@ class ReducedModel:
 
     def _slip_rows(self) -> np.ndarray:
         """(2, 2, n_state): each driving contact's slip (tube point − table point) [m] and
-        its rate [m/s] as rows over y: u_k − ρ_kθ (− e_k·x with the translation)."""
+        its rate [m/s] as rows over y: u_k − ρ_kθ (− e_k·x with the translation); (4, 2,
+        n_state) with the translation, whose rows 2 and 3 are the driving contacts' slips
+        along the axis n, w_k − n·(x + φ × ρd_k) (:meth:`_side_rows`)."""
         ny = self.n_state
-        rows = np.zeros((2, 2, ny))
+        tr = self.translation_params
+        rows = np.zeros((2 if tr is None else 4, 2, ny))
         for k in range(2):
             for r in range(2):
                 rows[k, r, 2 + 2 * k + r] = 1.0
                 rows[k, r, r] = -self.axis_params.lever[k]
-                if self.translation_params is not None:
+                if tr is not None:
                     for j in range(2):
-                        rows[k, r, 6 + 2 * j + r] = -self.translation_params.direction[k][j]
+                        rows[k, r, 6 + 2 * j + r] = -tr.direction[k][j]
+                    rows[2 + k, r, r::2] = self._side_rows()[k]
         return rows
+
+    def _side_rows(self) -> np.ndarray:
+        """(2, 15): each driving contact's slip along the axis n over q (see
+        :meth:`translation_matrices`), w_k − n·(x + φ × ρd_k) [m]: the second tangent
+        direction of its contact plane, where its GMS elements are loaded and slip with
+        the driving direction's (the 2-D law of §3.3.2, :mod:`turntable_env.friction.gms2d`)."""
+        return self._stuck_rows()[2:]
+
+    def _stuck_rows(self) -> np.ndarray:
+        """(4, 15): the slips over q of the contact directions beside the driving ones
+        (tube point − table point, φ × ρd in (d1, d2, n)): the axis contact along d1 and
+        d2, then each driving contact along n."""
+        tr = self.translation_params
+        assert tr is not None
+        sg, rho = tr.handedness, self.axis_params.lever[0]
+        stuck = np.zeros((4, 15))
+        stuck[0, [5, 3, 9]] = 1.0, -1.0, -sg * rho  # axis contact along d1
+        stuck[1, [6, 4, 8]] = 1.0, -1.0, sg * rho  # along d2
+        stuck[2, [10, 7, 9]] = 1.0, -1.0, sg * rho  # driving contact 1 along n
+        stuck[3, [11, 7, 8]] = 1.0, -1.0, -sg * rho  # driving contact 2 along n
+        return stuck
 
     def _normal_rows(self) -> np.ndarray:
         """(2, n_state + 2): each driving contact's normal force less F_N [N] as a row over
@@ -520,28 +553,31 @@ class ReducedModel:
         return rows
 
     def _system_translation(self, s_stuck: tuple[float, float]) -> np.ndarray:
-        """Augmented 34×34 matrix of (y, V, V̇, f1, f2) with the translation (y as
+        """Augmented 36×36 matrix of (y, V, V̇, f1, f2, g1, g2) with the translation (y as
         :attr:`n_state`; see :class:`TranslationParameters`): M q̈ = −K q − C q̇ + b_V V +
-        b_V̇ V̇ − Σ_k S_k F_k over q of :meth:`translation_matrices`, F_k = s_k S_k q +
-        d_k S_k q̇ + f_k the driving contacts' friction (Eq. 2.24, the stuck stiffness s_k)."""
+        b_V̇ V̇ − Σ_k (S_k F_k + N_k G_k) over q of :meth:`translation_matrices` without the
+        driving contacts' directions along n, F_k = s_k S_k q + d_k S_k q̇ + f_k the driving
+        contacts' friction along their driving directions and G_k = s_k N_k q + d_k N_k q̇
+        + g_k along n (Eq. 2.24 in the contact plane, §3.3.2: one stuck stiffness s_k for
+        both, the elements sticking or slipping as 2-vectors)."""
         fr = self.params.friction
         assert fr is not None
         beta_t = self.params.contact.tangential_damping  # type: ignore[union-attr]
-        mass, kq, cq, b_v, b_vd = self.translation_matrices()
+        mass, kq, cq, b_v, b_vd = self.translation_matrices(side_stuck=False)
         nq = mass.shape[0]
         ny = 2 * nq
-        a = np.zeros((ny + 4, ny + 4))
+        a = np.zeros((ny + 6, ny + 6))
         rows = self._slip_rows()
-        acc = np.zeros((nq, ny + 4))  # generalised forces as rows over the augmented state
+        acc = np.zeros((nq, ny + 6))  # generalised forces as rows over the augmented state
         acc[:, 0:ny:2] -= kq
         acc[:, 1:ny:2] -= cq
         acc[:, ny] += b_v
         acc[:, ny + 1] += b_vd
-        for k in range(2):
+        for k in range(4):  # driving directions, then along n: contact k % 2, input column
             sq = rows[k, 0, 0:ny:2]  # slip over q
-            d = fr.stribeck.sigma2 + beta_t * s_stuck[k]
-            frow = np.zeros(ny + 4)
-            frow[:ny] = s_stuck[k] * rows[k, 0] + d * rows[k, 1]
+            d = fr.stribeck.sigma2 + beta_t * s_stuck[k % 2]
+            frow = np.zeros(ny + 6)
+            frow[:ny] = s_stuck[k % 2] * rows[k, 0] + d * rows[k, 1]
             frow[ny + 2 + k] = 1.0
             acc -= np.outer(sq, frow)
         for i in range(nq):
@@ -550,18 +586,20 @@ class ReducedModel:
         a[ny, ny + 1] = 1.0
         return a
 
-    def translation_matrices(self) -> tuple[np.ndarray, ...]:
+    def translation_matrices(self, side_stuck: bool = True) -> tuple[np.ndarray, ...]:
         """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2, x_n, φ1, φ2, w1, w2,
         a1, a2, a_n) [SI] of the model with the translation, the tilts and the balls'
         axial coordinates, without the driving contacts' friction (see
         :meth:`_system_translation` and :class:`TranslationParameters`): M q̈ + C q̇ + K q =
         b_V V + b_V̇ V̇ + friction (b_V̇ = 0: the stroke drives the balls through their
-        tubes' springs)."""
+        tubes' springs). The axis contact's two directions are stuck (Σk_i and its
+        damping); so are the driving contacts' directions along n where ``side_stuck``
+        (every element stuck, as at rest), else they are left to the friction."""
         ap, tr = self.axis_params, self.translation_params
         if tr is None:
             raise ValueError("translation_matrices: this model has no translation")
         nq = 15
-        m, sg, rho = tr.mass, tr.handedness, ap.lever[0]
+        m, sg = tr.mass, tr.handedness
         c = np.asarray(tr.centre_of_mass)
         mass = np.diag([0.0, *ap.tube_mass, 0.0, 0.0, tr.axis_tube_mass, tr.axis_tube_mass,
                         0.0, 0.0, 0.0, *tr.side_tube_mass, tr.axial_mass, tr.axial_mass,
@@ -597,13 +635,8 @@ class ReducedModel:
             joint[x_k], joint[a_k] = 1.0, -1.0
             kq += tr.hertz_stiffness * np.outer(joint, joint)
             cq += tr.normal_damping * np.outer(joint, joint)
-        # the stuck directions' slips (tube point − table point), φ × ρd in (d1, d2, n)
-        stuck = np.zeros((4, nq))
-        stuck[0, [5, 3, 9]] = 1.0, -1.0, -sg * rho  # axis contact along d1
-        stuck[1, [6, 4, 8]] = 1.0, -1.0, sg * rho  # along d2
-        stuck[2, [10, 7, 9]] = 1.0, -1.0, sg * rho  # driving contact 1 along n
-        stuck[3, [11, 7, 8]] = 1.0, -1.0, -sg * rho  # driving contact 2 along n
-        for row in stuck:
+        stuck = self._stuck_rows()  # the stuck directions' slips
+        for row in stuck if side_stuck else stuck[:2]:
             kq += tr.stuck_stiffness * np.outer(row, row)
             cq += tr.stuck_damping * np.outer(row, row)
         return mass, kq, cq, b_v, b_vd
@@ -685,15 +718,16 @@ class ReducedModel:
         ring_frac = RING_FRACTION * self.step_scale
         r_slip = math.floor(math.log2(max(SLIP_STEP * self.step_scale / h, 1.0)))
         # quasi-static state per unit input (V, f1, f2) and modal projections (all stick)
-        qs = -np.linalg.solve(a6, a_stick[:ny, [ny, ny + 2, ny + 3]])
+        n_in = a_stick.shape[0] - ny  # inputs: V, V̇, the contacts' constant forces
+        qs = -np.linalg.solve(a6, a_stick[:ny, [ny, *range(ny + 2, ny + n_in)]])
         srow = self._slip_rows()
-        c_rel = np.ascontiguousarray(srow[:, 0, :])
+        c_rel = np.ascontiguousarray(srow[:2, 0, :])
         r_small = r_slip + 1  # rungs of the configurations with a slipping element
         systems = np.stack([self._system((levels[i0], levels[i1]))
                             for i0 in range(nl) for i1 in range(nl)])  # fmt: skip
         small = _ladders(systems, h, r_small)  # (nl², r_small, ny + 4, ny + 4)
         phi_s = np.ascontiguousarray(small[:, :, :ny, :ny])
-        gam_s = np.ascontiguousarray(small[:, :, :ny, ny : ny + 4])
+        gam_s = np.ascontiguousarray(small[:, :, :ny, ny : ny + n_in])
         e = _ladders(a_stick[None], h, MAX_RUNG + 1)[0]
         amp = self.params.amplifier
         c_load = self.full.output_capacitance(self.axis)
@@ -745,7 +779,7 @@ class ReducedModel:
             "phi_small": phi_s,
             "gam_small": gam_s,
             "phi_big": e[:, :ny, :ny].copy(),
-            "gam_big": e[:, :ny, ny : ny + 4].copy(),
+            "gam_big": e[:, :ny, ny : ny + n_in].copy(),
             "srow": srow,
             "nrow": self._normal_rows(),
             "h": h,
@@ -767,7 +801,12 @@ class ReducedModel:
 
         The contacts hold the pendulum torque k_gθ (ΣρF_k = k_gθ, F_k ∝ ρ_k), shared by the
         elements in proportion to k_i; each tube is bent by its free deflection g_kV less
-        F_k/K_k. Raises ValueError if an element would have to exceed its capacity ν_iμ_sF_N.
+        F_k/K_k. With the translation the driving contacts' elements also hold the side
+        tubes' deflection along the axis n (their slips there, shared in proportion to
+        k_i, an element whose load there would pass its capacity held at it): ``f`` is (4,
+        n_e), the driving directions' forces of contacts 1 and 2, then their components
+        along n (zero in the per-axis form). Raises ValueError if an element would have to
+        exceed its capacity ν_iμ_sF_N along the driving direction.
         """
         th = check_finite("angle", angle)
         v = check_finite("channel_voltage", channel_voltage)
@@ -783,17 +822,25 @@ class ReducedModel:
         y[2:6:2] = np.asarray(ap.tube_gain) * v - force / np.asarray(ap.tube_stiffness)
         if self.translation_params is not None:  # K q = b_V V − Σ S_k F_k, θ given
             _m, kq, _c, b_v, _bd = self.translation_matrices()
-            sq = self._slip_rows()[:, 0, 0::2]
+            sq = self._slip_rows()[:2, 0, 0::2]
             rhs = b_v * v - sq.T @ force - kq[:, 0] * th
             y[2::2] = np.linalg.solve(kq[1:, 1:], rhs[1:])
+        side = np.zeros((2, kk.size))  # the elements' components along n [N]
+        if self.translation_params is not None:
+            side = np.outer(self._side_rows() @ y[0::2], kk)
         nrow = self._normal_rows()  # the normal forces at rest (F_N without translation)
         fn_rest = np.asarray(ap.normal_force) + nrow[:, : self.n_state] @ y + nrow[:, -2] * v
         cap = nu[None, :] * mu_s * fn_rest[:, None]  # N
         if (np.abs(f) >= cap).any():
             raise ValueError(f"angle={angle!r}: friction cannot hold the table there")
+        # an element whose load along n would pass its capacity (a large voltage at rest)
+        # holds its share there: it slipped along n as the voltage came on
+        room = np.sqrt(np.maximum(cap**2 - f**2, 0.0))
+        side = np.clip(side, -room, room)
         a = self.params.amplifier.fast_fraction
         return {
-            "y": y, "volt": np.array(v), "f": f, "st": np.ones_like(f, dtype=np.int64),
+            "y": y, "volt": np.array(v), "f": np.vstack([f, side]),
+            "st": np.ones_like(f, dtype=np.int64),
             "vslow": np.array((1.0 - a) * v), "vfast": np.array(a * v),
         }  # fmt: skip
 
@@ -843,7 +890,7 @@ class ReducedBatch:
         self.state = ReducedState(
             y=np.zeros((nb, max(m.n_state for m in models))),
             volt=np.zeros(nb),
-            f=np.zeros((nb, 2, ne)),
+            f=np.zeros((nb, 4, ne)),
             st=np.ones((nb, 2, ne), dtype=np.int64),
             n=np.zeros(nb, dtype=np.int64),
             vslow=np.zeros(nb),

@@ -37,8 +37,12 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
 
 With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
 the ``"translation"`` fidelity) the state has 30 entries (the sphere's translation, its
-tilts, the stuck tangent directions' tube points and the balls' axial coordinates after
-the 6), each contact's slip is a row over the state and its normal force F_N +
+tilts, the other tangent directions' tube points and the balls' axial coordinates after
+the 6), each driving contact's GMS elements are 2-vectors in its plane (the driving
+direction and the axis n, the 2-D law of §3.3.2: constant force inputs along n beside
+the driving direction's, slipping toward the mean sliding direction, breaking away on
+the vector's magnitude, :func:`_elements_moved`), each contact's slip is a row over the
+state and its normal force F_N +
 k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) a row over (y, V, V̇) that sets its Stribeck level at a
 step's ends and, for the slipping elements, its mean; where it falls under a sticking
 element's load the element is held at its share ν_i|s(v)| at the step's end (the 3-D
@@ -66,7 +70,7 @@ import numpy as np
 from numba import literally, njit, prange
 
 from .amplifier import amplifier_step, amplifier_step_decayed
-from .friction.kernels import gms_element_step, stribeck_magnitude
+from .friction.kernels import gms_element_step, gms_element_step2, stribeck_magnitude
 from .integrator import advance_index as _advance
 from .integrator import pwl_value as _input_at
 from .kernel_cache import CACHE
@@ -145,6 +149,21 @@ def _level(v, fn, gms):
     a = gms[7]
     if a != 0.0 and v != 0.0:
         s *= 1.0 - a if v > 0.0 else 1.0 + a
+    return s
+
+
+@njit(cache=CACHE)
+def _level2(v, vn, fn, gms):
+    """:func:`_level` of a translating contact whose tube point moves at (v, vn) [m/s]
+    relative to the table, along its driving direction and along the axis n: the
+    Stribeck level at the sliding speed |(v, vn)| (the 2-D law, §3.3.2), the asymmetry
+    α = ``gms[7]`` weighted by the driving direction's share, 1 − α·v/|(v, vn)| (the
+    3-D model's continuous factor, :mod:`turntable_env.integrator`)."""
+    speed = math.sqrt(v * v + vn * vn)
+    s = stribeck_magnitude(speed, fn, gms[1], gms[2], gms[3], gms[4])
+    a = gms[7]
+    if a != 0.0 and speed > 0.0:
+        s *= 1.0 - a * v / speed
     return s
 
 
@@ -379,6 +398,80 @@ def _locate(lo, hi, g_lo, g_hi, h_min, z0, lam, mc, xq0, xrate, x0, f0, kk, nu, 
     return hi
 
 
+@njit(cache=CACHE)
+def _transition(stuck, mag, cap, load, mag0, cap0, load0, frac):
+    """One GMS element's transition at a step's end (the 1-D kernel's rules, Eq. 2.24–2.25,
+    on the force's magnitude in the plane): a sticking element breaks away where its load
+    ``mag`` [N] reaches its share ``cap`` [N] while loading (``load`` = F·v > 0), a
+    slipping one sticks again where F·v ≤ 0. Returns (stick flag, event, frac): at an
+    event ``frac`` is lowered to the crossing's fraction of the step, interpolated from
+    the step start's ``mag0``, ``cap0``, ``load0`` (0 where they do not bracket it)."""
+    if stuck == 1:
+        if not (mag >= cap and load > 0.0):
+            return 1, False, frac
+        new, e0, e1 = 0, cap0 - mag0, cap - mag
+    else:
+        if load > 0.0:
+            return 0, False, frac
+        new, e0, e1 = 1, load0, load
+    if e0 > 0.0 and e1 < e0:
+        return new, True, min(frac, e0 / (e0 - e1))
+    return new, True, 0.0
+
+
+@njit(cache=CACHE)
+def _elements_moved(b, k, y, y0, v1, v0e, vslope, mech, nrow, srow, gms, nu, kk, f, st, f0,
+                    g0, x0, xd0, xn0, xdn0, slip_k, s_start, s_end, st_new, h, ne, event,
+                    frac):  # fmt: skip
+    """Contact k's GMS elements over a step of the translating form (the 2-D law in the
+    contact plane, §3.3.2, :mod:`turntable_env.friction.gms2d`): each element a 2-vector
+    along the driving direction (f[b, k]) and along the axis n (f[b, 2 + k]), loaded by
+    the slips there, slipping toward ν_i s(|v̄|) v̄/|v̄| at the step's mean sliding
+    velocity and normal force, breaking away when its magnitude reaches ν_i|s(|v|)|
+    while loading (F·v > 0) and sticking again when F·v ≤ 0; a sticking element above
+    its share where F_N fell is held at it (the 3-D model's rule). Writes f[b], st_new
+    and s_end[k]; returns (event, frac) updated as the per-axis loop's."""
+    x1, xd1 = _rel_moved(y[b], srow[b], k)
+    xn1, xdn1 = _rel_moved(y[b], srow[b], 2 + k)
+    dx = x1 - x0[k]
+    dn = xn1 - xn0[k]
+    fn_k = _normal(y[b], v1, vslope, mech[b, 12 + k], nrow[b], k, True)  # at the end [N]
+    s1 = _level2(xd1, xdn1, fn_k, gms[b])
+    s_end[k] = s1
+    tx = 0.0  # the slipping elements' direction × level, and their relaxation
+    tn = 0.0
+    decay = 0.0
+    if slip_k[k]:
+        vbar = 0.5 * (xd0[k] + xd1)
+        vnbar = 0.5 * (xdn0[k] + xdn1)
+        fn_bar = 0.5 * (fn_k + _normal(y0, v0e, vslope, mech[b, 12 + k], nrow[b], k, True))
+        sbar = _level2(vbar, vnbar, fn_bar, gms[b])
+        # no level (a translating contact unloaded): the elements drop at once
+        decay = math.exp(-gms[b, 0] * h / sbar) if sbar > 0.0 else 0.0
+        speed = math.sqrt(vbar * vbar + vnbar * vnbar)
+        if speed > 0.0:
+            tx = sbar * vbar / speed
+            tn = sbar * vnbar / speed
+    for i in range(ne):
+        fi, gi = gms_element_step2(f0[k, i], g0[k, i], st[b, k, i], kk[b, i], dx, dn,
+                                   nu[b, i] * tx, nu[b, i] * tn, decay)  # fmt: skip
+        f[b, k, i] = fi
+        f[b, 2 + k, i] = gi
+        mag = math.sqrt(fi * fi + gi * gi)
+        cap = nu[b, i] * s1
+        st_new[k, i], hit, frac = _transition(
+            st[b, k, i], mag, cap, fi * xd1 + gi * xdn1,
+            math.sqrt(f0[k, i] ** 2 + g0[k, i] ** 2), nu[b, i] * s_start[k],
+            f0[k, i] * xd0[k] + g0[k, i] * xdn0[k], frac,
+        )  # fmt: skip
+        event = event or hit
+        if st_new[k, i] == 1 and st[b, k, i] == 1 and mag > cap:
+            r = cap / mag  # F_N fell under its load: held at its share
+            f[b, k, i] = fi * r
+            f[b, 2 + k, i] = gi * r
+    return event, frac
+
+
 def run_reduced_batch(state, model, drive, h_min, recording, forms=None) -> None:
     """Advance every turntable b of the batch from grid time state.n[b] to recording.n_end[b],
     the batch's turntables in parallel (``numba.prange``).
@@ -514,6 +607,12 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
     x0 = np.empty(2)  # relative displacement [m] and velocity [m/s] at the step start
     xd0 = np.empty(2)
     fin = np.empty(2)  # constant force inputs [N]
+    # with the translation: the driving contacts' slip along n [m], its rate [m/s], their
+    # constant force inputs there [N] and the elements' components there at the step start
+    xn0 = np.zeros(2)
+    xdn0 = np.zeros(2)
+    gin = np.zeros(2)
+    gs0 = np.zeros((2, ne))
     s_end = np.empty(2)  # Stribeck level |s(v)| at the step end [N]
     s_start = np.empty(2)  # and at its start [N]
     # the analytic all-stick step (see the module docstring)
@@ -619,6 +718,11 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
             fin[k] = 0.0
             for i in range(ne):
                 fin[k] += f[b, k, i] - (kk[b, i] * x0[k] if st[b, k, i] == 1 else 0.0)
+            if translation:  # the same along n (the elements are 2-vectors, §3.3.2)
+                xn0[k], xdn0[k] = _rel_moved(y[b], srow[b], 2 + k)
+                gin[k] = 0.0
+                for i in range(ne):
+                    gin[k] += f[b, 2 + k, i] - (kk[b, i] * xn0[k] if st[b, k, i] == 1 else 0.0)
         # ---- all stuck, amplifier linear: one analytic step -----------------------------
         if not any_slip and use_modal:
             seg = n_end[b]
@@ -746,6 +850,8 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 dev[j] = y[b, j] - (
                     qs[b, j, 0] * volt[b] + qs[b, j, 1] * fin[0] + qs[b, j, 2] * fin[1]
                 )
+                if translation:
+                    dev[j] -= qs[b, j, 3] * gin[0] + qs[b, j, 4] * gin[1]
             om_fast = 0.0
             for jj in range(ny):  # from the fastest mode down: the first that rings decides
                 j = order[jj]
@@ -792,6 +898,8 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
         for k in range(2):
             for i in range(ne):
                 f0[k, i] = f[b, k, i]
+                if translation:
+                    gs0[k, i] = f[b, 2 + k, i]
         v0 = volt[b]
         vs0 = vslow[b]
         vf0 = vfast[b]
@@ -803,7 +911,9 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
             fn_s = mech[b, 12 + k]
             if translation:
                 fn_s = _normal(y[b], volt[b], 0.0, fn_s, nrow[b], k, True)
-            s_start[k] = s_end[k] if s_ok else _level(xd0[k], fn_s, gms[b])
+                s_start[k] = s_end[k] if s_ok else _level2(xd0[k], xdn0[k], fn_s, gms[b])
+            else:
+                s_start[k] = s_end[k] if s_ok else _level(xd0[k], fn_s, gms[b])
         while True:
             dn = 1 << r_use
             h = dn * h_min
@@ -828,6 +938,8 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 gm = gam_small[b, cfg, r_use]
             for a in range(ny):
                 s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
+                if translation:
+                    s += gm[a, 4] * gin[0] + gm[a, 5] * gin[1]
                 for c in range(ny):
                     s += ph[a, c] * y0[c]
                 y[b, a] = s
@@ -836,14 +948,15 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
             frac = 1.0  # earliest crossing in the step by linear interpolation [-]
             for k in range(2):
                 if translation:
-                    x1, xd1 = _rel_moved(y[b], srow[b], k)
-                else:
-                    x1, xd1 = _rel(y[b], mech[b], k)
+                    event, frac = _elements_moved(
+                        b, k, y, y0, v1, v0e, vslope, mech, nrow, srow, gms, nu, kk, f, st,
+                        f0, gs0, x0, xd0, xn0, xdn0, slip_k, s_start, s_end, st_new, h, ne,
+                        event, frac,
+                    )  # fmt: skip
+                    continue
+                x1, xd1 = _rel(y[b], mech[b], k)
                 dx = x1 - x0[k]
-                # the normal force at the step's end [N]
-                fn_k = mech[b, 12 + k]
-                if translation:
-                    fn_k = _normal(y[b], v1, vslope, fn_k, nrow[b], k, True)
+                fn_k = mech[b, 12 + k]  # the normal force [N]
                 s1 = _level(xd1, fn_k, gms[b])
                 s_end[k] = s1
                 sbar = 0.0  # slipping elements' level, relaxation and direction (only theirs)
@@ -851,49 +964,18 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 sg = 0.0
                 if slip_k[k]:
                     vbar = 0.5 * (xd0[k] + xd1)
-                    fn_bar = fn_k  # the step's mean normal force (F_N without translation)
-                    if translation:
-                        fn_bar = 0.5 * (fn_k + _normal(y0, v0e, vslope, mech[b, 12 + k],
-                                                       nrow[b], k, True))  # fmt: skip
-                    sbar = _level(vbar, fn_bar, gms[b])
-                    # no level (a translating contact unloaded): the elements drop at once
+                    sbar = _level(vbar, fn_k, gms[b])
                     decay = math.exp(-gms[b, 0] * h / sbar) if sbar > 0.0 else 0.0
                     sg = 1.0 if vbar > 0.0 else (-1.0 if vbar < 0.0 else 0.0)
                 for i in range(ne):  # the GMS law (Eq. 2.24–2.25), one compiled place
                     fi = gms_element_step(f0[k, i], st[b, k, i], kk[b, i], dx,
                                           nu[b, i] * sbar * sg, decay)  # fmt: skip
                     f[b, k, i] = fi
-                    # transitions (as the 1-D GMS kernel)
-                    if st[b, k, i] == 1:
-                        if abs(fi) >= nu[b, i] * s1 and fi * xd1 > 0.0:
-                            st_new[k, i] = 0
-                            event = True
-                            g0 = nu[b, i] * s_start[k] - abs(f0[k, i])
-                            g1 = nu[b, i] * s1 - abs(fi)
-                        else:
-                            st_new[k, i] = 1
-                            if translation and abs(fi) > nu[b, i] * s1:
-                                # F_N fell under the element's load: it holds no more than
-                                # its share ν_i|s(v)| (the 3-D model's rule, Eq. 2.25). The
-                                # per-axis form (F_N fixed) keeps the breakaway-only rule
-                                # its calibrations and benchmark ran on: the bound there
-                                # moves test_kernel_golden's runs by 6–7e-4
-                                capf = nu[b, i] * s1
-                                f[b, k, i] = capf if fi > 0.0 else -capf
-                            continue
-                    else:
-                        if fi * xd1 <= 0.0:
-                            st_new[k, i] = 1
-                            event = True
-                            g0 = f0[k, i] * xd0[k]
-                            g1 = fi * xd1
-                        else:
-                            st_new[k, i] = 0
-                            continue
-                    if g0 > 0.0 and g1 < g0:
-                        frac = min(frac, g0 / (g0 - g1))
-                    else:
-                        frac = 0.0
+                    st_new[k, i], hit, frac = _transition(
+                        st[b, k, i], abs(fi), nu[b, i] * s1, fi * xd1, abs(f0[k, i]),
+                        nu[b, i] * s_start[k], f0[k, i] * xd0[k], frac,
+                    )  # fmt: skip
+                    event = event or hit
             if event and r_use > 0:
                 # retry below the interpolated crossing (regula falsi on the ladder)
                 r_new = r_use - 1
@@ -911,7 +993,12 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 for i in range(ne):
                     if st[b, k, i] == 1 and st_new[k, i] == 0:
                         capf = nu[b, i] * s_end[k]  # broke away: no overshoot past capacity
-                        if abs(f[b, k, i]) > capf:
+                        if translation:  # the 2-vector scaled onto its capacity
+                            fm = math.sqrt(f[b, k, i] ** 2 + f[b, 2 + k, i] ** 2)
+                            if fm > capf:
+                                f[b, k, i] *= capf / fm
+                                f[b, 2 + k, i] *= capf / fm
+                        elif abs(f[b, k, i]) > capf:
                             f[b, k, i] = capf if f[b, k, i] > 0.0 else -capf
                     st[b, k, i] = st_new[k, i]
             s_ok = True  # the next step starts from this state

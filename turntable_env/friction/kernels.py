@@ -38,6 +38,7 @@ __all__ = [
     "LUGRE",
     "STRIBECK",
     "gms_element_step",
+    "gms_element_step2",
     "kernel_force",
     "kernel_rates",
     "kernel_update",
@@ -83,6 +84,29 @@ def gms_element_step(f, stuck, k, dx, target, decay):
     if f != 0.0 and d * f > 0.0 and d * f > lim * f:
         fnew = f + lim  # loading no faster than the element spring
     return fnew
+
+
+@njit(cache=CACHE)
+def gms_element_step2(f, g, stuck, k, dx, dn, tx, tn, decay):
+    """:func:`gms_element_step` for an element whose force is a 2-vector (f, g) [N] in its
+    contact plane (the 2-D law of :mod:`.gms2d`, §3.3.2): stuck, (f, g) + k·(dx, dn)
+    (Eq. 2.24); slipping, the exact relaxation toward the target (tx, tn) = ν_i s(|v̄|)
+    v̄/|v̄| [N] over the step (Eq. 2.25 along the mean sliding direction), its radial
+    part loading no faster than the element spring along the force, k·(dx, dn)·F̂."""
+    if stuck == 1:
+        return f + k * dx, g + k * dn
+    fx = tx + (f - tx) * decay
+    fy = tn + (g - tn) * decay
+    fm = math.sqrt(f * f + g * g)
+    if fm > 0.0:
+        ux = f / fm
+        uy = g / fm
+        radial = (fx - f) * ux + (fy - g) * uy
+        lim = k * (dx * ux + dn * uy)
+        if radial > 0.0 and radial > lim:
+            fx -= (radial - lim) * ux
+            fy -= (radial - lim) * uy
+    return fx, fy
 
 
 @njit(cache=CACHE)
