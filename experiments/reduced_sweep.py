@@ -13,6 +13,10 @@ not fit the period).
     python experiments/reduced_sweep.py --both --check-reference 6   # both files on one
         # 3-D reference; the 6 worst cases of each rerun at half the reference's step
 
+    python experiments/reduced_sweep.py --translation --reference \
+        experiments/results/reduced_sweep.csv --convergence   # the translation form on a
+        # committed 3-D reference, and each case again at half the reduced step bounds
+
     python experiments/reduced_sweep.py --both --periods 8 --settle 3   # the steady step,
         # |mean step| over periods 4-8 from rest: reduced_sweep_p8_s3.csv and
         # reduced_sweep_translation_p8_s3.csv
@@ -44,7 +48,7 @@ from turntable_env.bench import (
     sweep_drive,
     vs_full_summary,
 )
-from turntable_env.reduced import ReducedModel
+from turntable_env.reduced import ReducedModel, simulate_batch
 
 OUT = Path(__file__).parent / "results" / "reduced_sweep.csv"
 OUT_TRANSLATION = OUT.with_name("reduced_sweep_translation.csv")
@@ -115,6 +119,55 @@ def _check_reference(rows: list[dict], n: int, periods: int, settle: int) -> Non
               f"at half the step {half:.4f} nm ({change:+.2f} %)")  # fmt: skip
 
 
+def _read_reference(path: Path) -> list[dict]:
+    """The rows of an earlier sweep's CSV as ``reduced_vs_full_sweep``'s ``reference``: its
+    3-D steps per period (as the CSV keeps them, to 1e-4 nm), so a form can be rerun
+    without the 3-D model (the sweep refuses rows of another grid, naming the first)."""
+    rows = []
+    with path.open(newline="") as fh:
+        for line, r in enumerate(csv.DictReader(fh), start=2):
+            try:
+                rows.append({
+                    "amplifier": r["amplifier"], "amplitude_V": float(r["amplitude_V"]),
+                    "frequency_Hz": float(r["frequency_Hz"]), "a": float(r["a"]),
+                    "periods": int(r["periods"]), "settle": int(r["settle"]),
+                    "full_step_nm": float(r["full_step_nm"]) if r["full_step_nm"] else None,
+                    "full_period_steps_nm": ([float(x) for x in r["full_period_steps_nm"]
+                                              .split(";")] if r["full_period_steps_nm"]
+                                             else None),
+                })  # fmt: skip
+            except (KeyError, ValueError) as exc:
+                raise ValueError(f"{path}:{line}: not a sweep row ({exc})") from None
+    return rows
+
+
+def _convergence(rows: list[dict], translation: bool, periods: int, settle: int) -> None:
+    """Each case's reduced step again at half the reduced model's step bounds
+    (``ReducedModel(step_scale=0.5)``: grid, slip step, ringing step): the largest and the
+    median change over the cases with a 3-D step of 1 nm or more, and the worst three."""
+    models: dict[str, tuple[ReducedModel, ReducedModel]] = {}
+    changes = []
+    for r in rows:
+        if r["rel_diff"] is None:
+            continue
+        drive, ps, odt = sweep_drive(r, periods)
+        if r["amplifier"] not in models:
+            models[r["amplifier"]] = ReducedModel(ps, "B", translation=translation,
+                                                  step_scale=0.5)  # fmt: skip
+        half = simulate_batch([models[r["amplifier"]]], [drive], drive.duration,
+                              output_dt=odt)[0].steps  # fmt: skip
+        h_nm = 1e9 * period_step(half, settle)
+        changes.append((abs(r["reduced_step_nm"] / h_nm - 1.0), r, h_nm))
+    changes.sort(key=lambda c: -c[0])
+    print(f"  convergence: at half the step bounds the reduced step moves by at most "
+          f"{100 * changes[0][0]:.2f} % (median {100 * np.median([c[0] for c in changes]):.3f} "
+          f"%, {len(changes)} cases)")  # fmt: skip
+    for c, r, h_nm in changes[:3]:
+        print(f"    {r['amplifier']:<10} {r['amplitude_V']:+6g} V {r['frequency_Hz']:6g} Hz "
+              f"a = {r['a']:<5} {r['reduced_step_nm']:.4f} nm, at half {h_nm:.4f} nm "
+              f"({100 * c:.2f} %)")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     form = ap.add_mutually_exclusive_group()
@@ -129,7 +182,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--settle", type=int, default=0,
                     help="the steady step: |mean step| after this many periods (default 0: "
                          "the bench's mean |step| over every period)")  # fmt: skip
+    ap.add_argument("--reference", type=Path, metavar="CSV",
+                    help="take the 3-D steps from an earlier sweep's CSV of this grid, "
+                         "periods and settling instead of running the 3-D model")  # fmt: skip
+    ap.add_argument("--convergence", action="store_true",
+                    help="rerun each reduced case at half its step bounds")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.reference is not None and not args.reference.is_file():
+        ap.error(f"--reference={args.reference}: no such file")
     if args.check_reference < 0:
         ap.error(f"--check-reference={args.check_reference}: must be >= 0")
     if args.periods < 1:
@@ -139,10 +199,24 @@ def main(argv: list[str] | None = None) -> int:
     run = {"periods": args.periods, "settle": args.settle}
     bench_measure = run == {"periods": VS_FULL_PERIODS, "settle": 0}
     tail = "" if bench_measure else f"_p{args.periods}_s{args.settle}"
+    reference = None
+    if args.reference is not None:
+        try:
+            reference = _read_reference(args.reference)
+            if reference and (reference[0]["periods"], reference[0]["settle"]) != (
+                args.periods, args.settle
+            ):
+                raise ValueError(f"{args.reference}: periods {reference[0]['periods']}, settle "
+                                 f"{reference[0]['settle']}, not {args.periods}, {args.settle}")
+        except ValueError as exc:
+            ap.error(str(exc))
     t0 = time.perf_counter()
-    plain = None if args.translation else reduced_vs_full_sweep(**run)
-    moved = (reduced_vs_full_sweep(translation=True, reference=plain, **run)
-             if args.translation or args.both else None)  # fmt: skip
+    try:
+        plain = None if args.translation else reduced_vs_full_sweep(reference=reference, **run)
+        moved = (reduced_vs_full_sweep(translation=True, reference=plain or reference, **run)
+                 if args.translation or args.both else None)  # fmt: skip
+    except ValueError as exc:  # a reference of another grid
+        ap.error(str(exc))
     for rows, out, label in ((plain, OUT, "per-axis"),
                              (moved, OUT_TRANSLATION, "translation")):  # fmt: skip
         if rows is None:
@@ -151,6 +225,8 @@ def main(argv: list[str] | None = None) -> int:
         _summary(rows, label)
         if args.check_reference:
             _check_reference(rows, args.check_reference, args.periods, args.settle)
+        if args.convergence:
+            _convergence(rows, rows is moved, args.periods, args.settle)
     rows = plain if plain is not None else moved
     pairs = {}
     for r in rows:

@@ -32,9 +32,10 @@ tangent plane's two and its axis), linearised about the rest state, all derived 
 
 It is built in the world frame from the 3-D model's packed arrays, independently of the
 kernel's :meth:`~turntable_env.reduced.ReducedModel.translation_matrices` (which hold the
-axis contact stuck; since stop 93 the kernel's driving contacts are under the 2-D law,
-``--variant friction_2d`` here, where stop 67–92's kernel held their directions along the
-axis stuck, ``--variant side_stuck``). Variants:
+axis contact stuck; since stop 93 the kernel keeps the 3-D model's tube tops, and its
+driving contacts are under the 2-D law, ``--variant tube_tops_2d`` here, where stop
+67–92's kernel condensed the tubes at their contact points and held the driving
+contacts' directions along the axis stuck, ``--variant side_stuck``). Variants:
 ``series`` (the ball's axial motion massless: Hertz's spring in series with the tube's
 axial one, s V in the normal force), ``no_tilt`` (series, x normal to n, φ along n: stop
 66's translation), ``tilts_held`` (the same against the 3-D model with its tilts held by
@@ -43,7 +44,9 @@ per-axis model), ``no_stroke`` (the stroke removed, from the 3-D model too), ``n
 (the centre of mass at the centre, in the 3-D model too), ``friction_2d`` (each contact's
 two directions under the 2-D law), ``hertz``, ``nonlinear`` (series with Hertz's
 curvature, the latter with the 2-D law too), ``hertz_axial`` (Hertz's curvature on the
-ball's axial coordinate), ``tube_tops`` (each tube top's six coordinates, not condensed),
+ball's axial coordinate), ``tube_tops`` (each tube top's six coordinates, not
+condensed), ``tube_tops_2d`` (that with every contact under the 2-D law: the kernel's
+structure since stop 93),
 ``unclipped`` (a sticking element cut only at breakaway), ``shared`` (the non-driving
 directions stuck, as the kernel holds them, but each element's share in a driving
 direction what the other direction's load leaves of it, √((ν_i|s|)² − F_i,n²): the 2-D
@@ -54,7 +57,7 @@ amplifier output, interpolated linearly.
 
     python experiments/sphere_tilt.py [--variant rigid|series|no_tilt|tilts_held|frozen|
         no_stroke|no_com|side_stuck|friction_2d|hertz|nonlinear|hertz_axial|tube_tops|
-        unclipped|shared]
+        tube_tops_2d|unclipped|shared]
         [--amplitude 20 90 200] [--frequency 100 2000] [--a 0.95] [--amplifier adapted]
         [--dt 5e-9] [--full-dt-factor F]
 
@@ -331,10 +334,12 @@ def _directions(ar, k: int, c_ax: int, n: np.ndarray) -> tuple[np.ndarray, ...]:
     return d, t1, t2
 
 
-def _build_tops(rm: ReducedModel, tr: TranslationParameters) -> dict:
+def _build_tops(rm: ReducedModel, tr: TranslationParameters, variant: str = "tube_tops") -> dict:
     """``tube_tops``: each tube top's six coordinates (rotation, translation; the 3-D
     model's mass, stiffness, damping and drive per quadrant volt) instead of its contact
-    point condensed; the normal springs are Hertz's, the stroke the tops' drive."""
+    point condensed; the normal springs are Hertz's, the stroke the tops' drive
+    (``tube_tops_2d``: every contact under the 2-D law too, the kernel's structure since
+    stop 93 but for the axis contact, which the kernel holds stuck)."""
     ps, model = rm.params, rm.full
     ar = model.packed
     c_ax = axis_index(rm.axis)
@@ -354,7 +359,7 @@ def _build_tops(rm: ReducedModel, tr: TranslationParameters) -> dict:
         for j, t in enumerate((t1, t2)):
             _table_side(slip[2 * k + j], t, d, float(ps.table.radius))
             slip[2 * k + j, sl] = np.concatenate([np.cross(r_c, t), t])
-    arrays = _arrays(rm, tr, (mass, kq, cq, bq), slip, normal, np.zeros(3), "tube_tops")
+    arrays = _arrays(rm, tr, (mass, kq, cq, bq), slip, normal, np.zeros(3), variant)
     return {"arrays": arrays, "angle_row": np.concatenate([np.zeros(3), n, np.zeros(18)])}
 
 
@@ -387,7 +392,8 @@ def _arrays(rm: ReducedModel, tr: TranslationParameters, mkcb: tuple, slip: np.n
                   tr.normal_stiffness if series else tr.hertz_stiffness, tr.normal_damping,
                   float(ps.contact.preload), np.asarray(fr.nu, float),
                   np.asarray(fr.k, float), gms, float(ps.contact.tangential_damping), held,
-                  int(variant in ("friction_2d", "nonlinear")), int(variant != "unclipped"),
+                  int(variant in ("friction_2d", "nonlinear", "tube_tops_2d")),
+                  int(variant != "unclipped"),
                   int(variant == "shared"), hertz)  # fmt: skip
 
 
@@ -401,8 +407,8 @@ def build(rm: ReducedModel, variant: str = "rigid") -> dict:
     c_ax = axis_index(rm.axis)
     n = np.asarray(model.layout.axis_units[c_ax], float)
     tr = TranslationParameters.from_model(model, rm.axis, ps)
-    if variant == "tube_tops":
-        return _build_tops(rm, tr)
+    if variant in ("tube_tops", "tube_tops_2d"):
+        return _build_tops(rm, tr, variant)
     # each tube condensed at its contact point along its tangent directions, and along its
     # axis too (the ball's own coordinate) unless the normal spring is the series one
     ndir = 2 if variant in SERIES else 3
@@ -462,7 +468,7 @@ def build(rm: ReducedModel, variant: str = "rigid") -> dict:
 SERIES = ("series", "no_tilt", "tilts_held", "frozen", "hertz", "nonlinear")
 VARIANTS = ("rigid", "series", "no_tilt", "tilts_held", "frozen", "no_stroke", "no_com",
             "side_stuck", "friction_2d", "hertz", "nonlinear", "hertz_axial", "tube_tops",
-            "unclipped", "shared")
+            "tube_tops_2d", "unclipped", "shared")
 
 
 def remove_axial_stroke(model) -> None:  # type: ignore[no-untyped-def]

@@ -51,11 +51,11 @@ class ReducedState(NamedTuple):
 
     Attributes:
         y: (N, n_y) θ [rad], θ̇ [rad/s], u1 [m], u̇1 [m/s], u2 [m], u̇2 [m/s] (table angle and
-            the two driving tubes' contact-point displacements); n_y = 30 with the sphere's
-            translation and tilts: x1, x2, the axis tube's contact point b1, b2, x_n, the
-            tilts φ1, φ2 [rad], the driving tubes' contact points along the axis w1, w2 and
-            the balls along their tubes' axes a1, a2, a_n after them, each with its rate
-            (:class:`~turntable_env.reduced.TranslationParameters`).
+            the two driving tubes' contact-point displacements); n_y = 48 with the sphere's
+            translation: the 24 coordinates of
+            :meth:`~turntable_env.reduced.ReducedModel.translation_matrices` (θ, u1, u2,
+            the table's translation and tilts, the three tube tops' twists), each with
+            its rate (:class:`~turntable_env.reduced.TranslationParameters`).
         volt: (N,) amplifier output on the channel [V].
         f: (N, 4, n_e) GMS element forces [N]: the two driving contacts' along their
             driving directions, then (with the translation) their components along the

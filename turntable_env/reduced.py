@@ -58,40 +58,22 @@ REDUCED_AXES = ("A", "B", "C")
 H_MIN = 62.5e-9  # s, time grid of the reduced integrator (1/16 µs)
 SLIP_STEP = 2e-6  # s, largest step while an element slips (linear part exact: see sweep)
 RING_FRACTION = 0.25  # of a period of the fastest stick mode: largest step while ringing
+# with the translation, the largest step while an element slips is also at most this
+# fraction of the fastest mode's period (the tube tops ring at up to 67 kHz, and the
+# slipping elements relax at the step's mean sliding velocity; 2 µs moved 1–2 nm steps by
+# up to 21 % at half every bound: experiments/reduced_sweep.py --convergence checks it)
+MOVED_SLIP_FRACTION = 1.0 / 16.0
 QUIET_LENGTH = 0.01  # fraction of the weakest element's breakaway displacement
 MAX_RUNG = 18  # largest step h_min·2^18 = 16 ms
-_STATE_NAMES = (
+_STATE_NAMES = (  # the per-axis form's states
     "table angle",
     "table angular velocity",
     "tube 1 contact displacement",
     "tube 1 contact velocity",
     "tube 2 contact displacement",
     "tube 2 contact velocity",
-    "sphere translation 1",
-    "sphere translation 1 velocity",
-    "sphere translation 2",
-    "sphere translation 2 velocity",
-    "axis tube contact displacement 1",
-    "axis tube contact velocity 1",
-    "axis tube contact displacement 2",
-    "axis tube contact velocity 2",
-    "sphere translation along the axis",
-    "sphere translation along the axis velocity",
-    "table tilt 1",
-    "table tilt 1 rate",
-    "table tilt 2",
-    "table tilt 2 rate",
-    "tube 1 contact displacement along the axis",
-    "tube 1 contact velocity along the axis",
-    "tube 2 contact displacement along the axis",
-    "tube 2 contact velocity along the axis",
-    "tube 1 ball along its axis",
-    "tube 1 ball velocity along its axis",
-    "tube 2 ball along its axis",
-    "tube 2 ball velocity along its axis",
-    "axis tube ball along its axis",
-    "axis tube ball velocity along its axis",
 )
+N_TRANSLATION = 48  # states of the translation form: 24 coordinates and their rates
 
 
 @dataclass(frozen=True)
@@ -179,6 +161,14 @@ class TranslationParameters:
     """The sphere's rigid-body motion beside the turn about the axis (its translation and
     its tilts) and the contacts' normal forces, derived from the full 3-D model (SI units;
     ``ReducedModel(translation=True)``).
+
+    Since stop 93 the kernel keeps the 3-D model's tube tops whole, six coordinates each
+    (:meth:`ReducedModel.translation_matrices`), where it condensed each tube at its
+    contact point: the kernel takes the table's, the contacts' and the friction's figures
+    from here (mass, centre of mass, inertia, g, the Hertz stiffness, the normal damping,
+    the stuck stiffness and damping); the condensed tubes' (the axial, side and axis
+    tubes', the stroke) are the condensed form that the rigid-body reference's variants
+    use (``experiments/sphere_tilt.py``), described below as that form has them.
 
     The tubes' axes d_1, d_2 (driving) and n (the axis) are orthonormal (§3.1's orthogonal
     tubes). The table's coordinates beside θ are its centre's translation x = x_1 d_1 +
@@ -487,55 +477,147 @@ class ReducedModel:
         self.translation_params = (
             TranslationParameters.from_model(self.full, axis, ps) if translation else None
         )
+        self._tops: dict[str, Any] | None = None  # the translation form's bodies
         with one_blas_thread():  # 10×10 expm ladders: a second BLAS thread only waits here
             self._pack()
 
     @property
     def n_state(self) -> int:
-        """Length of the state y: 6 (θ, u1, u2 and their rates), 30 with the translation
-        (x1, x2, the axis tube's contact point b1, b2, x_n, the tilts φ1, φ2, the driving
-        tubes' contact points along n, w1, w2, and the balls along their tubes' axes a1,
-        a2, a_n after them, each with its rate)."""
-        return 6 if self.translation_params is None else 30
+        """Length of the state y: 6 (θ, u1, u2 and their rates), 48 with the translation
+        (the 24 coordinates of :meth:`translation_matrices` and their rates)."""
+        return 6 if self.translation_params is None else N_TRANSLATION
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """The name of each entry of the state y (a coordinate, then its rate)."""
+        if self.translation_params is None:
+            return _STATE_NAMES
+        return tuple(f"{c}{r}" for c in self._tube_tops()["names"] for r in ("", " rate"))
+
+    def _tube_tops(self) -> dict[str, Any]:
+        """The translation form's bodies in its coordinates p (24, see
+        :meth:`translation_matrices`); computed once.
+
+        The 3-D model's coordinates z: the table's centre x and rotation vector φ (world
+        frame), then each tube top's twist (θx, θy, θz, ux, uy, uz) with the 3-D model's
+        mass, stiffness, damping β K and drive per quadrant volt (``mtube``, ``ktop``,
+        ``dtop``, ``bcoup``: the tube tops not condensed, so the tubes' rotational inertia
+        and their coupling between directions are the 3-D model's). A contact's slip along
+        a tangent t is its ball point's less the table's, (r_c × t, t)·ξ_k − t·(x + φ × R
+        d_k), its approach d_k·x − (r_c × d_k, d_k)·ξ_k. p = P z: θ = n·φ, each driving
+        tube's contact point along its driving direction e_k, the table's translation and
+        tilts in (d_1, d_2, n), then each driving top's twist but the translation that
+        its contact point replaces, and the axis tube's top."""
+        if self._tops is not None:
+            return self._tops
+        model, ps = self.full, self.params
+        ar = model.packed
+        c_ax = axis_index(self.axis)
+        n = np.asarray(model.layout.axis_units[c_ax], float)
+        drv = [k for k in range(3) if k != c_ax]
+        basis = [np.asarray(ar["d_nom"][k], float) for k in drv] + [n]  # d_1, d_2, n
+        nz = 24
+        mass, kz, cz, bz = (np.zeros((nz, nz)), np.zeros((nz, nz)), np.zeros((nz, nz)),
+                            np.zeros(nz))  # fmt: skip
+        m = float(ar["table_p"][0])
+        cb = np.asarray(ar["c_body"], float)  # the centre of mass from the centre [m]
+        skew = np.array([[0.0, -cb[2], cb[1]], [cb[2], 0.0, -cb[0]], [-cb[1], cb[0], 0.0]])
+        vmap = np.hstack([np.eye(3), -skew])  # v_com = ẋ + φ̇ × c
+        mass[:6, :6] = m * vmap.T @ vmap
+        mass[3:6, 3:6] += np.linalg.inv(ar["jinv"])  # J about the centre of mass
+        h = float(np.linalg.norm(cb))
+        if h > 0.0:  # gravity's pendulum on φ (Eq. C.16), which vanishes with h
+            kz[3:6, 3:6] = m * float(model.gravity) * (h * np.eye(3) - np.outer(cb, cb) / h)
+        radius = float(ps.table.radius)
+
+        def slip_row(k: int, t: np.ndarray) -> np.ndarray:
+            d = np.asarray(ar["d_nom"][k], float)
+            r_c = ar["r0"][k] - ps.tube.outer_radius * d  # tube top → contact point [m]
+            row = np.zeros(nz)
+            row[:3], row[3:6] = -t, -radius * np.cross(d, t)
+            row[6 + 6 * k : 12 + 6 * k] = np.concatenate([np.cross(r_c, t), t])
+            return row
+
+        for k in range(3):
+            sl = slice(6 + 6 * k, 12 + 6 * k)
+            mass[sl, sl], kz[sl, sl], cz[sl, sl] = ar["mtube"][k], ar["ktop"][k], ar["dtop"][k]
+            bz[sl] = ar["bcoup"][k] @ ((ar["qchan"][k] == c_ax) * ar["qsign"][k])
+        e = [np.cross(n, basis[j]) / np.linalg.norm(np.cross(n, basis[j])) for j in range(2)]
+        driving = [slip_row(k, e[j]) for j, k in enumerate(drv)]
+        side = [slip_row(k, n) for k in drv]
+        axis = [slip_row(c_ax, basis[j]) for j in range(2)]
+        # d·x less the ball's point along d (d·(φ × R d) = 0)
+        approach = [-slip_row(k, np.asarray(ar["d_nom"][k], float)) for k in (*drv, c_ax)]
+        rows, names, dropped = [], [], []
+        angle = np.zeros(nz)
+        angle[3:6] = n
+        rows.append(angle)
+        names.append("table angle")
+        for j, k in enumerate(drv):
+            u = driving[j].copy()
+            u[:6] = 0.0  # the contact point along e_k
+            rows.append(u)
+            names.append(f"tube {j + 1} contact displacement")
+            dropped.append(6 + 6 * k + 3 + int(np.argmax(np.abs(u[9 + 6 * k : 12 + 6 * k]))))
+        for j, label in enumerate(("1", "2", "along the axis")):  # x in (d_1, d_2, n)
+            row = np.zeros(nz)
+            row[:3] = basis[j]
+            rows.append(row)
+            names.append(f"sphere translation {label}")
+        for j in range(2):  # the tilts about d_1, d_2
+            row = np.zeros(nz)
+            row[3:6] = basis[j]
+            rows.append(row)
+            names.append(f"table tilt {j + 1}")
+        tube_of = {k: ("1", "2")[j] for j, k in enumerate(drv)} | {c_ax: "on the axis"}
+        comp = ("rotation x", "rotation y", "rotation z", "x", "y", "z")
+        for k in (*drv, c_ax):
+            for i in range(6):
+                if 6 + 6 * k + i not in dropped:
+                    rows.append(np.eye(nz)[6 + 6 * k + i])
+                    names.append(f"tube {tube_of[k]} top {comp[i]}")
+        q = np.linalg.inv(np.array(rows))  # z = Q p
+        self._tops = {
+            "mass": q.T @ mass @ q, "stiffness": q.T @ kz @ q, "damping": q.T @ cz @ q,
+            "drive": q.T @ bz, "driving": np.array(driving) @ q, "side": np.array(side) @ q,
+            "axis": np.array(axis) @ q, "approach": np.array(approach) @ q,
+            "names": tuple(names),
+        }  # fmt: skip
+        return self._tops
 
     def _slip_rows(self) -> np.ndarray:
         """(2, 2, n_state): each driving contact's slip (tube point − table point) [m] and
-        its rate [m/s] as rows over y: u_k − ρ_kθ (− e_k·x with the translation); (4, 2,
-        n_state) with the translation, whose rows 2 and 3 are the driving contacts' slips
-        along the axis n, w_k − n·(x + φ × ρd_k) (:meth:`_side_rows`)."""
+        its rate [m/s] as rows over y: u_k − ρ_kθ; (4, 2, n_state) with the translation
+        (:meth:`_tube_tops`), whose rows 2 and 3 are the driving contacts' slips along the
+        axis n (:meth:`_side_rows`)."""
         ny = self.n_state
-        tr = self.translation_params
-        rows = np.zeros((2 if tr is None else 4, 2, ny))
-        for k in range(2):
-            for r in range(2):
-                rows[k, r, 2 + 2 * k + r] = 1.0
-                rows[k, r, r] = -self.axis_params.lever[k]
-                if tr is not None:
-                    for j in range(2):
-                        rows[k, r, 6 + 2 * j + r] = -tr.direction[k][j]
-                    rows[2 + k, r, r::2] = self._side_rows()[k]
+        if self.translation_params is None:
+            rows = np.zeros((2, 2, ny))
+            for k in range(2):
+                for r in range(2):
+                    rows[k, r, 2 + 2 * k + r] = 1.0
+                    rows[k, r, r] = -self.axis_params.lever[k]
+            return rows
+        tops = self._tube_tops()
+        rows = np.zeros((4, 2, ny))
+        for k, row in enumerate((*tops["driving"], *tops["side"])):
+            rows[k, 0, 0::2] = row
+            rows[k, 1, 1::2] = row
         return rows
 
     def _side_rows(self) -> np.ndarray:
-        """(2, 15): each driving contact's slip along the axis n over q (see
-        :meth:`translation_matrices`), w_k − n·(x + φ × ρd_k) [m]: the second tangent
-        direction of its contact plane, where its GMS elements are loaded and slip with
-        the driving direction's (the 2-D law of §3.3.2, :mod:`turntable_env.friction.gms2d`)."""
-        return self._stuck_rows()[2:]
+        """(2, 24): each driving contact's slip along the axis n over p (see
+        :meth:`translation_matrices`) [m]: the second tangent direction of its contact
+        plane, where its GMS elements are loaded and slip with the driving direction's
+        (the 2-D law of §3.3.2, :mod:`turntable_env.friction.gms2d`)."""
+        return self._tube_tops()["side"]
 
     def _stuck_rows(self) -> np.ndarray:
-        """(4, 15): the slips over q of the contact directions beside the driving ones
-        (tube point − table point, φ × ρd in (d1, d2, n)): the axis contact along d1 and
-        d2, then each driving contact along n."""
-        tr = self.translation_params
-        assert tr is not None
-        sg, rho = tr.handedness, self.axis_params.lever[0]
-        stuck = np.zeros((4, 15))
-        stuck[0, [5, 3, 9]] = 1.0, -1.0, -sg * rho  # axis contact along d1
-        stuck[1, [6, 4, 8]] = 1.0, -1.0, sg * rho  # along d2
-        stuck[2, [10, 7, 9]] = 1.0, -1.0, sg * rho  # driving contact 1 along n
-        stuck[3, [11, 7, 8]] = 1.0, -1.0, -sg * rho  # driving contact 2 along n
-        return stuck
+        """(4, 24): the slips over p of the contact directions beside the driving ones
+        (tube point − table point): the axis contact along d_1 and d_2, then each driving
+        contact along n."""
+        tops = self._tube_tops()
+        return np.vstack([tops["axis"], tops["side"]])
 
     def _normal_rows(self) -> np.ndarray:
         """(2, n_state + 2): each driving contact's normal force less F_N [N] as a row over
@@ -545,15 +627,13 @@ class ReducedModel:
         rows = np.zeros((2, ny + 2))
         tr = self.translation_params
         if tr is not None:
-            for k in range(2):
-                rows[k, 6 + 2 * k] = tr.hertz_stiffness
-                rows[k, 7 + 2 * k] = tr.normal_damping
-                rows[k, 24 + 2 * k] = -tr.hertz_stiffness
-                rows[k, 25 + 2 * k] = -tr.normal_damping
+            for k, row in enumerate(self._tube_tops()["approach"][:2]):
+                rows[k, 0:ny:2] = tr.hertz_stiffness * row
+                rows[k, 1:ny:2] = tr.normal_damping * row
         return rows
 
     def _system_translation(self, s_stuck: tuple[float, float]) -> np.ndarray:
-        """Augmented 36×36 matrix of (y, V, V̇, f1, f2, g1, g2) with the translation (y as
+        """Augmented 54×54 matrix of (y, V, V̇, f1, f2, g1, g2) with the translation (y as
         :attr:`n_state`; see :class:`TranslationParameters`): M q̈ = −K q − C q̇ + b_V V +
         b_V̇ V̇ − Σ_k (S_k F_k + N_k G_k) over q of :meth:`translation_matrices` without the
         driving contacts' directions along n, F_k = s_k S_k q + d_k S_k q̇ + f_k the driving
@@ -587,59 +667,32 @@ class ReducedModel:
         return a
 
     def translation_matrices(self, side_stuck: bool = True) -> tuple[np.ndarray, ...]:
-        """(M, K, C, b_V, b_V̇) over q = (θ, u1, u2, x1, x2, b1, b2, x_n, φ1, φ2, w1, w2,
-        a1, a2, a_n) [SI] of the model with the translation, the tilts and the balls'
-        axial coordinates, without the driving contacts' friction (see
-        :meth:`_system_translation` and :class:`TranslationParameters`): M q̈ + C q̇ + K q =
-        b_V V + b_V̇ V̇ + friction (b_V̇ = 0: the stroke drives the balls through their
-        tubes' springs). The axis contact's two directions are stuck (Σk_i and its
-        damping); so are the driving contacts' directions along n where ``side_stuck``
-        (every element stuck, as at rest), else they are left to the friction."""
-        ap, tr = self.axis_params, self.translation_params
+        """(M, K, C, b_V, b_V̇) over p [SI] of the model with the translation, without the
+        driving contacts' friction (see :meth:`_system_translation`): M p̈ + C ṗ + K p =
+        b_V V + b_V̇ V̇ + friction (b_V̇ = 0: the quadrant voltages drive the tube tops).
+
+        p (24): θ, the driving tubes' contact points along their driving directions u_1,
+        u_2, the table's translation x_1, x_2, x_n and tilts φ_1, φ_2 in (d_1, d_2, n), then
+        the three tube tops' twists (:meth:`_tube_tops`: the 3-D model's table and tube
+        tops, linearised at rest). Each contact's normal spring is Hertz's law linearised at
+        F_N with the normal damping (Eq. 3.21: k_H on the approach); the axis contact's
+        tangent directions are stuck (Σk_i and its damping), and so are the driving
+        contacts' directions along n where ``side_stuck`` (every element stuck, as at
+        rest), else they are left to the friction."""
+        tr = self.translation_params
         if tr is None:
             raise ValueError("translation_matrices: this model has no translation")
-        nq = 15
-        m, sg = tr.mass, tr.handedness
-        c = np.asarray(tr.centre_of_mass)
-        mass = np.diag([0.0, *ap.tube_mass, 0.0, 0.0, tr.axis_tube_mass, tr.axis_tube_mass,
-                        0.0, 0.0, 0.0, *tr.side_tube_mass, tr.axial_mass, tr.axial_mass,
-                        tr.axial_mass])  # fmt: skip
-        table = [3, 4, 7, 8, 9, 0]  # x1, x2, x_n, φ1, φ2, θ
-        skew = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
-        vmap = np.hstack([np.eye(3), -sg * skew])  # v_com = ẋ + φ̇ × c = ẋ − σ[c]×φ̇
-        j_com = np.asarray(tr.centre_inertia) - m * (c @ c * np.eye(3) - np.outer(c, c))
-        block = m * vmap.T @ vmap
-        block[3:, 3:] += j_com
-        mass[np.ix_(table, table)] += block
-        kq = np.zeros((nq, nq))
-        cq = np.zeros((nq, nq))
-        b_v = np.zeros(nq)
-        b_vd = np.zeros(nq)
-        h = float(np.linalg.norm(c))  # gravity's pendulum on the rotation (Eq. C.16)
-        if h > 0.0:  # m g (h I − c cᵀ/h), which vanishes with h
-            kq[np.ix_(table[3:], table[3:])] = tr.gravity * m * (h * np.eye(3) - np.outer(c, c) / h)
-        for k in range(2):
-            kq[1 + k, 1 + k] = ap.tube_stiffness[k]
-            cq[1 + k, 1 + k] = ap.tube_damping[k]
-            b_v[1 + k] = ap.tube_stiffness[k] * ap.tube_gain[k]
-            b_v[12 + k] = tr.axial_stiffness * tr.stroke  # the stroke drives the ball
-            kq[5 + k, 5 + k] = tr.axis_tube_stiffness
-            cq[5 + k, 5 + k] = tr.axis_tube_damping
-            kq[10 + k, 10 + k] = tr.side_tube_stiffness[k]
-            cq[10 + k, 10 + k] = tr.side_tube_damping[k]
-            b_v[10 + k] = tr.side_tube_stiffness[k] * tr.side_tube_gain[k]
-        for x_k, a_k in ((3, 12), (4, 13), (7, 14)):  # each ball on its tube's axis
-            kq[a_k, a_k] += tr.axial_stiffness
-            cq[a_k, a_k] += tr.axial_damping
-            joint = np.zeros(nq)  # the contact's approach x_k − a_k: Hertz's spring
-            joint[x_k], joint[a_k] = 1.0, -1.0
-            kq += tr.hertz_stiffness * np.outer(joint, joint)
-            cq += tr.normal_damping * np.outer(joint, joint)
+        tops = self._tube_tops()
+        mass, kq, cq = tops["mass"].copy(), tops["stiffness"].copy(), tops["damping"].copy()
+        b_v = tops["drive"].copy()
+        for row in tops["approach"]:  # each ball on the table: Hertz's spring
+            kq += tr.hertz_stiffness * np.outer(row, row)
+            cq += tr.normal_damping * np.outer(row, row)
         stuck = self._stuck_rows()  # the stuck directions' slips
         for row in stuck if side_stuck else stuck[:2]:
             kq += tr.stuck_stiffness * np.outer(row, row)
             cq += tr.stuck_damping * np.outer(row, row)
-        return mass, kq, cq, b_v, b_vd
+        return mass, kq, cq, b_v, np.zeros_like(b_v)
 
     # ------------------------------------------------------------------------------
     def _system(self, s_stuck: tuple[float, float]) -> np.ndarray:
@@ -716,16 +769,21 @@ class ReducedModel:
         om = np.abs(lam)
         omega_hi = float(np.max(om))
         ring_frac = RING_FRACTION * self.step_scale
-        r_slip = math.floor(math.log2(max(SLIP_STEP * self.step_scale / h, 1.0)))
+        slip_step = SLIP_STEP
+        if self.translation_params is not None:
+            slip_step = min(slip_step, MOVED_SLIP_FRACTION * 2.0 * math.pi / omega_hi)
+        r_slip = math.floor(math.log2(max(slip_step * self.step_scale / h, 1.0)))
         # quasi-static state per unit input (V, f1, f2) and modal projections (all stick)
         n_in = a_stick.shape[0] - ny  # inputs: V, V̇, the contacts' constant forces
         qs = -np.linalg.solve(a6, a_stick[:ny, [ny, *range(ny + 2, ny + n_in)]])
         srow = self._slip_rows()
         c_rel = np.ascontiguousarray(srow[:2, 0, :])
-        r_small = r_slip + 1  # rungs of the configurations with a slipping element
+        # rungs of the configurations with a slipping element: the per-axis form's count in
+        # both forms, so that a batch holds either form's arrays (ReducedBatch.set_model)
+        r_small = math.floor(math.log2(max(SLIP_STEP * self.step_scale / h, 1.0))) + 1
         systems = np.stack([self._system((levels[i0], levels[i1]))
                             for i0 in range(nl) for i1 in range(nl)])  # fmt: skip
-        small = _ladders(systems, h, r_small)  # (nl², r_small, ny + 4, ny + 4)
+        small = _ladders(systems, h, r_small)  # (nl², r_small, ny + inputs, ny + inputs)
         phi_s = np.ascontiguousarray(small[:, :, :ny, :ny])
         gam_s = np.ascontiguousarray(small[:, :, :ny, ny : ny + n_in])
         e = _ladders(a_stick[None], h, MAX_RUNG + 1)[0]
@@ -1004,7 +1062,7 @@ class ReducedBatch:
         if bad_b.size:
             b = int(bad_b[0])
             bad = [i for i in range(self.state.y.shape[1]) if not np.isfinite(self.state.y[b, i])]
-            name = _STATE_NAMES[bad[0]] if bad else "amplifier voltage"
+            name = self.models[b].state_names[bad[0]] if bad else "amplifier voltage"
             raise SimulationError(
                 "non-finite",
                 float(self.state.n[b] * self.grid),

@@ -36,15 +36,15 @@ offsets and the slipping elements' forces). Two exact propagators serve it:
   where the input's slope changes, always caps it).
 
 With the sphere's translation (:class:`~turntable_env.reduced.TranslationParameters`,
-the ``"translation"`` fidelity) the state has 30 entries (the sphere's translation, its
-tilts, the other tangent directions' tube points and the balls' axial coordinates after
-the 6), each driving contact's GMS elements are 2-vectors in its plane (the driving
-direction and the axis n, the 2-D law of §3.3.2: constant force inputs along n beside
-the driving direction's, slipping toward the mean sliding direction, breaking away on
-the vector's magnitude, :func:`_elements_moved`), each contact's slip is a row over the
-state and its normal force F_N +
-k_H(x_k − a_k) + d_c(ẋ_k − ȧ_k) a row over (y, V, V̇) that sets its Stribeck level at a
-step's ends and, for the slipping elements, its mean; where it falls under a sticking
+the ``"translation"`` fidelity) the state has 48 entries (the table's angle, the driving
+contact points, the sphere's translation and tilts, and the three tube tops' twists,
+each with its rate), each driving contact's GMS elements are 2-vectors in its plane (the
+driving direction and the axis n, the 2-D law of §3.3.2: constant force inputs along n
+beside the driving direction's, slipping toward the mean sliding direction, breaking
+away on the vector's magnitude, :func:`_elements_moved`), each contact's slip is a row
+over the state and its normal force F_N + k_H(approach) + d_c(its rate) a row over (y,
+V, V̇) that sets its Stribeck level at a step's ends and, for the slipping elements, its
+mean; where it falls under a sticking
 element's load the element is held at its share ν_i|s(v)| at the step's end (the 3-D
 model's rule, :mod:`turntable_env.integrator`); the ladder is unchanged and the
 analytic all-stick step is not used. Each turntable runs an integrator compiled for its
@@ -492,7 +492,7 @@ def run_reduced_batch(state, model, drive, h_min, recording, forms=None) -> None
             steps through here: no array scan per step); None computes it.
 
     Each turntable runs the integrator compiled for its form: the per-axis model's 6 states,
-    or 30 where its sphere translates (a normal-force row is non-zero). One compiled entry
+    or 48 where its sphere translates (a normal-force row is non-zero). One compiled entry
     per form runs that form's turntables and skips the others, so a batch compiles only the
     forms it holds (numba emits an entry's whole call tree into it: both forms in one entry
     doubled a first step's compile, ``python experiments/first_step_compile.py``); a mixed
@@ -599,7 +599,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
     ne = f.shape[2]
     r_big = phi_big.shape[1]
     translation = moved  # this turntable's sphere translates: its normal forces move
-    ny = 30 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
+    ny = 48 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
     y0 = np.empty(ny)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)
