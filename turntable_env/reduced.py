@@ -39,7 +39,13 @@ from .drive import DriveSignal, Waveform
 from .kernel_types import DriveArrays, ReducedArrays, ReducedRecording, ReducedState
 from .model import SimulationError, TurntableModel, axis_index
 from .params import ParameterSet, get_parameter_set
-from .reduced_kernel import N_REC, form_counts, run_reduced_batch, run_reduced_serial
+from .reduced_kernel import (
+    N_REC,
+    N_TRANSLATION,
+    form_counts,
+    run_reduced_batch,
+    run_reduced_serial,
+)
 from .response import SteppingMetrics
 from .threads import one_blas_thread
 from .validation import check_finite, check_positive
@@ -73,7 +79,6 @@ _STATE_NAMES = (  # the per-axis form's states
     "tube 2 contact displacement",
     "tube 2 contact velocity",
 )
-N_TRANSLATION = 48  # states of the translation form: 24 coordinates and their rates
 
 
 @dataclass(frozen=True)

@@ -94,6 +94,8 @@ REC_FIELDS = (
 )
 N_REC = len(REC_FIELDS)
 
+N_TRANSLATION = 48  # states of the translation form: 24 coordinates and their rates
+
 # packed rows: see turntable_env.kernel_types.ReducedArrays
 FAST_QUIET = 1e-3  # V: an amplifier fast-path transient above it keeps steps short
 # samples of the all-stick event function per ladder ring step (ring_frac of a period):
@@ -599,7 +601,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
     ne = f.shape[2]
     r_big = phi_big.shape[1]
     translation = moved  # this turntable's sphere translates: its normal forces move
-    ny = 48 if moved else 6  # its states (a batch's y may be wider: padded with zeros)
+    ny = N_TRANSLATION if moved else 6  # its states (a batch's y may be wider: padded)
     y0 = np.empty(ny)
     f0 = np.empty((2, ne))
     st_new = np.empty((2, ne), dtype=np.int64)
