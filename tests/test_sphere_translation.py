@@ -484,3 +484,64 @@ def test_no_sticking_element_holds_more_than_its_share_through_a_flyback():
     assert worst <= 1e-12 * fn0.max()
     assert lowest < 0.8
     assert at_bound > 0
+
+
+def test_the_ringing_check_skips_only_a_modes_conjugate_twin():
+    """A real deviation's amplitudes in a complex mode and in its conjugate are conjugates
+    (the same magnitude at the contacts), so the translation form's ringing check skips
+    the second of each pair (``reduced_kernel._twins``): on the kernel's order (fastest
+    first, stable) all 24 complex pairs of the translation form, each flag giving its
+    predecessor's magnitude at both contacts for any deviation."""
+    from turntable_env.reduced_kernel import _om_key, _twins
+
+    pk = ReducedModel("real", "B", translation=True).packed
+    lam, om, ny = pk["modal_lam"], pk["modal_om"], 48
+    order = np.array(sorted(range(ny), key=lambda j: -_om_key(om[j])), dtype=np.int64)
+    twin = _twins(order, lam, pk["modal_w"], ny)
+    assert twin.sum() == np.sum(lam.imag > 0) == 24
+    for dev in np.random.default_rng(3).normal(size=(5, ny)):
+        for jj in np.flatnonzero(twin):
+            amp = [np.abs(pk["modal_c"][:, j] * (pk["modal_w"][j] @ dev))
+                   for j in (order[jj], order[jj - 1])]  # fmt: skip
+            np.testing.assert_allclose(amp[0], amp[1], rtol=1e-7)
+
+
+def test_a_degenerate_eigenvalues_other_mode_is_not_a_twin():
+    """Two modes of one eigenvalue λ (two identical tubes) and their conjugates, ordered
+    λa, conj λb, λb, conj λa: conj λb beside λa has the conjugate eigenvalue but another
+    eigenvector, so its amplitude is not λa's and ``_twins`` must not flag it; conj λa
+    after λb is not λb's twin either, and λb beside conj λb (wherever they sit) is."""
+    from turntable_env.reduced_kernel import _twins
+
+    rng = np.random.default_rng(5)
+    lam0 = -300.0 + 2e5j
+    lam = np.array([lam0, np.conj(lam0), lam0, np.conj(lam0)])
+    va, vb = rng.normal(size=(2, 4)) + 1j * rng.normal(size=(2, 4))
+    w = np.linalg.inv(np.column_stack([va, va.conj(), vb, vb.conj()]))
+    twin = _twins(np.array([0, 3, 2, 1]), lam, w, 4)
+    assert list(twin) == [False, False, True, False]
+    dev = rng.normal(size=4)
+    assert not np.isclose(abs(w[3] @ dev), abs(w[0] @ dev), rtol=1e-3)  # a flag would lie
+    assert abs(w[2] @ dev) == pytest.approx(abs(w[3] @ dev), rel=1e-9)
+
+
+def test_the_vectorised_sums_are_the_linear_algebra():
+    """The translation form's 48-term sums, summed in any order (``_step_fast``: the exact
+    step Φy0 + Γu; ``_project``: a modal amplitude w·dev), equal numpy's products to
+    rounding, on the model's own matrices."""
+    from turntable_env.reduced_kernel import _project, _step_fast
+
+    pk = ReducedModel("real", "B", translation=True).packed
+    rng = np.random.default_rng(7)
+    y0 = rng.normal(size=48) * 1e-7
+    fin, gin = rng.normal(size=2), rng.normal(size=2)
+    v0, vdot = 45.0, 9e4
+    ph, gm = pk["phi_small"][3, 2], pk["gam_small"][3, 2]
+    out = np.empty(48)
+    _step_fast(ph, gm, y0, v0, vdot, fin, gin, out, 48)
+    want = ph @ y0 + gm @ np.array([v0, vdot, *fin, *gin])
+    np.testing.assert_allclose(out, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+    for j in (0, 17, 47):
+        z = _project(pk["modal_w"][j], y0, 48)
+        scale = np.abs(pk["modal_w"][j]).max() * np.abs(y0).sum()
+        assert abs(z - pk["modal_w"][j] @ y0) <= 1e-12 * scale

@@ -296,6 +296,19 @@ def vs_full_summary(rows: list[dict[str, Any]], prefix: str = "reduced") -> dict
     }
 
 
+def _kernel_profile(info: dict[str, Any], periods: int, wall: float) -> dict[str, float]:
+    """A reduced run's steps per drive period and cost per step evaluation [ns] (from its
+    ``info``), and the share of the call's ``wall`` [s] spent outside the kernel."""
+    evals = info["steps"] + info["rejected"] + info["analytic_evaluations"]
+    return {
+        "steps_per_period": info["steps"] / periods,
+        "rejected_per_period": info["rejected"] / periods,
+        "analytic_evaluations_per_period": info["analytic_evaluations"] / periods,
+        "ns_per_step_evaluation": 1e9 * info["wall_s"] / evals,
+        "python_fraction": 1.0 - info["wall_s"] / wall,
+    }
+
+
 def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> dict[str, Any]:
     """Run every path on the standard scenario; returns the figures (see module docstring).
 
@@ -354,14 +367,7 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     one_run = lambda: simulate_batch([reduced], [drive], duration, output_dt=OUTPUT_DT)[0]  # noqa: E731
     r, wall = _timed(one_run)
     out["reduced_axis_parameters"] = dataclasses.asdict(reduced.axis_params)
-    evals = r.info["steps"] + r.info["rejected"]
-    out["reduced_profile"] = {
-        "steps_per_period": r.info["steps"] / periods,
-        "rejected_per_period": r.info["rejected"] / periods,
-        "analytic_evaluations_per_period": r.info["analytic_evaluations"] / periods,
-        "ns_per_step_evaluation": 1e9 * r.info["wall_s"] / (evals + r.info["analytic_evaluations"]),
-        "python_fraction": 1.0 - r.info["wall_s"] / wall,
-    }
+    out["reduced_profile"] = _kernel_profile(r.info, periods, wall)
     _r, out["reduced_peak_MiB"] = _peak(one_run)
     out["reduced_step_um"] = r.step_size * 1e6
     out["reduced_output_dt_s"] = OUTPUT_DT
@@ -384,9 +390,9 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
         out[f"reduced_translation_rtf{name}"] = duration / _best(
             lambda dt=dt: simulate_batch([moved], [drive], duration, output_dt=dt)
         )
-    out["reduced_translation_step_um"] = (
-        1e6 * simulate_batch([moved], [drive], duration, output_dt=OUTPUT_DT)[0].step_size
-    )
+    r, wall = _timed(lambda: simulate_batch([moved], [drive], duration, output_dt=OUTPUT_DT)[0])
+    out["reduced_translation_step_um"] = 1e6 * r.step_size
+    out["reduced_translation_profile"] = _kernel_profile(r.info, periods, wall)
 
     def moved_step(scale: float) -> float:
         m = moved if scale == 1.0 else ReducedModel(ps, "B", step_scale=scale, model=full,

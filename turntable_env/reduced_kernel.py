@@ -106,6 +106,9 @@ SAMPLE_FRACTION = 0.25
 # ν_iμ_sF_N that each step's end checks: a quarter period misses its dips (turntable
 # bench's reduced_translation_step_error, docs/performance.md stop 67)
 MOVED_RING_FACTOR = 0.25
+# the translation form's dot products over its 48 states may be summed in any order (the
+# per-axis form's 6-state sums stay in theirs, bit for bit): a vectorised sum, not a chain
+DOT_FLAGS = {"reassoc", "contract"}
 
 
 @njit(cache=CACHE)
@@ -115,7 +118,7 @@ def _rel(y, mech, k):
     return y[2 + 2 * k] - rho * y[0], y[3 + 2 * k] - rho * y[1]
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, fastmath=DOT_FLAGS)
 def _rel_moved(y, srow, k):
     """:func:`_rel` less e_k·x where the sphere translates: the rows ``srow[k]`` over y."""
     x = 0.0
@@ -126,7 +129,7 @@ def _rel_moved(y, srow, k):
     return x, xd
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, fastmath=DOT_FLAGS)
 def _normal(y, volt, vdot, fn0, nrow, k, moved):
     """Normal force [N] of contact k: F_N, plus the translation's k_n(x_k − sV) +
     d_c(ẋ_k − sV̇) where the sphere translates (``moved``; rows ``nrow`` over (y, V, V̇),
@@ -581,6 +584,53 @@ def _ladder(span, r_big):
     return r
 
 
+@njit(cache=CACHE, fastmath=DOT_FLAGS)
+def _step_fast(ph, gm, y0, v0e, vslope, fin, gin, yb, ny):
+    """The translation form's exact step y = Φ y0 + Γ (V, V̇, f1, f2, g1, g2) into ``yb``
+    (the discretised linear system of each stick configuration, as the per-axis loop's,
+    its 48-term sums vectorised)."""
+    for a in range(ny):
+        s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
+        s += gm[a, 4] * gin[0] + gm[a, 5] * gin[1]
+        acc = 0.0
+        for c in range(ny):
+            acc += ph[a, c] * y0[c]
+        yb[a] = s + acc
+
+
+@njit(cache=CACHE, fastmath=DOT_FLAGS)
+def _project(w, dev, ny):
+    """Modal amplitude w·dev of a real deviation ``dev`` (the translation form's, its
+    real and imaginary sums vectorised)."""
+    zr = 0.0
+    zi = 0.0
+    for c in range(ny):
+        zr += w[c].real * dev[c]
+        zi += w[c].imag * dev[c]
+    return complex(zr, zi)
+
+
+@njit(cache=CACHE)
+def _twins(order, lam, w, ny):
+    """Flags the modes, in the ringing check's ``order``, that are the conjugate of the
+    one before them: eigenvalue conj(λ) exactly and projection row conj(w) to 1e-8 of its
+    largest entry. The deviation is real, so their amplitude at the contacts is that
+    one's conjugate, the same magnitude, and the check skips them. A degenerate
+    eigenvalue's other modes (another row) are not flagged."""
+    twin = np.zeros(ny, dtype=np.bool_)
+    for jj in range(1, ny):
+        i, j = order[jj - 1], order[jj]
+        if twin[jj - 1] or lam[i].imag == 0.0 or lam[j] != lam[i].conjugate():
+            continue
+        big = 0.0
+        off = 0.0
+        for c in range(ny):
+            big = max(big, abs(w[i, c]))
+            off = max(off, abs(w[j, c] - w[i, c].conjugate()))
+        twin[jj] = off <= 1e-8 * big
+    return twin
+
+
 @njit(cache=CACHE)
 def _run_one(b, state, model, drive, h_min, recording, moved):
     """Turntable b of :func:`run_reduced_batch` (``moved``: the form, a literal)."""
@@ -668,6 +718,7 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
         while j > 0 and _om_key(modal_om[b, order[j - 1]]) < _om_key(modal_om[b, order[j]]):
             order[j - 1], order[j] = order[j], order[j - 1]
             j -= 1
+    twin = _twins(order, modal_lam[b], modal_w[b], ny)
     s_ok = False  # s_end holds the Stribeck levels |s(ẋ)| [N] of the present state
     n_acc = 0
     n_rej = 0
@@ -859,9 +910,14 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
                 j = order[jj]
                 if not modal_om[b, j] > om_fast:
                     break  # no slower mode can raise om_fast
-                zj = 0.0j
-                for c in range(ny):
-                    zj += modal_w[b, j, c] * dev[c]
+                if translation:
+                    if twin[jj]:
+                        continue  # its conjugate's amplitude, already checked
+                    zj = _project(modal_w[b, j], dev, ny)
+                else:
+                    zj = 0.0j
+                    for c in range(ny):
+                        zj += modal_w[b, j, c] * dev[c]
                 for k in range(2):
                     if _exceeds(modal_c[b, k, j] * zj, quiet_len, q2_lo, q2_hi):
                         om_fast = modal_om[b, j]
@@ -938,13 +994,14 @@ def _run_one(b, state, model, drive, h_min, recording, moved):
             else:  # partial slip: rung ≤ r_slip
                 ph = phi_small[b, cfg, r_use]
                 gm = gam_small[b, cfg, r_use]
-            for a in range(ny):
-                s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
-                if translation:
-                    s += gm[a, 4] * gin[0] + gm[a, 5] * gin[1]
-                for c in range(ny):
-                    s += ph[a, c] * y0[c]
-                y[b, a] = s
+            if translation:
+                _step_fast(ph, gm, y0, v0e, vslope, fin, gin, y[b], ny)
+            else:
+                for a in range(ny):
+                    s = gm[a, 0] * v0e + gm[a, 1] * vslope + gm[a, 2] * fin[0] + gm[a, 3] * fin[1]
+                    for c in range(ny):
+                        s += ph[a, c] * y0[c]
+                    y[b, a] = s
             # elements
             event = False
             frac = 1.0  # earliest crossing in the step by linear interpolation [-]
