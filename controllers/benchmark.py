@@ -72,7 +72,7 @@ __all__ = [
     "write_outputs",
 ]
 
-BENCHMARK_VERSION = "2.3"  # tasks, plant sets and metrics of this protocol; bump on change
+BENCHMARK_VERSION = "2.4"  # tasks, plant sets and metrics of this protocol; bump on change
 SUITE_SEED = 2026
 DEFAULT_PLANT_SETS = (
     "nominal", "randomized", "held_out", "calibrated", "full_3d", "independent"
@@ -423,8 +423,13 @@ def run_benchmark(
         import cloudpickle  # a dependency of gymnasium; carries runtime registrations (--agent)
 
         factories = cloudpickle.dumps({n: spec(n).factory for n in names})
-        remote = [(factories, names, p, t, _seeds(p, seeds), axis, suite_seed) for p, t in jobs]
-        done = map_tasks(_cell_job, remote, backend=backend, address=address, workers=workers)
+        # the longest cells first (the 3-D model's, then the long moves), so that no worker
+        # is left with one of them when the others are done; results back in ``jobs`` order
+        order = sorted(range(len(jobs)), key=lambda i: _cost_rank(*jobs[i]))
+        remote = [(factories, names, *jobs[i], _seeds(jobs[i][0], seeds), axis, suite_seed)
+                  for i in order]  # fmt: skip
+        ran = map_tasks(_cell_job, remote, backend=backend, address=address, workers=workers)
+        done = [ran[order.index(i)] for i in range(len(jobs))]
         return _result(names, plant_sets, task_list, seeds, axis, suite_seed, t0, jobs, done)
     bar = None
     if progress:
@@ -445,10 +450,23 @@ def run_benchmark(
     return _result(names, plant_sets, task_list, seeds, axis, suite_seed, t0, jobs, done)
 
 
+def _cost_rank(plant_set: str, task: str) -> tuple[int, int]:
+    """Sort key of a cell, the most expensive first: the 3-D model's cells, then the
+    independent plant's, then the rest; within each, the long moves and tracking tasks
+    (horizon) first."""
+    kind = {"full_3d": 0, "independent": 1}.get(plant_set, 2)
+    return kind, -_task(plant_set, task).horizon
+
+
 def _cell_job(job: tuple) -> tuple[list[Cell], list[dict[str, Any]], float]:
     """One cell in a Ray task or a worker process: register the controllers it runs (the
-    driver's factories, so runtime registrations travel too), run it, time it."""
+    driver's factories, so runtime registrations travel too), run it, time it. The
+    compiled kernels run on one thread: the cells are the parallelism, one worker a core
+    (the rows' results do not depend on the thread count: each row is its own turntable)."""
     import cloudpickle
+    import numba
+
+    numba.set_num_threads(1)
 
     blob, names, p, t, seeds, axis, suite_seed = job
     load_plugins()

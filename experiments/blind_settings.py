@@ -41,18 +41,20 @@ RANDOM_PLANTS = 60  # plants drawn log-uniformly inside the grid's box, besides 
 MARGIN = 0.1  # a robust setting's worst step is at least this share of the map's
 
 
-def corners(fidelity: str) -> list[tuple[Plant, dict[str, float]]]:
-    """The factor box's eight corners on a plant of ``fidelity`` (``--check``)."""
+def corners(fidelity: str, asymmetry: float = 0.0) -> list[tuple[Plant, dict[str, float]]]:
+    """The factor box's eight corners on a plant of ``fidelity`` (``--check``); with
+    ``asymmetry`` > 0 each corner twice, with the catalogue's friction asymmetry at
+    α = −``asymmetry`` and +``asymmetry`` (sliding forward harder, then easier)."""
     base = Plant("real", fidelity=fidelity)
-    return [
-        (base.replace(factors=f), f)
-        for f in (
-            {"friction": fr, "preload": pl, "amplifier": am}
-            for fr, pl, am in itertools.product(
-                (FRICTION[0], FRICTION[-1]), (PRELOAD[0], PRELOAD[-1]),
-                (AMPLIFIER[0], AMPLIFIER[-1]))
+    alphas = (-asymmetry, asymmetry) if asymmetry > 0.0 else (None,)
+    boxes = [
+        {"friction": fr, "preload": pl, "amplifier": am}
+        for fr, pl, am in itertools.product(
+            (FRICTION[0], FRICTION[-1]), (PRELOAD[0], PRELOAD[-1]), (AMPLIFIER[0], AMPLIFIER[-1])
         )
-    ]  # fmt: skip
+    ]
+    effects = [{} if al is None else {"friction_asymmetry": {"alpha": al}} for al in alphas]
+    return [(base.replace(factors=f, effects=e), f) for e in effects for f in boxes]
 
 
 def family() -> list[tuple[Plant, dict[str, float]]]:
@@ -101,15 +103,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--axis", default="B", choices=("A", "B", "C"))
     ap.add_argument("--out", default=str(BLIND_PATH), help="the table's file")
-    ap.add_argument("--check", choices=("reduced", "full", "independent"), default=None,
+    ap.add_argument("--asymmetry", type=float, default=0.0,
+                    help="with --check: each corner also with friction asymmetry ±ALPHA "
+                         "(the catalogue's friction_asymmetry, |α| <= 0.4)")  # fmt: skip
+    ap.add_argument("--check", choices=("reduced", "translation", "full", "independent"),
+                    default=None,
                     help="only step the box's eight corners on a plant of this fidelity and "
                          "compare the shipped blind set with the other settings (no file "
                          "written)")  # fmt: skip
     args = ap.parse_args()
+    if not 0.0 <= args.asymmetry <= 0.4 or (args.asymmetry and not args.check):
+        ap.error(f"--asymmetry={args.asymmetry!r}: 0–0.4, with --check only")
     smap = StepMap.load()
     freqs = np.unique(smap.frequency)
     t0 = time.perf_counter()
-    plants = corners(args.check) if args.check else family()
+    plants = corners(args.check, args.asymmetry) if args.check else family()
     steps, factors = steady_steps(plants, freqs, args.axis)
     sign = np.array([1.0, -1.0])  # the commanded direction of the last axis
     nominal = np.array(
@@ -126,7 +134,9 @@ def main() -> None:
     ratio = along / (nominal * sign)  # the plant's step over the map's, > 0: forwards
     worst = ratio.min(axis=(0, 3))  # (frequencies, amplitudes)
     if args.check:
-        _check(worst, freqs, args.check)
+        label = args.check + (f", friction asymmetry ±{args.asymmetry:g}" if args.asymmetry
+                              else "")  # fmt: skip
+        _check(worst, freqs, label)
         return
     print("worst step over the map's, over plants and both directions (rows: amplitude [V])")
     print("   V | " + " | ".join(f"{f:6.0f} Hz" for f in freqs))

@@ -64,7 +64,7 @@ def test_controller_reaches_target_within_10_nm(name, move_m):
 
 
 def test_scan_pid_alone_reaches_a_move_inside_the_scan_range_only(ctx):
-    env = _env()
+    env = _env(fidelity="reduced")  # the model ctx's K·u_max is the linear analysis of
     small = run_episode(env, make("scan_pid", env), seed=3, options=_move(50e-9)).metrics()
     big = run_episode(env, make("scan_pid", env), seed=3, options=_move(2e-6)).metrics()
     assert small["final_error_nm"] <= 10.0 and small["steps"] == 0
@@ -79,8 +79,8 @@ def test_feedforward_inverts_the_map_on_the_nominal_plant(ctx):
     the map predicts within 30 %, and the gains it learns on the map's own plant stay near
     1. (Inside the detector a single period from rest after other moves lands up to a
     third short of the map's first period from true rest: the map's own limit, which the
-    gains learn.)"""
-    env = _env(noise=False)
+    gains learn.) The map's own plant is the per-axis model it was swept on."""
+    env = _env(noise=False, fidelity="reduced")
     ff = FeedForwardController(ctx)
     opts = _move(-30e-6)
     obs, info = env.reset(seed=0, options=opts)

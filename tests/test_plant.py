@@ -384,10 +384,10 @@ def test_the_calibrated_plant_round_trips_whole_through_its_file(tmp_path):
 def test_the_calibrated_plants_uncertainty_reaches_sample():
     """The benchmark's calibrated plant keeps the calibration's uncertainties, and
     Plant.sample draws from them: the draws scatter about the estimates by their errors."""
-    from controllers.plant_sets import PLANT_SETS
+    from controllers.plant_sets import FIDELITY, PLANT_SETS
 
     plant = PLANT_SETS["calibrated"]().base
-    assert plant.uncertainty and plant.fidelity == "reduced"
+    assert plant.uncertainty and plant.fidelity == FIDELITY
     rng = np.random.default_rng(0)
     draws = np.array([[d[k] for k in ("friction", "preload")]
                       for _p, d in (plant.sample(rng) for _ in range(400))])  # fmt: skip

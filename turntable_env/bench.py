@@ -20,7 +20,9 @@ implementation of the reduced model — it measures, in one process:
   reduced model, for uniformly random actions and for the nominal drive;
 * the per-axis model's step against the 3-D model's over a drive sweep
   (:func:`reduced_vs_full_sweep`), as it is (``reduced_vs_full_*``) and with the sphere's
-  translation and tilts (``reduced_translation_vs_full_*``, the ``"translation"`` fidelity).
+  translation and tilts (``reduced_translation_vs_full_*``, the ``"translation"`` fidelity);
+  ``env_vs_full*`` and ``env_rtf`` repeat the figures of the env's default model
+  (``env_fidelity``, :data:`~turntable_env.envs.config.DEFAULT_FIDELITY`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from .baseline import simulate_scipy
+from .envs.config import DEFAULT_FIDELITY
 from .reduced import ReducedModel, simulate_batch
 from .simulation import simulate, stepping_drive
 from .validation import check_int, check_positive
@@ -410,6 +413,11 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
     out.update(vs_full_summary(reduced_vs_full_sweep(quick, translation=True,
                                                      reference=plain_rows),
                                "reduced_translation"))  # fmt: skip
+    # the env's default model (issue 32's ``reduced_vs_full``: the model the env runs)
+    form = {"reduced": "reduced", "translation": "reduced_translation"}[DEFAULT_FIDELITY]
+    out["env_fidelity"] = DEFAULT_FIDELITY
+    for key in ("vs_full", "vs_full_max", "vs_full_median", "vs_full_within_5pct", "rtf"):
+        out[f"env_{key}"] = out[f"{form}_{key}"]
     sweep = accuracy_sweep(ps, full, quick=quick)
     out["reduced_step_error_sweep"] = sweep
     worst = max(sweep, key=lambda row: row["error"])
@@ -439,11 +447,19 @@ def run_bench(duration: float = 1.0, batch: int = 64, quick: bool = False) -> di
         rtf = out["batched_rtf_aggregate"] if key == "batched" else out[f"{key}_rtf"]
         out[f"{key}_vs_scipy"] = rtf / out["scipy_rtf"]
     out.update(env_throughput(num_envs=batch))
+    # the env's default model beside it (``_default`` keys; fewer steps: it is slower)
+    default = env_throughput(n_steps=300 if quick else 1000, num_envs=batch,
+                             fidelity=DEFAULT_FIDELITY)  # fmt: skip
+    out.update({f"{k}_default": v for k, v in default.items() if "steps_per_s" in k})
     return out
 
 
-def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> dict[str, Any]:
-    """Env steps per second of ``PiezoTurntable-v0`` (default kwargs, reduced model).
+def env_throughput(
+    n_steps: int = 3000, num_envs: int = 64, seed: int = 0, fidelity: str = "reduced"
+) -> dict[str, Any]:
+    """Env steps per second of ``PiezoTurntable-v0`` (default kwargs but ``fidelity``: the
+    per-axis model by default, whose figures the docs track; ``"translation"`` is the env's
+    default, :data:`~turntable_env.envs.config.DEFAULT_FIDELITY`).
 
     Two action streams: ``random`` — uniform in the action Box (seeded; frequencies are
     log-uniform 10 Hz–2 kHz, 3.7 periods per 10 ms step on average) and ``nominal`` — the
@@ -458,9 +474,9 @@ def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> di
     nominal = ActionScaling().encode(2.0, 100.0, 0.95, 1.0)
     check_int("n_steps", n_steps, 1)
     check_int("num_envs", num_envs, 1, 4096)
-    out: dict[str, Any] = {"env_num_envs": num_envs}
+    out: dict[str, Any] = {"env_num_envs": num_envs, "env_throughput_fidelity": fidelity}
     for stream in ("random", "nominal"):
-        env = gym.make("PiezoTurntable-v0")
+        env = gym.make("PiezoTurntable-v0", fidelity=fidelity)
         env.action_space.seed(seed)
         env.reset(seed=seed)
         acts = [
@@ -473,7 +489,7 @@ def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> di
             if term or trunc:
                 env.reset()
         out[f"env_steps_per_s_{stream}"] = n_steps / (time.perf_counter() - t0)
-        vec = PiezoTurntableVectorEnv(num_envs=num_envs)
+        vec = PiezoTurntableVectorEnv(num_envs=num_envs, fidelity=fidelity)
         vec.action_space.seed(seed)
         vec.reset(seed=seed)
         n_vec = max(n_steps // num_envs, 5)
@@ -499,7 +515,8 @@ def env_throughput(n_steps: int = 3000, num_envs: int = 64, seed: int = 0) -> di
 def format_env_table(res: dict[str, Any]) -> str:
     """Env throughput as a markdown table (see :func:`env_throughput`)."""
     lines = [
-        "| env steps/s (10 ms interval, reduced) | random actions | nominal 100 Hz drive |",
+        f"| env steps/s (10 ms interval, {res.get('env_throughput_fidelity', 'reduced')}) | "
+        "random actions | nominal 100 Hz drive |",
         "|---|---:|---:|",
         f"| single env | {res['env_steps_per_s_random']:.0f} | "
         f"{res['env_steps_per_s_nominal']:.0f} |",
@@ -572,6 +589,18 @@ def format_table(res: dict[str, Any]) -> str:
             f"{w['frequency_Hz']:g} Hz, a = {w['a']}, {w['amplifier']}: full "
             f"{w['full_step_nm']:.3g} nm, reduced {w['reduced_step_nm']:.3g} nm)"
         )
+    lines.append(
+        f"the env's default model ({res['env_fidelity']!r}) vs full: max "
+        f"{100 * res['env_vs_full_max']:.1f} % (env_vs_full_max)"
+    )
     if "env_steps_per_s_random" in res:
         lines.append("\n" + format_env_table(res))
+    if "env_steps_per_s_random_default" in res:
+        lines.append(
+            f"default model ({res['env_fidelity']!r}): single env "
+            f"{res['env_steps_per_s_random_default']:.0f} / "
+            f"{res['env_steps_per_s_nominal_default']:.0f} steps/s (random / nominal), vector "
+            f"{res['vector_env_steps_per_s_random_default']:.0f} / "
+            f"{res['vector_env_steps_per_s_nominal_default']:.0f}"
+        )
     return "\n".join(lines)

@@ -500,7 +500,7 @@ def _add_benchmark(sub: Any) -> None:
     )
     pk.add_argument("--controllers", default=None, help="comma-separated names (default: all)")
     pk.add_argument("--plant-sets", default=None,
-                    help="comma-separated (default: all but calibrated_translation)")  # fmt: skip
+                    help="comma-separated (default: all but calibrated_per_axis)")  # fmt: skip
     pk.add_argument("--tasks", default=None, help="comma-separated (default: all)")
     pk.add_argument(
         "--seeds", type=_int(2, 1000), default=None, help="episodes per cell (default 20)"

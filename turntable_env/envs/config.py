@@ -24,6 +24,7 @@ from ..validation import check_nonnegative, check_positive, describe
 
 __all__ = [
     "ACTION_NAMES",
+    "DEFAULT_FIDELITY",
     "DEFAULT_RANDOMIZATION",
     "MAX_NUM_ENVS",
     "MAX_REWARD_WEIGHT",
@@ -37,6 +38,12 @@ __all__ = [
     "check_action",
     "make_config",
 ]
+
+# The model a plant given by ``params`` runs (issue 32): the per-axis model with the
+# sphere's translation and tilts and the contacts' normal forces, within 5 % of the 3-D
+# model's step over ``turntable bench``'s sweep (``env_vs_full_max``); the per-axis form
+# without them (``"reduced"``, about 7× faster per env step) differs by up to 8.6×.
+DEFAULT_FIDELITY: Literal["translation"] = "translation"
 
 ACTION_NAMES = ("amplitude", "frequency", "ramp_ratio", "slew_adaptation", "scan_offset")
 
@@ -214,15 +221,17 @@ class EnvConfig:
             path of that name exists too), or the path of a
             calibration ``report.json`` (or its directory) whose plant to run
             (:meth:`~turntable_env.plant.Plant.from_report`): its parameter set, effects,
-            fidelity and detector noise. Default: the plant of ``params``.
+            fidelity and detector noise. Default: the plant of ``params`` on
+            :data:`DEFAULT_FIDELITY`.
         params: ``"real"`` (Table D.1, the default plant), ``"thesis"`` (Table D.2),
             ``"calibrated"`` (the real turntable with the rig the thesis's figures ask for)
             or a ParameterSet, without effects; give ``plant`` or ``params``, not both.
         fidelity: ``"reduced"`` (per-axis model), ``"translation"`` (it with the sphere's
             translation and tilts and the contacts' normal forces), ``"full"`` (3-D model;
             ``turntable bench`` compares the two real-time factors) or ``"independent"`` (the
-            independent test plant, :mod:`turntable_env.plant.independent`); default: the
-            plant's (reduced).
+            independent test plant, :mod:`turntable_env.plant.independent`); default: a
+            ``plant``'s own, and :data:`DEFAULT_FIDELITY` (``"translation"``) for the plant
+            of ``params``.
         axis: rotation axis under control, ``"A"``, ``"B"`` (default) or ``"C"``.
         control_interval: time per env step [s] (0.01: one period of the 100 Hz nominal drive).
         randomize: domain randomisation per episode (:meth:`Plant.sample`): False; True —
@@ -375,7 +384,7 @@ class EnvConfig:
                 )
             if not isinstance(params, str | ParameterSet):
                 raise ValueError(f"params={params!r}: must be a set's name or a ParameterSet")
-            plant = Plant(params)
+            plant = Plant(params, fidelity=DEFAULT_FIDELITY)
         elif isinstance(plant, str) and plant in NAMED_PLANTS:
             if os.path.exists(plant):  # a report directory of that name: say which is meant
                 raise ValueError(
