@@ -21,7 +21,10 @@ scaling, the detector range and the scan gain of the linear stick plant.
   estimated online, robustly, from the error's changes between scan intervals less the
   change the scan's own offset step made (K·Δu; median |Δe| = 0.954 σ for Gaussian
   noise), so a floor vibration that rocks the reading widens the hold and is averaged,
-  not chased, while a PID still converging does not.
+  not chased, while a PID still converging does not. The first scan interval after
+  stepping closes ``HANDOVER_GAIN`` of the error through the scan plant's inverse
+  (:meth:`ScanPID.jump`), and a scan whose offset is saturated is left for stepping only
+  when the error exceeds the hold band (stepping would first unwind the offset).
 
 The reading: the x channel converted with the rig's calibration
 (:meth:`ControllerContext.lab_observation`) and, where the observation carries the
@@ -40,6 +43,11 @@ On the way in from beyond the detector (no valid reading yet in the episode: the
 blind travel) a map controller steps only with the settings whose direction a survey of
 plants far from the map's found independent of the plant (:mod:`controllers.blind`); a
 spot lost after it was seen is searched near the edge with the small moves of the whole map.
+Inside the detector a map controller moves with a setting whose direction it has not yet
+seen on this plant only as far as a reversal would keep the spot in view
+(:meth:`StepScanController.room_behind`; the step gains' direction record,
+:mod:`controllers.step_gain`): a friction asymmetry can make the fast settings step
+backwards.
 """
 
 from __future__ import annotations
@@ -78,6 +86,9 @@ LOST_SEARCH = 8.0  # of θ_lin: search allowed for a spot lost inside the episod
 HOLD_SIGMAS = 3.0
 NOISE_WINDOW = 12  # scan intervals whose error changes estimate the reading's noise
 MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
+# the share of the error the first scan interval after stepping closes through K⁻¹ [-]:
+# below 1, so a plant whose scan gain is up to 25 % above the model's does not overshoot
+HANDOVER_GAIN = 0.8
 
 
 
@@ -319,6 +330,7 @@ class StepScanController(Controller):
         self._scan_target: float | None = None
         self._scan_streak = 0  # consecutive scan intervals on one target
         self._scan_offset = 0.0  # V, the offset before the last scan interval's update
+        self._hold_band = 0.0  # rad, the hold's error band at the last scan interval
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
@@ -327,6 +339,14 @@ class StepScanController(Controller):
         """Whether a move now is part of the way in from beyond the detector: the reading
         is ``saturated`` and no valid one has placed the table yet in this episode."""
         return saturated and not self.seen
+
+    def room_behind(self, remaining: float, measured: float, saturated: bool) -> float:
+        """The reading's distance [rad] to the detector's edge behind a move towards
+        ``remaining`` [rad]: how far a move that steps backwards may go with the spot still
+        in view (infinite with the reading saturated, where no move can be checked)."""
+        if saturated:
+            return math.inf
+        return max(self._sat + math.copysign(1.0, remaining) * measured, 0.0)
 
     def _read(self, obs: np.ndarray, x: float) -> float:
         """The table angle [rad] behind an unsaturated x reading ``x``: with the y channel
@@ -350,9 +370,10 @@ class StepScanController(Controller):
 
     def learn(self, measured: float, saturated: bool) -> None:
         """Update the online step gains (:mod:`controllers.step_gain`) from the interval
-        just ended: ρ = (Δθ_measured − K·Δu_scan)/D_map when both readings are valid and the
-        map's move exceeds ``min_learn``; a move that ran past the detector's edge in its
-        own direction sets a lower bound (it went at least to the edge)."""
+        just ended: ρ = (Δθ_measured − K·Δu_scan)/D_map and the setting's direction
+        (:meth:`StepGains.record`) when both readings are valid and the map's move exceeds
+        ``min_learn``; a move that ran past the detector's edge in its own direction sets a
+        lower bound (it went at least to the edge), one that left it behind is a reversal."""
         mv = self.last_move
         if (
             self.gains is None
@@ -364,10 +385,13 @@ class StepScanController(Controller):
         d = 1 if mv.nominal > 0 else -1
         scan = -self.ctx.scan_gain * self._offset_before  # the offset ramped to 0
         if not saturated:
-            rho = (measured - self.last_measured - scan) / mv.nominal
             # a move that went backwards is no gain to scale the map by: the amplitude is
-            # stalled (clipped to the gains' lowest ratio, under STALL), not used again
-            self.gains.update(d, mv.amplitude, max(rho, 0.0))
+            # stalled, and a clear reversal rules out the stronger settings of its direction
+            self.gains.record(d, mv.amplitude, mv.frequency, measured - self.last_measured - scan,
+                              mv.nominal)  # fmt: skip
+        elif self.went_the_wrong_way(measured, saturated):  # at least to the edge behind
+            moved = math.copysign(self.ctx.angle_range, measured) - self.last_measured - scan
+            self.gains.record(d, mv.amplitude, mv.frequency, moved, mv.nominal)
         elif measured * d > 0.0:
             lower = (d * self.ctx.angle_range - self.last_measured - scan) / mv.nominal
             if lower > float(self.gains.estimate(d, mv.amplitude)[0][0]):
@@ -424,8 +448,11 @@ class StepScanController(Controller):
         if self.mode == "scan":
             err = self.target - meas
             # leave the scan when the error leaves its range, or when the offset is saturated
-            # and the table still short of the target (the scan cannot reach it)
-            stuck = self.pid.saturated and err * self.offset > 0.0
+            # and the table still short of the target by more than the hold band (the scan
+            # cannot reach it; within the band, stepping would first unwind the offset, K·u
+            # of travel, to correct an error the hold can live with)
+            stuck = (self.pid.saturated and err * self.offset > 0.0
+                     and abs(err) > max(self.ctx.tolerance, self._hold_band))  # fmt: skip
             if sat or abs(err) > self.scan_exit * self.ctx.scan_range or (stuck and self.steps):
                 self.mode = "step"
                 self.estimate = meas if not sat else self.estimate
@@ -441,9 +468,13 @@ class StepScanController(Controller):
             if move is None and (sat or abs(remaining) > self.scan_exit * self.ctx.scan_range):
                 move = self.search_move(1 if remaining > 0 else -1, sat)  # the safety monitor
         if move is None:
+            # the hand-over: a stepping interval just ended (not a hold or an unwind) with
+            # the error within the scan's reach (beyond it the next interval steps again)
+            handover = (self.mode == "step" and self.last_move is not None and not sat
+                        and abs(self.target - meas) <= self.scan_exit * self.ctx.scan_range)
             self.mode = "scan"
             self.pid.reset(self.offset)
-            return self._scan(self.target - meas if not sat else 0.0, meas)
+            return self._scan(self.target - meas if not sat else 0.0, meas, handover)
         self.last_move = move
         self._scan_err, self._scan_streak = None, 0  # not a scan interval
         if sat:
@@ -474,7 +505,7 @@ class StepScanController(Controller):
         self.last_measured = None
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, 0.0)
 
-    def _scan(self, err: float, meas: float) -> np.ndarray:
+    def _scan(self, err: float, meas: float, handover: bool = False) -> np.ndarray:
         # the reading's noise: robust σ of the error's change between scan intervals on a
         # target that stays, once the PID's first corrections after a step are past
         steady = self._scan_target == self.target
@@ -488,7 +519,11 @@ class StepScanController(Controller):
         hold = 0.0
         if steady and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
             hold = HOLD_SIGMAS * float(np.median(self._noise)) / 0.954
-        u = self.pid.update(err, hold)
+        self._hold_band = hold  # rad
+        # after stepping, the scan plant's inverse closes HANDOVER_GAIN of the error at once
+        # (P(z) = K·z⁻¹: the PID's first, integral-only update would take about four
+        # intervals); the PID goes on from there
+        u = self.pid.jump(err, HANDOVER_GAIN) if handover else self.pid.update(err, hold)
         self.last_move = None
         self.offset = u
         self.last_measured = meas

@@ -70,6 +70,7 @@ class ClosedLoopStepController(StepScanController):
             gains=self.gains,
             amplitude_limit=self.ctx.input_limit - abs(self.offset),
             blind=self.blind_approach(saturated),
+            room=self.room_behind(remaining, measured, saturated),
         )
 
     def search_move(self, direction: int, saturated: bool = False) -> Move | None:

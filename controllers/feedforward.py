@@ -18,7 +18,8 @@ measurement its moves are small enough for a plant stepping 4× the map), and ig
 the detector while stepping (its angle is dead-reckoned, unless a valid reading shows the
 table inside the detector while the estimate has it beyond); the scan PID then finishes on
 the detector. Should the residual still exceed the scan range, it re-plans from the
-reading with what it has learned, at most ``max_replans`` times. A saturated reading
+reading with what it has learned, at most ``max_replans`` times per commanded target (a
+tracking task's new set point is a new plan, not a re-plan). A saturated reading
 with no planned move left starts the safety monitor's search back
 (:meth:`~controllers.base.StepScanController.search_move`).
 """
@@ -35,7 +36,13 @@ from .lab import LabBrief
 from .step_gain import StepGains
 from .step_map import StepMap
 
-__all__ = ["FeedForwardController", "MapPlanner"]
+__all__ = ["REVERSAL", "FeedForwardController", "MapPlanner"]
+
+# the backward step an unconfirmed move is sized for, × the map's forward one [-]: the cases
+# that step backwards in ``experiments/blind_settings.py --check translation --asymmetry 0.3``
+# go back 0.50–0.62 of it at the median and 0.85–1.49 at the 90th percentile, per frequency;
+# a larger reversal loses the spot behind, and the safety monitor then holds
+REVERSAL = 1.0
 
 
 class MapPlanner:
@@ -100,15 +107,19 @@ class MapPlanner:
         gains: StepGains | None = None,
         amplitude_limit: float = np.inf,
         blind: bool = False,
+        room: float = np.inf,
     ) -> Move | None:
         """The largest move towards ``remaining`` [rad] that does not pass the target, or
         None when |remaining| ≤ ``tolerance`` [rad] (the scan finishes) or no move fits.
 
         ``gains``, when given, scales each amplitude's map displacement by its own
-        estimate, no move may pass the target at its upper bound, and stalled amplitudes
-        are not used (:class:`~controllers.step_gain.StepGains`); without it, the map as
-        it is. ``blind`` (the reading saturated) restricts the moves to the settings whose
-        direction does not depend on the plant (:mod:`controllers.blind`)."""
+        estimate, no move may pass the target at its upper bound, stalled amplitudes and
+        settings measured stepping backwards are not used, and a setting whose direction
+        is not confirmed (:class:`~controllers.step_gain.StepGains`) only where
+        ``REVERSAL`` × its map displacement fits in ``room`` [rad], the reading's distance
+        to the detector's edge behind the move (a reversal keeps the spot in view); without
+        it, the map as it is. ``blind`` (the reading saturated) restricts the moves to the
+        settings whose direction does not depend on the plant (:mod:`controllers.blind`)."""
         if abs(remaining) <= tolerance:
             return None
         d = 1 if remaining > 0 else -1
@@ -116,8 +127,13 @@ class MapPlanner:
         nominal = np.abs(mv[:, 3] if from_rest else mv[:, 2])
         usable = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
         if gains is not None:
+            live = usable & ~gains.stalled(d, mv[:, 0])
+            if gains.backward[d] and not (live & ~gains.reversed(d, mv[:, 0], mv[:, 1])).any():
+                gains.forget_reversals(d)  # no move left at all: try the reversed ones again
             g, upper = gains.estimate(d, mv[:, 0])
-            usable &= ~gains.stalled(d, mv[:, 0])
+            usable &= ~gains.stalled(d, mv[:, 0]) & ~gains.reversed(d, mv[:, 0], mv[:, 1])
+            safe = REVERSAL * nominal <= room
+            usable &= safe | gains.confirmed(d, mv[:, 0], mv[:, 1])
         else:
             g = upper = np.ones(nominal.shape)
         disp, reach = nominal * g, nominal * upper
@@ -143,6 +159,8 @@ class MapPlanner:
         d = 1 if direction > 0 else -1
         mv = self.moves[d]
         ok = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
+        if gains is not None and (ok & ~gains.reversed(d, mv[:, 0], mv[:, 1])).any():
+            ok &= ~gains.reversed(d, mv[:, 0], mv[:, 1])  # never a setting that stepped back
         if gains is not None and (ok & ~gains.stalled(d, mv[:, 0])).any():
             ok &= ~gains.stalled(d, mv[:, 0])  # skip amplitudes that barely step here
         if not ok.any():
@@ -162,7 +180,7 @@ class FeedForwardController(StepScanController):
 
     Args:
         ctx: plant context; step_map: map (default: the shipped one);
-        max_replans: re-plans from the detector allowed per episode.
+        max_replans: re-plans from the detector allowed per commanded target.
     """
 
     name = "feedforward"
@@ -182,7 +200,8 @@ class FeedForwardController(StepScanController):
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         super().reset(obs, brief)
-        self.plans = 0  # stepping sequences started (the first plan + re-plans)
+        self.plans = 0  # stepping sequences started for this target (first plan + re-plans)
+        self._planned_for = self.target  # rad, the target they were started for
 
     def observe(self, measured: float, saturated: bool) -> None:
         """Dead reckoning while stepping, except that a valid reading contradicting it — the
@@ -194,6 +213,8 @@ class FeedForwardController(StepScanController):
 
     def choose_move(self, remaining: float, measured: float, saturated: bool) -> Move | None:
         new_sequence = self.last_move is None
+        if self.target != self._planned_for:  # a new set point: a new plan
+            self.plans, self._planned_for = 0, self.target
         if new_sequence and self.plans > self.max_replans:
             return None
         move = self.planner.plan(
@@ -203,6 +224,7 @@ class FeedForwardController(StepScanController):
             gains=self.gains,
             amplitude_limit=self.ctx.input_limit - abs(self.offset),
             blind=self.blind_approach(saturated),
+            room=self.room_behind(remaining, measured, saturated),
         )
         if move is not None and new_sequence:
             self.plans += 1

@@ -257,6 +257,20 @@ class ScanPID:
         self._e2, self._e1 = e1, error
         return self.u
 
+    def jump(self, error: float, fraction: float) -> float:
+        """One dead-beat step on the scan plant P(z) = K·z⁻¹: u_k = u_{k−1} + fraction·e_k/K
+        [V] (K the plant's DC gain), the error history cleared so the PID takes over from
+        the next reading without a derivative kick (a hand-over from stepping, whose
+        residual error the PID's first, integral-only update would close slowly)."""
+        k = self.gains.plant_gain
+        if not (math.isfinite(k) and k != 0.0):
+            raise ValueError(
+                f"gains.plant_gain={k!r}: the jump needs the plant's DC gain (design_scan_pid)"
+            )
+        self.u = float(np.clip(self.u + fraction * error / k, -self.limit, self.limit))
+        self._e1 = self._e2 = None
+        return self.u
+
     def hold(self, error: float) -> float:
         """The hold's integrator, u_k = u_{k−1} + g·e_k/K [V] (g = ``HOLD_GAIN``, K the
         plant's DC gain): an error within the reading's noise is averaged over about 1/g

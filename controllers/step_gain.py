@@ -26,6 +26,21 @@ An amplitude whose measured gain is below ``STALL`` (0.2) is **stalled**: the pl
 barely steps there (a plant with more friction below its onset). It is left out of the
 kernel average, and :meth:`StepGains.stalled` tells a planner not to use it: a stalled
 amplitude must not win as the only "known" move while the table stands still.
+
+**Direction.** A plant can step *backwards* at a setting: with a friction asymmetry the
+slip during the flyback and the re-stick after it are unequal, and from some amplitude and
+frequency on the drag of the flyback outweighs the ramp's travel (held-out seed 18 of the
+benchmark, α = 0.24: +0.11 µm per period at 4 V, 1 kHz, −0.38 µm at 6 V, 1 kHz,
+``python experiments/held_out_directions.py``). Since the drag grows with the drive's
+amplitude and frequency, a setting (A, f) measured backwards (:meth:`StepGains.record`: a
+move against its direction by more than ``REVERSED`` of the map's and ``REVERSE_MIN``)
+rules out every setting of its direction with A' ≥ A and f' ≥ f
+(:meth:`StepGains.reversed`), and its amplitude is stalled at once (not averaged with an
+earlier forward measurement). A setting measured forward (ρ ≥ ``STALL``, further than
+``CONFIRM_MIN``) *confirms* every
+setting with A' ≤ A and f' ≤ f (:meth:`StepGains.confirmed`): a weaker drive keeps the
+direction or stalls. A planner makes an unconfirmed move only where a reversal of it
+would keep the spot on the detector (:class:`~controllers.feedforward.MapPlanner`).
 """
 
 from __future__ import annotations
@@ -36,6 +51,12 @@ __all__ = ["StepGains"]
 
 KERNEL_FLOOR = 1e-3  # ε, the weight every measured setting keeps [-]
 STALL = 0.2  # a measured gain below it: the plant barely steps at that amplitude [-]
+REVERSED = 0.5  # a move against its direction by more than this share of the map's ...
+REVERSE_MIN = 3e-5  # rad, ... and by more than this (300 nm at R_table = 10 mm: five times
+# a floor vibration's swing between two readings, 2 × 3 µrad, and beyond the relaxation
+# of a tube after a long stepping run) is a reversed setting
+CONFIRM_MIN = 1e-5  # rad, a forward move (ρ ≥ STALL) longer than this confirms its setting
+# (100 nm at R_table = 10 mm: above a floor vibration's swing between two readings)
 
 
 class StepGains:
@@ -72,6 +93,9 @@ class StepGains:
     def reset(self) -> None:
         """Forget every measurement (γ = 1, nothing known)."""
         self.gain: dict[int, dict[float, float]] = {1: {}, -1: {}}
+        # settings (|A| [V], f [Hz]) measured stepping forward / backwards, per direction
+        self.forward: dict[int, list[tuple[float, float]]] = {1: [], -1: []}
+        self.backward: dict[int, list[tuple[float, float]]] = {1: [], -1: []}
 
     @staticmethod
     def _key(amplitude: float) -> float:
@@ -83,6 +107,65 @@ class StepGains:
         key = self._key(amplitude)
         r = float(np.clip(ratio, *self.bounds))
         cells[key] = r if key not in cells else cells[key] + self.rate * (r - cells[key])
+
+    def record(
+        self, direction: int, amplitude: float, frequency: float, moved: float, nominal: float
+    ) -> None:
+        """One stepping interval at the setting (A [V], f [Hz]) of direction d that moved the
+        table ``moved`` [rad] where the map predicts ``nominal`` [rad] (both signed): the gain
+        ρ = moved/nominal (:meth:`update`, a backward move counting 0), and the setting's
+        direction (module docstring: reversed, or forward and confirmed)."""
+        d = 1 if direction > 0 else -1
+        rho = moved / nominal
+        key = (self._key(amplitude), float(frequency))
+        if rho < -REVERSED and abs(moved) > REVERSE_MIN:  # stepped backwards: stall it now
+            self.backward[d].append(key)
+            self.gain[d][key[0]] = self.bounds[0]
+            return
+        self.update(d, amplitude, max(rho, 0.0))
+        if rho >= STALL and abs(moved) > CONFIRM_MIN:
+            self.forward[d].append(key)
+
+    def reversed(
+        self, direction: int, amplitude: np.ndarray | float, frequency: np.ndarray | float
+    ) -> np.ndarray:
+        """Whether each setting (A [V], f [Hz]) of direction d is at or beyond (in amplitude
+        and frequency) one measured stepping backwards."""
+        return self._dominated(self.backward[1 if direction > 0 else -1], amplitude, frequency, 1)
+
+    def confirmed(
+        self, direction: int, amplitude: np.ndarray | float, frequency: np.ndarray | float
+    ) -> np.ndarray:
+        """Whether each setting (A [V], f [Hz]) of direction d is at or below (in amplitude
+        and frequency) one measured stepping forward, and not :meth:`reversed`."""
+        d = 1 if direction > 0 else -1
+        ok = self._dominated(self.forward[d], amplitude, frequency, -1)
+        return ok & ~self.reversed(d, amplitude, frequency)
+
+    def forget_reversals(self, direction: int) -> None:
+        """Forget the settings of direction d measured stepping backwards (and un-stall their
+        amplitudes): a planner left with no usable move tries them again rather than stop."""
+        d = 1 if direction > 0 else -1
+        for amp, _f in self.backward[d]:
+            self.gain[d].pop(amp, None)
+        self.backward[d].clear()
+
+    def _dominated(
+        self,
+        points: list[tuple[float, float]],
+        amplitude: np.ndarray | float,
+        frequency: np.ndarray | float,
+        sign: int,
+    ) -> np.ndarray:
+        """Whether each (|A|, f) is ≥ (``sign`` 1) or ≤ (−1) some point in both coordinates."""
+        a = np.round(np.abs(np.atleast_1d(np.asarray(amplitude, dtype=float))), 6)
+        f = np.broadcast_to(np.asarray(frequency, dtype=float), a.shape)
+        if not points:
+            return np.zeros(a.shape, dtype=bool)
+        pa, pf = (np.array(c, dtype=float) for c in zip(*points, strict=True))
+        da = sign * (a[:, None] - pa[None, :]) >= -1e-9
+        df = sign * (f[:, None] - pf[None, :]) >= -1e-9
+        return (da & df).any(axis=1)
 
     def _measured(self, direction: int, amplitude: np.ndarray | float) -> tuple[np.ndarray, ...]:
         """(|A| (n,), measured (n,) bool, measured gain (n,), NaN where none) of direction d."""

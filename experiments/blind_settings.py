@@ -137,6 +137,7 @@ def main() -> None:
         label = args.check + (f", friction asymmetry ±{args.asymmetry:g}" if args.asymmetry
                               else "")  # fmt: skip
         _check(worst, freqs, label)
+        _reversals(ratio, freqs)
         return
     print("worst step over the map's, over plants and both directions (rows: amplitude [V])")
     print("   V | " + " | ".join(f"{f:6.0f} Hz" for f in freqs))
@@ -199,6 +200,21 @@ def _check(worst: np.ndarray, freqs: np.ndarray, fidelity: str) -> None:
     for a in (6.0, 6.5):
         j = int(np.flatnonzero(np.isclose(freqs, 1000.0))[0])
         print(f"  {a:g} V at 1 kHz: worst {worst[j, AMPLITUDES.index(a)]:.2f}")
+
+
+def _reversals(ratio: np.ndarray, freqs: np.ndarray) -> None:
+    """Print, per frequency, how far the cases that step backwards (ratio < −0.05 of the
+    map's step) go: the median and 90th percentile of |ratio| over plants, amplitudes and
+    directions (what ``controllers.feedforward.REVERSAL`` sizes an unconfirmed move for)."""
+    print("backward steps over the map's, among the cases stepping backwards (median, 90th "
+          "percentile, cases):")  # fmt: skip
+    for j, f in enumerate(freqs):
+        back = -ratio[:, j][ratio[:, j] < -0.05]
+        if back.size:
+            print(f"  {f:6.0f} Hz: {np.median(back):.2f}, {np.percentile(back, 90):.2f} "
+                  f"({back.size} of {ratio[:, j].size})")  # fmt: skip
+        else:
+            print(f"  {f:6.0f} Hz: none of {ratio[:, j].size}")
 
 
 if __name__ == "__main__":
