@@ -127,11 +127,12 @@ class MapPlanner:
         nominal = np.abs(mv[:, 3] if from_rest else mv[:, 2])
         usable = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
         if gains is not None:
-            live = usable & ~gains.stalled(d, mv[:, 0])
-            if gains.backward[d] and not (live & ~gains.reversed(d, mv[:, 0], mv[:, 1])).any():
+            allowed = ~gains.stalled(d, mv[:, 0]) & ~gains.reversed(d, mv[:, 0], mv[:, 1])
+            if gains.backward[d] and not (usable & allowed).any():
                 gains.forget_reversals(d)  # no move left at all: try the reversed ones again
+                allowed = ~gains.stalled(d, mv[:, 0])
             g, upper = gains.estimate(d, mv[:, 0])
-            usable &= ~gains.stalled(d, mv[:, 0]) & ~gains.reversed(d, mv[:, 0], mv[:, 1])
+            usable &= allowed
             safe = REVERSAL * nominal <= room
             usable &= safe | gains.confirmed(d, mv[:, 0], mv[:, 1])
         else:

@@ -669,8 +669,8 @@ def test_a_plant_whose_fast_settings_step_backwards_is_moved_inside_the_detector
     steps backwards there. Moves of 3.5–8 µm forward from 0.7–1.7 µm inside the
     detector's edge behind them: the map controllers size their unconfirmed moves so that
     a reversal keeps the spot in view, rule out the settings that step backwards, and
-    arrive without leaving the detector (stop 95's controllers lost the spot behind and
-    stopped 3–69 µm out)."""
+    arrive without leaving the detector (stop 95's controllers lost the spot behind the
+    edge on all three)."""
     plant = Plant("real").replace(
         factors={"friction": 0.596, "preload": 0.681, "amplifier": 1.342},
         effects={"friction_asymmetry": {"alpha": 0.24}},
