@@ -368,12 +368,13 @@ class StepScanController(Controller):
         elif not saturated:
             self.estimate = measured
 
-    def learn(self, measured: float, saturated: bool) -> None:
+    def learn(self, measured: float, saturated: bool, backwards: bool = False) -> None:
         """Update the online step gains (:mod:`controllers.step_gain`) from the interval
         just ended: ρ = (Δθ_measured − K·Δu_scan)/D_map and the setting's direction
         (:meth:`StepGains.record`) when both readings are valid and the map's move exceeds
         ``min_learn``; a move that ran past the detector's edge in its own direction sets a
-        lower bound (it went at least to the edge), one that left it behind is a reversal."""
+        lower bound (it went at least to the edge), one that left it behind (``backwards``,
+        :meth:`went_the_wrong_way`) is a reversal."""
         mv = self.last_move
         if (
             self.gains is None
@@ -389,7 +390,7 @@ class StepScanController(Controller):
             # stalled, and a clear reversal rules out the stronger settings of its direction
             self.gains.record(d, mv.amplitude, mv.frequency, measured - self.last_measured - scan,
                               mv.nominal)  # fmt: skip
-        elif self.went_the_wrong_way(measured, saturated):  # at least to the edge behind
+        elif backwards:  # at least to the edge behind
             moved = math.copysign(self.ctx.angle_range, measured) - self.last_measured - scan
             self.gains.record(d, mv.amplitude, mv.frequency, moved, mv.nominal)
         elif measured * d > 0.0:
@@ -428,9 +429,10 @@ class StepScanController(Controller):
         sat = self.saturated(meas)
         if not sat:  # the table angle behind the x reading (a misaligned detector's)
             meas = self._read(obs, meas)
-        if self.went_the_wrong_way(meas, sat):  # the safety monitor: no blind travel at all
+        backwards = self.went_the_wrong_way(meas, sat)
+        if backwards:  # the safety monitor: no blind travel at all
             self._blind_budget = 0.0
-        self.learn(meas, sat)
+        self.learn(meas, sat, backwards)
         self.observe(meas, sat)
         k_scan = self.ctx.scan_gain
         lim = self.ctx.angle_range

@@ -262,12 +262,7 @@ class ScanPID:
         [V] (K the plant's DC gain), the error history cleared so the PID takes over from
         the next reading without a derivative kick (a hand-over from stepping, whose
         residual error the PID's first, integral-only update would close slowly)."""
-        k = self.gains.plant_gain
-        if not (math.isfinite(k) and k != 0.0):
-            raise ValueError(
-                f"gains.plant_gain={k!r}: the jump needs the plant's DC gain (design_scan_pid)"
-            )
-        self.u = float(np.clip(self.u + fraction * error / k, -self.limit, self.limit))
+        self._integrate(fraction * error, "jump")
         self._e1 = self._e2 = None
         return self.u
 
@@ -278,14 +273,19 @@ class ScanPID:
         √(g/(2 − g)) = 0.38 of a white reading noise to the table and at most g/(2 − g) =
         0.14 of a line at the Nyquist frequency (a floor vibration aliased by the control
         rate), where the PID, designed for crossover, passes about all of it."""
+        self._integrate(HOLD_GAIN * error, "hold")
+        self._e2 = self._e1 = error  # no derivative kick when the PID takes over again
+        return self.u
+
+    def _integrate(self, error: float, what: str) -> None:
+        """u ← clip(u + e/K) [V]: the offset that moves the scan plant (DC gain K) by
+        ``error`` [rad]; ``what`` names the caller when the design left K unknown."""
         k = self.gains.plant_gain
         if not (math.isfinite(k) and k != 0.0):
             raise ValueError(
-                f"gains.plant_gain={k!r}: the hold needs the plant's DC gain (design_scan_pid)"
+                f"gains.plant_gain={k!r}: the {what} needs the plant's DC gain (design_scan_pid)"
             )
-        self.u = float(np.clip(self.u + HOLD_GAIN * error / k, -self.limit, self.limit))
-        self._e2 = self._e1 = error  # no derivative kick when the PID takes over again
-        return self.u
+        self.u = float(np.clip(self.u + error / k, -self.limit, self.limit))
 
     @property
     def saturated(self) -> bool:

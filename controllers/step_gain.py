@@ -93,9 +93,10 @@ class StepGains:
     def reset(self) -> None:
         """Forget every measurement (γ = 1, nothing known)."""
         self.gain: dict[int, dict[float, float]] = {1: {}, -1: {}}
-        # settings (|A| [V], f [Hz]) measured stepping forward / backwards, per direction
-        self.forward: dict[int, list[tuple[float, float]]] = {1: [], -1: []}
-        self.backward: dict[int, list[tuple[float, float]]] = {1: [], -1: []}
+        # settings (|A| [V], f [Hz]) measured stepping forward / backwards, per direction (sets:
+        # bounded by the settings a planner has, however long a run)
+        self.forward: dict[int, set[tuple[float, float]]] = {1: set(), -1: set()}
+        self.backward: dict[int, set[tuple[float, float]]] = {1: set(), -1: set()}
 
     @staticmethod
     def _key(amplitude: float) -> float:
@@ -119,12 +120,12 @@ class StepGains:
         rho = moved / nominal
         key = (self._key(amplitude), float(frequency))
         if rho < -REVERSED and abs(moved) > REVERSE_MIN:  # stepped backwards: stall it now
-            self.backward[d].append(key)
+            self.backward[d].add(key)
             self.gain[d][key[0]] = self.bounds[0]
             return
         self.update(d, amplitude, max(rho, 0.0))
         if rho >= STALL and abs(moved) > CONFIRM_MIN:
-            self.forward[d].append(key)
+            self.forward[d].add(key)
 
     def reversed(
         self, direction: int, amplitude: np.ndarray | float, frequency: np.ndarray | float
@@ -152,7 +153,7 @@ class StepGains:
 
     def _dominated(
         self,
-        points: list[tuple[float, float]],
+        points: set[tuple[float, float]],
         amplitude: np.ndarray | float,
         frequency: np.ndarray | float,
         sign: int,

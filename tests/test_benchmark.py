@@ -124,8 +124,9 @@ def test_agent_seeds_paired_comparison_is_the_benchmarks_own():
 
 
 @pytest.mark.parametrize(  # one local Ray instance at a time (xdist: one worker for "ray")
-    "backend",
-    ["processes", pytest.param("ray", marks=[pytest.mark.slow, pytest.mark.xdist_group("ray")])],
+    "backend",  # slow: two worker processes import the stack (10 s of CPU), Ray its own
+    [pytest.param("processes", marks=pytest.mark.slow),
+     pytest.param("ray", marks=[pytest.mark.slow, pytest.mark.xdist_group("ray")])],
 )
 def test_cells_as_tasks_equal_the_serial_run(backend):
     """The sweep over cells as processes (or Ray tasks) gives the serial run's episodes,

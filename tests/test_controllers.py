@@ -637,6 +637,12 @@ def test_step_gains_record_a_reversal_and_confirm_the_weaker_settings():
     assert not g.reversed(-1, [3.0], [500.0])[0] and not g.confirmed(-1, [3.0], [500.0])[0]
     g.forget_reversals(1)
     assert not g.reversed(1, amps, freqs).any() and not g.stalled(1, [5.5])[0]
+    # a long run at a few settings: the record holds each setting once, whatever the run
+    for i in range(500):
+        amp, f = (2.0, 3.0)[i % 2], (100.0, 500.0, 2000.0)[i % 3]
+        g.record(1, amp, f, moved=3e-5, nominal=2e-5)
+        g.record(1, amp + 5.0, f, moved=big, nominal=1e-4)
+    assert len(g.forward[1]) == 1 + 6 and len(g.backward[1]) == 6  # with 5.5 V, 100 Hz
 
 
 @pytest.mark.parametrize("room_um", [0.5, 1.0, 2.0])

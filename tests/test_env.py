@@ -181,7 +181,11 @@ def test_reset_options_validated():
 
 @pytest.mark.parametrize(
     ("fidelity", "total", "episodes"),
-    [("reduced", 10_000, 50), (DEFAULT_FIDELITY, 1_500, 8)],  # the default: 20x slower
+    [
+        ("reduced", 10_000, 50),
+        (DEFAULT_FIDELITY, 400, 2),  # the default model: 20x slower per step
+        pytest.param(DEFAULT_FIDELITY, 1_500, 8, marks=pytest.mark.slow),
+    ],
 )
 def test_fuzz_random_actions_stay_in_spaces(fidelity, total, episodes):
     """Random (partly out-of-range) actions over many seeds, randomised plants: no

@@ -424,6 +424,7 @@ def test_the_sampling_intervals_range_holds_its_ends(lab_file, tmp_path):
 
 
 
+@pytest.mark.slow  # a whole calibration (12 s of CPU): the default tier's budget
 def test_a_trace_that_identifies_no_parameter_is_untested(lab_file, tmp_path, capsys):
     """A millisecond of the lab's file (21 samples, the window with most motion) passes
     the information check and meets its target at any parameters: the report and the
