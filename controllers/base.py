@@ -21,10 +21,22 @@ scaling, the detector range and the scan gain of the linear stick plant.
   estimated online, robustly, from the error's changes between scan intervals less the
   change the scan's own offset step made (K·Δu; median |Δe| = 0.954 σ for Gaussian
   noise), so a floor vibration that rocks the reading widens the hold and is averaged,
-  not chased, while a PID still converging does not. The first scan interval after
+  not chased, while a PID still converging does not; the first ``SETTLING`` scan
+  intervals on a target (after a step or a new target) go to the PID whatever the band,
+  their error being its transient, not noise. The first scan interval after
   stepping closes ``HANDOVER_GAIN`` of the error through the scan plant's inverse
-  (:meth:`ScanPID.jump`), and a scan whose offset is saturated is left for stepping only
-  when the error exceeds the hold band (stepping would first unwind the offset).
+  (:meth:`ScanPID.jump`), plus the offset the table did not follow at the last such
+  hand-over in that direction (:attr:`StepScanController.dead_band`: lost motion after
+  stepping, 1.0–1.5 V on held-out plants with piezo creep and hysteresis, where the
+  first offset step moved the table by nothing), and a scan whose offset is saturated is
+  left for stepping only when the error exceeds the hold band (stepping would first
+  unwind the offset).
+
+The target: with a reference in the brief (:class:`~controllers.lab.LabBrief`, a tracking
+task's), the action read at interval k aims at r[k+1], the set point at the end of the
+interval it acts over (the metrics judge θ[k+1] against r[k+1]); a set point that changes
+at k+1 is stepped towards from k. Without one, or where the observation's commanded
+target contradicts it, the commanded target r[k].
 
 The reading: the x channel converted with the rig's calibration
 (:meth:`ControllerContext.lab_observation`) and, where the observation carries the
@@ -84,11 +96,18 @@ LOST_SEARCH = 8.0  # of θ_lin: search allowed for a spot lost inside the episod
 # the hold: a scan error within HOLD_SIGMAS × the reading's noise, on a target that stays,
 # goes to the scan's slow integrator (ScanPID.hold), not to the PID that would answer it
 HOLD_SIGMAS = 3.0
+# scan intervals on one target, after a step or a new target, in which the PID converges:
+# their error changes are no noise sample, and their errors go to the PID, not the hold
+SETTLING = 3
 NOISE_WINDOW = 12  # scan intervals whose error changes estimate the reading's noise
 MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
 # the share of the error the first scan interval after stepping closes through K⁻¹ [-]:
 # below 1, so a plant whose scan gain is up to 25 % above the model's does not overshoot
 HANDOVER_GAIN = 0.8
+# the smallest hand-over offset step [V] whose response measures the scan's dead band after
+# stepping (lost motion: on some plants the offset's first volts after the flybacks move
+# the table by nothing)
+DEAD_MIN = 0.3
 
 
 
@@ -297,7 +316,9 @@ class StepScanController(Controller):
     # --- episode ----------------------------------------------------------------------
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         obs = self.ctx.lab_observation(obs)
-        self.target = float(obs[OBS.target_angle_rad])
+        self._brief = brief
+        self._interval = 0  # k, the index of the observation the next act() reads
+        self.target = self._aim(float(obs[OBS.target_angle_rad]))
         meas = float(obs[OBS.measured_angle_rad])
         sat = self.saturated(meas)
         self.misalignment.reset()
@@ -331,9 +352,30 @@ class StepScanController(Controller):
         self._scan_streak = 0  # consecutive scan intervals on one target
         self._scan_offset = 0.0  # V, the offset before the last scan interval's update
         self._hold_band = 0.0  # rad, the hold's error band at the last scan interval
+        self._dead = {1: 0.0, -1: 0.0}  # V, the scan's dead band after stepping, per direction
+        self._handover: tuple[float, float] | None = None  # (Δu [V], reading [rad]) of it
+
+    def _aim(self, commanded: float) -> float:
+        """The target [rad] an action read at interval k aims at: the commanded one at the
+        end of the interval it acts over, r[k+1] from the brief's reference (a set point
+        that changes at k+1 is stepped towards during k → k+1, as the metrics judge θ[k+1]
+        against r[k+1]); the observation's ``commanded`` r[k] where the brief has no
+        reference or disagrees with it (another reference than the brief's)."""
+        brief, k = self._brief, self._interval
+        if brief.reference_rad is None or np.float32(brief.reference_at(k)) != np.float32(
+            commanded
+        ):
+            return commanded
+        return brief.reference_at(k + 1)
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
+
+    @property
+    def dead_band(self) -> dict[int, float]:
+        """The scan's dead band after stepping [V] per offset direction (±1), as the last
+        hand-over in that direction measured it (:meth:`_learn_dead_band`; 0 before any)."""
+        return dict(self._dead)
 
     def blind_approach(self, saturated: bool) -> bool:
         """Whether a move now is part of the way in from beyond the detector: the reading
@@ -396,7 +438,7 @@ class StepScanController(Controller):
         elif measured * d > 0.0:
             lower = (d * self.ctx.angle_range - self.last_measured - scan) / mv.nominal
             if lower > float(self.gains.estimate(d, mv.amplitude)[0][0]):
-                self.gains.update(d, mv.amplitude, lower)
+                self.gains.update(d, mv.amplitude, lower, mv.frequency)
 
     def went_the_wrong_way(self, measured: float, saturated: bool) -> bool:
         """Whether the interval just ended was a step move that left the detector on the
@@ -425,7 +467,8 @@ class StepScanController(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         obs = self.ctx.lab_observation(obs)
         meas = float(obs[OBS.measured_angle_rad])
-        self.target = float(obs[OBS.target_angle_rad])  # the commanded target now
+        self.target = self._aim(float(obs[OBS.target_angle_rad]))  # r[k+1] where known
+        self._interval += 1
         sat = self.saturated(meas)
         if not sat:  # the table angle behind the x reading (a misaligned detector's)
             meas = self._read(obs, meas)
@@ -479,6 +522,7 @@ class StepScanController(Controller):
             return self._scan(self.target - meas if not sat else 0.0, meas, handover)
         self.last_move = move
         self._scan_err, self._scan_streak = None, 0  # not a scan interval
+        self._handover = None  # (its response is not measured across a step)
         if sat:
             self._blind += abs(move.expected)
         self.estimate -= k_scan * self.offset
@@ -494,6 +538,7 @@ class StepScanController(Controller):
         self.mode = "scan"
         self.last_move = None
         self._scan_err, self._scan_streak = None, 0  # not a scan interval
+        self._handover = None
         self.last_measured = None
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, self.offset)
 
@@ -504,28 +549,51 @@ class StepScanController(Controller):
         self.offset = 0.0
         self.last_move = None
         self._scan_err, self._scan_streak = None, 0  # not a scan interval
+        self._handover = None
         self.last_measured = None
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, 0.0)
+
+    def _learn_dead_band(self, meas: float) -> None:
+        """The scan's dead band after stepping [V] in the direction of the last hand-over's
+        offset step Δu, from its response: the table followed Δθ/K of it; the rest, clipped
+        to [0, |Δu|], is lost (whatever its cause: a hysteresis branch or a creep after
+        the flybacks; about 0 on a plant without)."""
+        if self._handover is None:
+            return
+        du, before = self._handover
+        self._handover = None
+        if abs(du) >= DEAD_MIN and not self.saturated(meas):
+            s = 1 if du > 0.0 else -1
+            lost = s * du - s * (meas - before) / self.ctx.scan_gain
+            self._dead[s] = float(np.clip(lost, 0.0, abs(du)))
 
     def _scan(self, err: float, meas: float, handover: bool = False) -> np.ndarray:
         # the reading's noise: robust σ of the error's change between scan intervals on a
         # target that stays, once the PID's first corrections after a step are past
         steady = self._scan_target == self.target
         self._scan_streak = self._scan_streak + 1 if steady else 0
-        if self._scan_streak >= 3 and self._scan_err is not None:
+        if self._scan_streak >= SETTLING and self._scan_err is not None:
             # the error's change less the change the last offset step made, K·Δu (the scan
             # plant P(z) = K·z⁻¹): a PID still converging is not counted as noise
             moved = self.ctx.scan_gain * (self.offset - self._scan_offset)
             self._noise.append(abs(err - self._scan_err + moved))
         self._scan_err, self._scan_target, self._scan_offset = err, self.target, self.offset
         hold = 0.0
-        if steady and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
+        settled = self._scan_streak >= SETTLING  # (a hand-over's transient is no noise)
+        if settled and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
             hold = HOLD_SIGMAS * float(np.median(self._noise)) / 0.954
         self._hold_band = hold  # rad
         # after stepping, the scan plant's inverse closes HANDOVER_GAIN of the error at once
         # (P(z) = K·z⁻¹: the PID's first, integral-only update would take about four
         # intervals); the PID goes on from there
-        u = self.pid.jump(err, HANDOVER_GAIN) if handover else self.pid.update(err, hold)
+        self._learn_dead_band(meas)
+        if handover:  # the dead band last measured added in the error's direction
+            before = self.pid.u
+            s = 1 if err > 0.0 else -1
+            u = self.pid.jump(err, HANDOVER_GAIN, s * self._dead[s])
+            self._handover = (u - before, meas)
+        else:
+            u = self.pid.update(err, hold)
         self.last_move = None
         self.offset = u
         self.last_measured = meas

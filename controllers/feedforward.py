@@ -131,7 +131,7 @@ class MapPlanner:
             if gains.backward[d] and not (usable & allowed).any():
                 gains.forget_reversals(d)  # no move left at all: try the reversed ones again
                 allowed = ~gains.stalled(d, mv[:, 0])
-            g, upper = gains.estimate(d, mv[:, 0])
+            g, upper = gains.estimate(d, mv[:, 0], mv[:, 1])
             usable &= allowed
             safe = REVERSAL * nominal <= room
             usable &= safe | gains.confirmed(d, mv[:, 0], mv[:, 1])

@@ -257,12 +257,13 @@ class ScanPID:
         self._e2, self._e1 = e1, error
         return self.u
 
-    def jump(self, error: float, fraction: float) -> float:
+    def jump(self, error: float, fraction: float, extra: float = 0.0) -> float:
         """One dead-beat step on the scan plant P(z) = K·z⁻¹: u_k = u_{k−1} + fraction·e_k/K
-        [V] (K the plant's DC gain), the error history cleared so the PID takes over from
-        the next reading without a derivative kick (a hand-over from stepping, whose
-        residual error the PID's first, integral-only update would close slowly)."""
-        self._integrate(fraction * error, "jump")
+        + ``extra`` [V] (K the plant's DC gain; ``extra`` the offset a dead band the plant
+        shows will absorb), the error history cleared so the PID takes over from the next
+        reading without a derivative kick (a hand-over from stepping, whose residual error
+        the PID's first, integral-only update would close slowly)."""
+        self._integrate(fraction * error + extra * self.gains.plant_gain, "jump")
         self._e1 = self._e2 = None
         return self.u
 

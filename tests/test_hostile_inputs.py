@@ -488,7 +488,9 @@ def test_a_detector_off_by_a_unit_is_refused_before_fitting(
     assert not out.exists()
 
 
-@pytest.mark.parametrize("offset", [0.05, 10.0])
+@pytest.mark.parametrize(  # a trigger delay, a clock's reading (slow: the default tier's CPU)
+    "offset", [pytest.param(0.05, marks=pytest.mark.slow), 10.0]
+)
 def test_time_from_any_start_is_read_from_the_first_sample(offset, lab_file, tmp_path):
     """A record whose time starts at a trigger delay (50 ms) or a clock's reading (10 s)
     is read as one from 0: the same segments, shifted, and the same signature features to

@@ -3,6 +3,8 @@
 import re
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -45,6 +47,7 @@ def test_project_files_and_docs_site_are_present():
         assert (ROOT / "docs" / page).is_file(), page
 
 
+@pytest.mark.slow  # .ci/run builds the site strictly too; 3 s of the default tier's CPU
 def test_docs_site_builds_strict(tmp_path):
     """`mkdocs build --strict` (as .ci/run): every page, API reference and link resolves."""
     import os

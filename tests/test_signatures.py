@@ -229,7 +229,7 @@ def test_scan_range_reads_the_detectors_local_gain_where_the_table_stepped(k, ga
 
 @pytest.mark.parametrize(
     "f_hz, amp",
-    [(123.0, 3.0),  # several periods per hold
+    [pytest.param(123.0, 3.0, marks=pytest.mark.slow),  # several periods per hold
      (12.0, 10.0)],  # 0.6 period per median hold (48 ms): found though slower than a hold
 )  # fmt: skip
 def test_line_found_at_its_frequency_and_read_with_its_phase(proto, f_hz, amp):

@@ -26,7 +26,7 @@ def script():
     return experiment("sphere_tilt")
 
 
-@pytest.mark.parametrize("amplitude", [90.0, -90.0])
+@pytest.mark.parametrize("amplitude", [90.0, pytest.param(-90.0, marks=pytest.mark.slow)])
 def test_frozen_reference_is_the_per_axis_model(script, amplitude):
     """With the translation, the tilts and the other tubes held and F_N fixed, the
     rigid-body reference is the per-axis model: its explicit fixed step and the kernel's
@@ -249,8 +249,10 @@ def test_the_settled_step_follows_the_3d_model_with_planar_friction():
 
 @pytest.mark.parametrize(
     ("amplifier", "amplitude", "frequency", "a"),
-    [("adapted", 20.0, 100.0, 0.5), ("ideal", -20.0, 100.0, 0.5), ("ideal", 200.0, 2000.0, 0.99)],
-)
+    [("adapted", 20.0, 100.0, 0.5),  # (the others slow: the default tier's CPU)
+     pytest.param("ideal", -20.0, 100.0, 0.5, marks=pytest.mark.slow),
+     pytest.param("ideal", 200.0, 2000.0, 0.99, marks=pytest.mark.slow)],
+)  # fmt: skip
 def test_sweep_reference_is_converged(amplifier, amplitude, frequency, a):
     """The sweep's 3-D reference (its fixed fine step) moves the step by under 0.5 % when
     the step is halved, on two 1.7–2 nm steps of a 20 V triangle, where the adaptive step
