@@ -187,6 +187,7 @@ def test_scan_pid_design_meets_its_margins(ctx):
     assert float(ct.dcgain(closed)) == pytest.approx(1.0, abs=1e-9)  # integral action
 
 
+@pytest.mark.slow  # three designs (4 s of CPU): the default tier's budget
 def test_scan_pid_design_does_not_depend_on_its_start():
     """The design maximises the crossover: on the calibrated set's stick plant it reaches
     at least the crossover of the search from any one start. From the single start it
@@ -294,7 +295,11 @@ def test_controllers_read_the_table_angle_through_their_rigs_calibration(name):
     assert read == pytest.approx(opts["start_angle"], rel=1e-3)
 
 
-@pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])
+@pytest.mark.parametrize(  # (two of three slow: the default tier's CPU)
+    "name",
+    [pytest.param("feedforward", marks=pytest.mark.slow),
+     pytest.param("fuzzy", marks=pytest.mark.slow), "closed_loop"],
+)  # fmt: skip
 def test_the_step_controllers_settle_on_the_independent_plant(name):
     """The independent test plant (LuGre friction, its own parameters: a formulation none
     of them was designed on; its scan range is 1.4× the nominal one) from beyond the

@@ -183,7 +183,7 @@ def test_reset_options_validated():
     ("fidelity", "total", "episodes"),
     [
         ("reduced", 4_000, 20),
-        (DEFAULT_FIDELITY, 400, 2),  # the default model: 20x slower per step
+        (DEFAULT_FIDELITY, 250, 1),  # the default model: 20x slower per step
         pytest.param(DEFAULT_FIDELITY, 1_500, 8, marks=pytest.mark.slow),
     ],
 )

@@ -19,6 +19,7 @@ def _run(script: str, *args: str, cwd: Path = ROOT) -> str:
     return r.stdout
 
 
+@pytest.mark.slow  # a second interpreter importing the stack: the default tier's CPU
 def test_controller_example_reaches_the_target():
     out = _run("controller_on_env.py", "--steps", "100")
     m = re.search(r"success (True|False), final error ([\d.]+) nm", out)
