@@ -15,8 +15,9 @@ other frequencies (:meth:`StepGains.estimate` with ``frequency``) the bound is t
 of it and the kernel average of the *other* measured amplitudes (below): a plant whose step
 depends on the frequency can make one setting's gain unlike its neighbours' (held-out seed
 0 of the benchmark, piezo creep: −7 V stepped 0.48 of the map in one period at 100 Hz,
-where −5.5 V had stepped 1.26 at 500 Hz, and −7 V then stepped 1.08 at 500 Hz; a plan
-that took 0.48 as the bound there overshot a 1.6 µm move by 1.7 µm). An
+where −5.5 V had stepped 1.18, ``python experiments/replay_episode.py closed_loop
+held_out back_forth 0``; at 500 Hz −7 V stepped about the map's step, and a plan that
+took 0.48 as the bound there passed the target). An
 amplitude not yet measured takes a kernel average over its direction's measured ones,
 geometric, weighted by exp(−½(ΔA/σ_A)²) + ε in amplitude (σ_A = ``width``, 1 V; the gain
 of a plant that differs from the map varies mostly with the amplitude; ε = 10⁻³ lets
