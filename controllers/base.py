@@ -79,6 +79,7 @@ from turntable_env.envs.config import OBS, OBS_Y, ActionScaling, EnvConfig
 from turntable_env.linear import scan_plant, stick_plant
 from turntable_env.params import ParameterSet
 
+from .detector_linearity import KAPPA_MIN, DetectorLinearity
 from .lab import LabBrief
 from .misalignment import AxisMisalignment
 from .scan_pid import PIDGains, ScanPID, design_scan_pid
@@ -108,6 +109,17 @@ HANDOVER_GAIN = 0.8
 # stepping (lost motion: on some plants the offset's first volts after the flybacks move
 # the table by nothing)
 DEAD_MIN = 0.3
+# the detector's linearity (controllers.detector_linearity), read from offset dithers out
+# and back over two scan intervals: one before the first step of an episode that starts
+# inside the detector, up to DITHERS on a settled target beyond DITHER_FROM × θ_lin
+DITHER_FRACTION = 0.4  # of u_max: the dither's offset step, towards the detector's centre
+# (0.8 made low-friction plants slip: out and back differed by up to 10 %)
+DITHER_FROM = 0.6  # of θ_lin: nearer the centre a cubic moves the reading by ≤ 0.36·κ·θ
+DITHERS = 5  # dithers per target at most (the first after stepping conditions the contacts)
+PROBES = 2  # dithers before the first step (the first conditions the contacts)
+# the last seconds of a known reference (a tracking task's brief) are not dithered: the set
+# point is then held for use, and a dither with the PID's settling takes 5 intervals
+QUIET_END_S = 0.3
 
 
 
@@ -310,6 +322,9 @@ class StepScanController(Controller):
         # controller's own plan; a residual agent sets it each interval, agents/residual.py)
         self.remaining_scale = 1.0
         self.misalignment = AxisMisalignment()  # learned from the y channel, where observed
+        det = ctx.detector  # the reading's noise the lab expects [rad], a floor on the scatter
+        noise = det.noise_std / det.saturation_voltage * ctx.angle_range
+        self.linearity = DetectorLinearity(ctx.angle_range, noise)  # learned from dithers
         # a saturated reading sits at the edge plus the detector's noise (1 mV ≈ 0.3 µrad)
         self._sat = ctx.angle_range * SATURATION_FRACTION
 
@@ -322,6 +337,13 @@ class StepScanController(Controller):
         meas = float(obs[OBS.measured_angle_rad])
         sat = self.saturated(meas)
         self.misalignment.reset()
+        self.linearity.reset()
+        # a dither under way: (phase 1 out / 2 back, offset before [V], its step [V],
+        # readings before and after the way out [rad])
+        self._cycle: tuple[int, float, float, float, float] | None = None
+        self._dithered: dict[float, int] = {}  # dithers made per target [rad]
+        self._site = 0  # dithers made since the last step (the first only conditions)
+        self._probes = 0  # dithers made before the first step (up to PROBES)
         if not sat:
             meas = self._read(obs, meas)
         self.estimate = meas  # rad, believed angle: the reading where it is valid, ...
@@ -472,6 +494,9 @@ class StepScanController(Controller):
         sat = self.saturated(meas)
         if not sat:  # the table angle behind the x reading (a misaligned detector's)
             meas = self._read(obs, meas)
+        self._raw = meas  # the reading before the linearity's correction [rad]
+        if not sat:  # (a bent detector's, where the dithers have decided κ)
+            meas = self.linearity.table_angle(meas)
         backwards = self.went_the_wrong_way(meas, sat)
         if backwards:  # the safety monitor: no blind travel at all
             self._blind_budget = 0.0
@@ -490,6 +515,18 @@ class StepScanController(Controller):
             self._blind, self._blind_budget = 0.0, LOST_SEARCH * lim
             self._excess = LOST_EXCESS
             self.seen = True
+        if self._cycle is not None:  # a dither runs out and back before anything else
+            dither = self._dither_on(meas, sat)
+            if dither is not None:
+                return dither
+        if (self._probes < PROBES and not sat and self.steps and self.last_move is None
+                and self.mode == "step" and self._site == self._probes
+                and self._reaches_edge()
+                and abs(self.target - meas) > self.scan_fraction * self.ctx.scan_range):
+            dither = self._dither_start(meas)  # the centre's slope, before the first step
+            if dither is not None:
+                self._probes += 1
+                return dither  # fmt: skip
         if self.mode == "scan":
             err = self.target - meas
             # leave the scan when the error leaves its range, or when the offset is saturated
@@ -521,6 +558,7 @@ class StepScanController(Controller):
             self.pid.reset(self.offset)
             return self._scan(self.target - meas if not sat else 0.0, meas, handover)
         self.last_move = move
+        self._site, self._probes = 0, PROBES  # (no probe after stepping)
         self._scan_err, self._scan_streak = None, 0  # not a scan interval
         self._handover = None  # (its response is not measured across a step)
         if sat:
@@ -567,6 +605,75 @@ class StepScanController(Controller):
             lost = s * du - s * (meas - before) / self.ctx.scan_gain
             self._dead[s] = float(np.clip(lost, 0.0, abs(du)))
 
+    def _dither_start(self, meas: float) -> np.ndarray | None:
+        """The way out of an offset dither: ``DITHER_FRACTION`` u_max towards the
+        detector's centre from the present offset (None where the input limit leaves
+        under 0.5 V of room that way)."""
+        s = -1.0 if self._raw > 0.0 else 1.0
+        lim = self.ctx.input_limit
+        u = float(np.clip(self.offset + s * DITHER_FRACTION * lim, -lim, lim))
+        if abs(u - self.offset) < 0.5:
+            return None
+        self._cycle = (1, self.offset, u - self.offset, self._raw, math.nan)
+        return self._idle(u, meas)
+
+    def _dither_on(self, meas: float, saturated: bool) -> np.ndarray | None:
+        """The dither's next interval: after the way out, the way back to the offset
+        before; after the way back, its three readings go to the linearity and None lets
+        the interval run as it would have (a saturated reading ends it unread)."""
+        assert self._cycle is not None
+        phase, before, du, r0, r1 = self._cycle
+        if saturated:
+            self._cycle = None
+            return None
+        if phase == 1:
+            self._cycle = (2, before, du, r0, self._raw)
+            return self._idle(before, meas)
+        self._cycle = None
+        self._site += 1
+        if self._site > 1:  # the first loop after stepping (or at rest) is no steady one
+            sigma = float(np.median(self._noise)) / 0.954 if len(self._noise) >= 4 else 0.0
+            self.linearity.add(du, (r0, r1, self._raw), sigma)
+        # the dither's changes are no noise sample, and the PID settles again (on the
+        # reading corrected by the κ̂ it may have decided) before the next dither
+        self._scan_err, self._scan_streak = None, 0
+        return None
+
+    def _idle(self, u: float, meas: float) -> np.ndarray:
+        """One interval with the generator idle at scan offset ``u`` [V] (a dither's)."""
+        self.last_move = None
+        self.offset = u
+        self.last_measured = meas
+        self._scan_err = None
+        return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, u)
+
+    def _reaches_edge(self) -> bool:
+        """Whether the episode's target, or its brief's reference, reaches beyond
+        ``DITHER_FROM`` θ_lin, where the detector's cubic matters (its first dither then
+        reads the slope near the start)."""
+        ref = self._brief.reference_rad
+        reach = abs(self.target) if ref is None else float(np.max(np.abs(ref)))
+        return max(reach, abs(self.target)) >= DITHER_FROM * self.ctx.angle_range
+
+    def _wants_dither(self) -> bool:
+        """Whether a settled scan on the present target should dither for the detector's
+        linearity: the target lies beyond ``DITHER_FROM`` θ_lin, κ is not decided, the
+        episode has a dither nearer the centre to compare with, and the target has had
+        fewer than ``DITHERS``."""
+        m2 = (self.target / self.ctx.angle_range) ** 2
+        if m2 < DITHER_FROM**2 or self._dithered.get(self.target, 0) >= DITHERS:
+            return False
+        ref = self._brief.reference_rad
+        quiet = round(QUIET_END_S / self.ctx.control_interval)
+        if ref is not None and len(ref) - self._interval <= quiet:
+            return False
+        k, sd, decided = self.linearity.estimate()
+        # decided, the target's error from κ's uncertainty within a quarter of the band
+        precise = decided and sd * m2 * abs(self.target) <= 0.25 * self.ctx.tolerance
+        # or clearly under KAPPA_MIN (a linear detector: nothing more to learn)
+        linear = abs(k) + 2.0 * sd < KAPPA_MIN
+        return not (precise or linear) and self.linearity.nearest_centre() <= 0.5 * m2
+
     def _scan(self, err: float, meas: float, handover: bool = False) -> np.ndarray:
         # the reading's noise: robust σ of the error's change between scan intervals on a
         # target that stays, once the PID's first corrections after a step are past
@@ -583,6 +690,11 @@ class StepScanController(Controller):
         if settled and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
             hold = HOLD_SIGMAS * float(np.median(self._noise)) / 0.954
         self._hold_band = hold  # rad
+        if settled and not handover and self._wants_dither():
+            dither = self._dither_start(meas)
+            if dither is not None:
+                self._dithered[self.target] = self._dithered.get(self.target, 0) + 1
+                return dither
         # after stepping, the scan plant's inverse closes HANDOVER_GAIN of the error at once
         # (P(z) = K·z⁻¹: the PID's first, integral-only update would take about four
         # intervals); the PID goes on from there

@@ -78,6 +78,10 @@ def main(argv: list[str] | None = None) -> int:
     if hasattr(ctl, "dead_band"):
         print("lost motion at the hand-over [V] per offset direction:",
               {d: round(v, 3) for d, v in ctl.dead_band.items()})  # fmt: skip
+    if hasattr(ctl, "linearity"):
+        k, sd, ok = ctl.linearity.estimate()
+        print(f"detector linearity: κ̂ = {k:+.4f} ± {sd:.4f}, {'decided' if ok else 'undecided'}"
+              f" ({ctl.linearity.dithers} dithers read, {ctl.linearity.rejected} not)")
     if getattr(ctl, "gains", None) is not None:
         for d in (1, -1):
             print(f"step gains, direction {d:+d}:",

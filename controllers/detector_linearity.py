@@ -1,0 +1,184 @@
+"""The detector's odd nonlinearity learned online from the scan's own offset steps.
+
+A quadrant photodiode's output bends towards the edge of its range: the catalogue's
+``detector_nonlinearity`` reads r = θ + κ·θ³/θ_s² inside the range θ_s (the photodiode's
+V + κ·V_c³/V_sat², Eq. 4.1 in angle units), so a controller that holds the reading on a
+target θ* near the edge leaves the table κ·θ*³/θ_s² off it: 260 nm at 0.93·θ_lin for
+κ = −0.057, nine times the benchmark's 30 nm band. The reading alone cannot tell
+(``experiments/observability_bound.py``); the reading and the controller's own actions can.
+
+In scan mode the table follows the offset, K·Δu (the stick plant, Eq. 4.4–4.7 at low
+frequency), so an offset dither out by Δu and back, over two intervals, measures the
+detector's local slope times K from its three readings r₀, r₁, r₂:
+
+    g = (r₁ − r₀ − (r₂ − r₁)) / (2Δu) = K·(1 + 3κ·m²),   m = r̄/θ_s
+
+(m² the mean of (θ/θ_s)² over the dither's span, θ the table angle behind the readings
+r₀ and r₁, read through the cubic fitted so far; a drift of the reading or a creep of
+the table, constant over the two intervals, cancels). K is the plant's scan gain,
+unknown to within its stroke: dithers at two or more distances from the centre separate
+it from κ. The least-squares fit of
+g = a + b·m² gives κ̂ = b/(3a) and its standard error, from the dithers' scatter, but
+never below a relative scatter of ``REL_FLOOR`` between dithers (a plant's scan is never
+linear to better) nor the reading noise's share. The reading is corrected, θ = r inverted
+through the cubic, only where the estimate is decided: |κ̂| ≥ ``KAPPA_MIN`` (a slope 6 %
+steeper at the edge) at ``Z_MIN`` standard errors, with the dithers' m² spread at least
+``SPREAD_MIN``. Otherwise the reading passes unchanged, so a linear detector costs nothing.
+
+Where the dithers come from is the controller's business (:mod:`controllers.base`: one
+before the first step of an episode that starts inside the detector, and some after
+arriving on a target near the edge).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["KAPPA_MIN", "REL_FLOOR", "RETURN_TOL", "SPREAD_MIN", "Z_MIN", "DetectorLinearity"]
+
+# the smallest |κ| the reading is corrected for [-]: a slope 8 % steeper at the edge, above
+# the scan gain's own change between a plant at rest and after stepping (up to 6 % on the
+# held-out plants with little friction or preload)
+KAPPA_MIN = 0.03
+Z_MIN = 4.0  # standard errors |κ̂| must lie from 0
+SPREAD_MIN = 0.1  # the dithers' spread of m² (standard deviation) [-]
+REL_FLOOR = 0.015  # the least relative scatter of g between dithers [-] (that same change)
+# a dither whose way back differs from its way out by more than this share (and the
+# noise's 3σ) slipped or crept: the table did not follow the offset, and it is not read
+RETURN_TOL = 0.03
+MIN_DU = 0.5  # V, the smallest dither a slope is read from
+MIN_READ = 4  # dithers read before κ̂ is decided (a floor vibration makes single ones err)
+ITERATIONS = 24  # damped fixed-point steps of κ̂ and the spans read through it
+
+
+class DetectorLinearity:
+    """Online κ of the detector's cubic from offset dithers, and the table angle behind a
+    reading (module docstring). Angles in rad, offsets in V.
+
+    Args:
+        angle_range: θ_s, the table angle at the edge of the detector's linear range [rad].
+        noise: the reading's white noise σ [rad] the lab expects (a floor on the scatter).
+    """
+
+    def __init__(self, angle_range: float, noise: float = 0.0) -> None:
+        if not (math.isfinite(angle_range) and angle_range > 0.0):
+            raise ValueError(f"angle_range={angle_range!r}: must be a positive angle [rad]")
+        if not (math.isfinite(noise) and noise >= 0.0):
+            raise ValueError(f"noise={noise!r}: must be a non-negative angle [rad]")
+        self.theta_s = float(angle_range)
+        self.noise = float(noise)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the dithers (a new episode: another plant may be behind the env)."""
+        self._g: list[float] = []
+        self._sd: list[float] = []
+        self._span: list[tuple[float, float]] = []  # (r₀, r₁) [rad]
+        self.rejected = 0  # dithers not read (their way back was not their way out)
+        self._fit: tuple[float, float, bool] | None = (0.0, math.inf, False)
+
+    def add(self, du: float, readings: tuple[float, float, float], noise: float = 0.0) -> None:
+        """One dither: offset step ``du`` [V] out and back, and the readings r₀, r₁, r₂
+        [rad] before it, after the way out and after the way back; ``noise`` [rad] the
+        reading's σ as the controller measures it (the larger of it and the expected one
+        is used)."""
+        r0, r1, r2 = (float(r) for r in readings)
+        if abs(du) < MIN_DU or not all(math.isfinite(r) for r in (r0, r1, r2, noise)):
+            return
+        sigma = max(self.noise, float(noise))
+        if abs(r2 - r0) > RETURN_TOL * abs(r1 - r0) + 3.0 * math.sqrt(2.0) * sigma:
+            self.rejected += 1
+            return
+        self._g.append((2.0 * r1 - r0 - r2) / (2.0 * du))
+        self._sd.append(math.sqrt(6.0) * sigma / (2.0 * abs(du)))
+        self._span.append((r0, r1))
+        self._fit = None
+
+    @property
+    def dithers(self) -> int:
+        return len(self._g)
+
+    def nearest_centre(self) -> float:
+        """The smallest m² = (r̄/θ_s)² among the dithers [-] (1 with none)."""
+        return float(self._m2(0.0).min()) if self._span else 1.0
+
+    def _m2(self, kappa: float) -> np.ndarray:
+        """Per dither, the mean of (θ/θ_s)² over its span [θ(r₀), θ(r₁)] for a cubic of
+        ``kappa`` (θ the table angle behind a reading, :meth:`_angle`) [-]."""
+        out = []
+        for r0, r1 in self._span:
+            a, b = self._angle(r0, kappa) / self.theta_s, self._angle(r1, kappa) / self.theta_s
+            out.append(min((a * a + a * b + b * b) / 3.0, 1.0))
+        return np.asarray(out)
+
+    def estimate(self) -> tuple[float, float, bool]:
+        """(κ̂, its standard error, decided): the weighted least-squares fit of
+        g = a + b·m², κ̂ = b/(3a) (module docstring)."""
+        if self._fit is None:
+            self._fit = self._solve()
+        return self._fit
+
+    def _solve(self) -> tuple[float, float, bool]:
+        n = len(self._g)
+        if n < 2:
+            return 0.0, math.inf, False
+        enough = n >= MIN_READ  # (the scatter then has MIN_READ − 2 degrees of freedom)
+        g = np.asarray(self._g)
+        if float(np.std(self._m2(0.0))) < SPREAD_MIN:
+            return 0.0, math.inf, False
+        kappa = 0.0
+        for _ in range(ITERATIONS):  # the spans read through the cubic fitted so far
+            x = np.column_stack([np.ones(n), self._m2(kappa)])
+            coef, *_ = np.linalg.lstsq(x, g, rcond=None)
+            a, b = (float(c) for c in coef)
+            if a <= 0.0:
+                return 0.0, math.inf, False
+            res = g - x @ coef
+            scatter = float(res @ res) / (n - 2) if n > 2 else 0.0
+            # per-dither variance: the scatter, but not under the noise's nor REL_FLOOR's
+            var = np.maximum(np.maximum(np.asarray(self._sd) ** 2, scatter),
+                             (REL_FLOOR * a) ** 2)  # fmt: skip
+            w = 1.0 / var
+            xtwx = x.T @ (x * w[:, None])
+            coef = np.linalg.solve(xtwx, x.T @ (w * g))
+            a, b = (float(c) for c in coef)
+            if a <= 0.0:
+                return 0.0, math.inf, False
+            # damped: the fixed point κ = fit(κ) is approached by halves (a plain
+            # iteration overshoots where the cubic bends the spans much, |κ| ≳ 0.1)
+            kappa = 0.5 * kappa + 0.5 * float(np.clip(b / (3.0 * a), -0.3, 0.3))
+        cov = np.linalg.inv(xtwx)
+        kappa = b / (3.0 * a)
+        grad = np.array([-b / (3.0 * a * a), 1.0 / (3.0 * a)])  # the delta method
+        sd = float(np.sqrt(max(grad @ cov @ grad, 0.0)))
+        decided = enough and KAPPA_MIN <= abs(kappa) < 1.0 / 3.0 and abs(kappa) >= Z_MIN * sd
+        return kappa, sd, decided
+    @property
+    def kappa(self) -> float:
+        """κ̂ where decided, else 0 [-]."""
+        k, _sd, ok = self.estimate()
+        return k if ok else 0.0
+
+    def table_angle(self, reading: float) -> float:
+        """The table angle [rad] behind an unsaturated ``reading`` [rad]: the root of
+        θ + κ̂·θ_c³/θ_s² = reading (θ_c = θ clipped to ±θ_s, monotone for |κ| < 1/3);
+        the reading itself while κ̂ is undecided."""
+        return self._angle(reading, self.kappa)
+
+    def _angle(self, reading: float, k: float) -> float:
+        """The root θ [rad] of θ + k·θ_c³/θ_s² = ``reading`` (:meth:`table_angle`)."""
+        if k == 0.0:
+            return reading
+        s = self.theta_s
+        edge = s * (1.0 + k)  # the reading at θ = θ_s
+        if abs(reading) >= abs(edge):  # beyond the cubic's range: a constant shift
+            return reading - k * s * math.copysign(1.0, reading)
+        th = reading
+        for _ in range(60):  # Newton on a monotone cubic, from θ = r, to rounding
+            step = (th + k * th**3 / s**2 - reading) / (1.0 + 3.0 * k * th**2 / s**2)
+            th -= step
+            if abs(step) <= 1e-15 * s:
+                break
+        return th
