@@ -60,6 +60,16 @@ seen on this plant only as far as a reversal would keep the spot in view
 (:meth:`StepScanController.room_behind`; the step gains' direction record,
 :mod:`controllers.step_gain`): a friction asymmetry can make the fast settings step
 backwards.
+
+The reading of a bent detector: an odd cubic of the photodiode (the catalogue's
+``detector_nonlinearity``) leaves a table held on a target near the edge κ·θ³/θ_lin² off it,
+and no reading alone tells. The controller's own offset does: in scan mode the table
+follows it, K·Δu, so an offset dither out and back reads the detector's local slope
+(:mod:`controllers.detector_linearity`). An episode whose target (or reference) reaches
+beyond ``DITHER_FROM`` θ_lin dithers ``PROBES`` times before its first step (the slope
+near the centre), and a settled target beyond it up to ``DITHERS`` times (the slope near
+the edge); the first dither at each place conditions the contacts and is not read. Once
+κ̂ is decided the reading is inverted through the cubic.
 """
 
 from __future__ import annotations
@@ -526,7 +536,7 @@ class StepScanController(Controller):
             dither = self._dither_start(meas)  # the centre's slope, before the first step
             if dither is not None:
                 self._probes += 1
-                return dither  # fmt: skip
+                return dither
         if self.mode == "scan":
             err = self.target - meas
             # leave the scan when the error leaves its range, or when the offset is saturated
@@ -621,7 +631,8 @@ class StepScanController(Controller):
         """The dither's next interval: after the way out, the way back to the offset
         before; after the way back, its three readings go to the linearity and None lets
         the interval run as it would have (a saturated reading ends it unread)."""
-        assert self._cycle is not None
+        if self._cycle is None:
+            return None
         phase, before, du, r0, r1 = self._cycle
         if saturated:
             self._cycle = None
@@ -657,9 +668,11 @@ class StepScanController(Controller):
 
     def _wants_dither(self) -> bool:
         """Whether a settled scan on the present target should dither for the detector's
-        linearity: the target lies beyond ``DITHER_FROM`` θ_lin, κ is not decided, the
-        episode has a dither nearer the centre to compare with, and the target has had
-        fewer than ``DITHERS``."""
+        linearity: the target lies beyond ``DITHER_FROM`` θ_lin and has had fewer than
+        ``DITHERS``, a known reference does not end within ``QUIET_END_S``, κ̂ is neither
+        decided precisely enough (its error at the target within a quarter of the band)
+        nor clearly under ``KAPPA_MIN`` (|κ̂| + 2σ), and the episode has a dither nearer
+        the centre to compare with."""
         m2 = (self.target / self.ctx.angle_range) ** 2
         if m2 < DITHER_FROM**2 or self._dithered.get(self.target, 0) >= DITHERS:
             return False

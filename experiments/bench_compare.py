@@ -7,6 +7,13 @@ commit in a temporary directory, each with its own numba cache, compiled before 
 
 Ratios > 1 mean this checkout is faster. Alternating the runs spreads a busy machine's
 load over both sides; the spread over repeats says how much a ratio can be trusted.
+
+``--benchmark`` times a subset of ``turntable benchmark`` instead (closed_loop,
+feedforward and fuzzy on the nominal and held-out sets' 200 µm, edge and waypoints tasks,
+4 seeds: 72 episodes, serial), the wall time its own summary line prints: the
+controllers' cost per step, which ``turntable bench`` does not see.
+
+    python experiments/bench_compare.py c53848a --benchmark --repeats 2
 """
 
 from __future__ import annotations
@@ -57,31 +64,59 @@ def _bench(tree: Path, cache: Path) -> dict:
     return json.loads(out.stdout)
 
 
+BENCHMARK_SUBSET = ["--controllers", "closed_loop,feedforward,fuzzy", "--plant-sets",
+                    "nominal,held_out", "--tasks", "point_200um,edge_5um,waypoints",
+                    "--seeds", "4"]  # fmt: skip
+
+
+def _benchmark(tree: Path, cache: Path, out: Path) -> dict:
+    """``turntable benchmark`` on ``BENCHMARK_SUBSET`` from ``tree``: {"wall_s": its
+    own count}."""
+    env = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_CACHE_DIR": str(cache)}
+    cmd = [sys.executable, "-m", "turntable_env.cli", "benchmark", *BENCHMARK_SUBSET,
+           "--out", str(out)]  # fmt: skip
+    res = subprocess.run(cmd, cwd=tree, env=env, check=True, capture_output=True, text=True)
+    line = next(ln for ln in res.stdout.splitlines() if " s; files in " in ln)
+    return {"wall_s": float(line.split(" s;")[0])}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("commit", help="the commit to compare with")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--benchmark", action="store_true",
+                    help="time a subset of `turntable benchmark` (module docstring)")  # fmt: skip
     args = ap.parse_args(argv)
     if args.repeats < 1:
         ap.error(f"--repeats={args.repeats}: must be >= 1")
     with worktree(args.commit) as (other, tmp):
         trees = {"this": ROOT, args.commit: other}
         caches = {k: tmp / f"numba-{i}" for i, k in enumerate(trees)}
-        for k, tree in trees.items():  # compile both before any timing
-            _bench(tree, caches[k])
+
+        def one(k: str) -> dict:
+            if args.benchmark:
+                return _benchmark(trees[k], caches[k], tmp / f"out-{k}")
+            return _bench(trees[k], caches[k])
+
+        for k in trees:  # compile both before any timing
+            one(k)
         runs: dict[str, list[dict]] = {k: [] for k in trees}
         for _ in range(args.repeats):
-            for k, tree in trees.items():
-                runs[k].append(_bench(tree, caches[k]))
+            for k in trees:
+                runs[k].append(one(k))
     print(f"{'figure':32s} {'this':>10s} {args.commit:>10s} {'ratio':>7s}  range of ratios")
-    for f in FIGURES:
+    # a wall time: lower is faster, so the ratio is the other's over this one's
+    figures = ("wall_s",) if args.benchmark else FIGURES
+    for f in figures:
         a = [r[f] for r in runs["this"] if f in r]
         b = [r[f] for r in runs[args.commit] if f in r]
         if not a or not b:
             continue
-        ratios = [x / y for x, y in zip(a, b, strict=False)]
+        # the ratio > 1 where this checkout is faster: speeds this/other, times other/this
+        num, den = (b, a) if args.benchmark else (a, b)
+        ratios = [x / y for x, y in zip(num, den, strict=False)]
         print(f"{f:32s} {statistics.median(a):10.4g} {statistics.median(b):10.4g} "
-              f"{statistics.median(a) / statistics.median(b):7.3f}  "
+              f"{statistics.median(num) / statistics.median(den):7.3f}  "
               f"{min(ratios):.3f}–{max(ratios):.3f}")  # fmt: skip
     return 0
 

@@ -15,7 +15,9 @@ The count bounds issue 32's "best controller ≥ 0.95 on held_out" from above:
 ``1 − unwinnable/episodes``. With the photodiode's y channel (``EnvConfig(detector_y=True)``,
 the benchmark's observation since 2.3) the misalignment is observable (y/x = tan φ,
 ``controllers/misalignment.py``) and leaves the count; the detector nonlinearity, on x
-alone, stays.
+alone, stays for a controller that only reads; one that also moves its scan offset can
+read the detector's slope (the step controllers' dithers since stop 98,
+``controllers/detector_linearity.py``), so the count bounds the reading, not its actions.
 
     python experiments/observability_bound.py [--seeds 20] [--suite-seed 2026]
 """

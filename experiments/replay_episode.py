@@ -82,6 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         k, sd, ok = ctl.linearity.estimate()
         print(f"detector linearity: κ̂ = {k:+.4f} ± {sd:.4f}, {'decided' if ok else 'undecided'}"
               f" ({ctl.linearity.dithers} dithers read, {ctl.linearity.rejected} not)")
+        for m2, g in ctl.linearity.slopes():
+            print(f"  dither at m² = {m2:.3f}: slope {g / ctx.scan_gain:.4f} × the nominal K")
     if getattr(ctl, "gains", None) is not None:
         for d in (1, -1):
             print(f"step gains, direction {d:+d}:",
