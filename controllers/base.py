@@ -123,7 +123,7 @@ DEAD_MIN = 0.3
 # and back over two scan intervals: one before the first step of an episode that starts
 # inside the detector, up to DITHERS on a settled target beyond DITHER_FROM × θ_lin
 DITHER_FRACTION = 0.4  # of u_max: the dither's offset step, towards the detector's centre
-# (0.8 made low-friction plants slip: out and back differed by up to 10 %)
+# (8 V made low-friction held-out plants slip in scratch trials: their way back fell short)
 DITHER_FROM = 0.6  # of θ_lin: nearer the centre a cubic moves the reading by ≤ 0.36·κ·θ
 DITHERS = 5  # dithers per target at most (the first after stepping conditions the contacts)
 PROBES = 2  # dithers before the first step (the first conditions the contacts)
