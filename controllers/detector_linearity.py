@@ -117,10 +117,10 @@ class DetectorLinearity:
 
     def _m2(self, kappa: float) -> np.ndarray:
         """Per dither, the mean of (θ/θ_s)² over its span [θ(r₀), θ(r₁)] for a cubic of
-        ``kappa`` (θ the table angle behind a reading, :meth:`_angle`) [-]."""
+        ``kappa`` (θ the table angle behind a reading, :meth:`angle`) [-]."""
         out = []
         for r0, r1 in self._span:
-            a, b = self._angle(r0, kappa) / self.theta_s, self._angle(r1, kappa) / self.theta_s
+            a, b = self.angle(r0, kappa) / self.theta_s, self.angle(r1, kappa) / self.theta_s
             out.append(min((a * a + a * b + b * b) / 3.0, 1.0))
         return np.asarray(out)
 
@@ -176,10 +176,11 @@ class DetectorLinearity:
         """The table angle [rad] behind an unsaturated ``reading`` [rad]: the root of
         θ + κ̂·θ_c³/θ_s² = reading (θ_c = θ clipped to ±θ_s, monotone for |κ| < 1/3);
         the reading itself while κ̂ is undecided."""
-        return self._angle(reading, self.kappa)
+        return self.angle(reading, self.kappa)
 
-    def _angle(self, reading: float, k: float) -> float:
-        """The root θ [rad] of θ + k·θ_c³/θ_s² = ``reading`` (:meth:`table_angle`)."""
+    def angle(self, reading: float, k: float) -> float:
+        """The root θ [rad] of θ + k·θ_c³/θ_s² = ``reading`` [rad] for a cubic of ``k``
+        (:meth:`table_angle` with κ̂ where decided)."""
         if k == 0.0:
             return reading
         s = self.theta_s

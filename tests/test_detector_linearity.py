@@ -105,9 +105,8 @@ def test_a_dither_that_did_not_come_back_is_not_read():
 def test_the_correction_inverts_the_cubic(kappa, x):
     """table_angle(r(θ)) = θ for |κ| ≤ 0.3 over and beyond the range (the cubic's clip)."""
     lin = DetectorLinearity(THETA_S, NOISE)
-    lin._fit = (kappa, 0.0, abs(kappa) > 0.0)  # a decided κ (the fit's own cache)
     theta = x * THETA_S
-    assert math.isclose(lin.table_angle(reading(theta, kappa)), theta, rel_tol=0.0,
+    assert math.isclose(lin.angle(reading(theta, kappa), kappa), theta, rel_tol=0.0,
                         abs_tol=1e-12 * THETA_S)  # fmt: skip
 
 
