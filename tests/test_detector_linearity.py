@@ -136,7 +136,8 @@ def _kappa(out: str) -> tuple[float, bool]:
     return float(line.split("=")[1].split("±")[0]), " decided" in line
 
 
-@pytest.mark.parametrize(("seed", "kappa"), [(7, -0.0565), (15, -0.0799)])
+@pytest.mark.parametrize(("seed", "kappa"), [(7, -0.0565),
+                                           pytest.param(15, -0.0799, marks=pytest.mark.slow)])
 def test_closed_loop_reads_a_bent_detector_at_the_edge(seed, kappa, capsys):
     """Held-out seeds 7 and 15 (detector nonlinearity κ = −0.0565 and −0.0799, the draws'
     truth) of the edge move: closed_loop's dithers decide κ̂ within 0.01 of it (−0.054 and
@@ -150,6 +151,7 @@ def test_closed_loop_reads_a_bent_detector_at_the_edge(seed, kappa, capsys):
         assert "hold window met: True" in out, out[-600:]
 
 
+@pytest.mark.slow
 def test_a_linear_detector_is_not_bent_by_the_dithers(capsys):
     """Held-out seed 0 (piezo creep, a linear detector) of the edge move: the dithers read
     the same slope at the centre and the edge, κ̂ stays undecided and the hold is met."""
