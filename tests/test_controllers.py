@@ -156,6 +156,28 @@ def test_step_grows_with_amplitude_and_sign_sets_direction():
         assert fwd[-1] > fwd[2]  # 10 V steps further than 2 V
 
 
+def test_a_loaded_step_map_is_shared_read_only_and_reread_when_its_file_changes(tmp_path):
+    from controllers.step_map import DEFAULT_PATH
+
+    p = tmp_path / "map.csv"
+    text = DEFAULT_PATH.read_text(encoding="utf-8")
+    p.write_text(text, encoding="utf-8")
+    first = StepMap.load(p)
+    assert StepMap.load(p) is first  # one parse per file version
+    with pytest.raises(ValueError, match="read-only"):
+        first.step[0] = 0.0  # a consumer cannot change the map another one holds
+    row = next(ln for ln in text.splitlines() if ln.startswith("B,"))
+    cells = row.split(",")
+    cells[5] = f"{2.0 * float(cells[5]):.6e}"  # step_rad of that row, doubled
+    p.write_text(text.replace(row, ",".join(cells), 1) + "\n", encoding="utf-8")
+    again = StepMap.load(p)
+    assert again is not first
+    i = int(np.argmax(first.step != again.step))
+    assert again.step[i] == pytest.approx(2.0 * first.step[i], rel=1e-6)
+    with pytest.raises(ValueError, match="cannot read"):
+        StepMap.load(tmp_path / "absent.csv")
+
+
 @pytest.mark.parametrize(
     ("edit", "match"),
     [
