@@ -65,9 +65,10 @@ The reading of a bent detector: an odd cubic of the photodiode (the catalogue's
 ``detector_nonlinearity``) leaves a table held on a target near the edge κ·θ³/θ_lin² off it,
 and no reading alone tells. The controller's own offset does: in scan mode the table
 follows it, K·Δu, so an offset dither out and back reads the detector's local slope
-(:mod:`controllers.detector_linearity`). An episode whose target (or reference) reaches
-beyond ``DITHER_FROM`` θ_lin dithers ``PROBES`` times before its first step (the slope
-near the centre), and a settled target beyond it up to ``DITHERS`` times (the slope near
+(:mod:`controllers.detector_linearity`). An episode whose target lies beyond
+``DITHER_FROM`` θ_lin, or whose known reference holds a set point beyond it long enough
+to dither there, dithers ``PROBES`` times before its first step (the slope near the
+centre), and a settled target beyond it up to ``DITHERS`` times (the slope near
 the edge); the first dither at each place conditions the contacts and is not read. Once
 κ̂ is decided the reading is inverted through the cubic.
 """
@@ -126,6 +127,7 @@ DITHER_FRACTION = 0.4  # of u_max: the dither's offset step, towards the detecto
 # (8 V made low-friction held-out plants slip in scratch trials: their way back fell short)
 DITHER_FROM = 0.6  # of θ_lin: nearer the centre a cubic moves the reading by ≤ 0.36·κ·θ
 DITHERS = 5  # dithers per target at most (the first after stepping conditions the contacts)
+FAR_HOLD = SETTLING + 4  # intervals a far set point must hold for two dithers after settling
 PROBES = 2  # dithers before the first step (the first conditions the contacts)
 # the last seconds of a known reference (a tracking task's brief) are not dithered: the set
 # point is then held for use, and a dither with the PID's settling takes 5 intervals
@@ -659,12 +661,25 @@ class StepScanController(Controller):
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, u)
 
     def _reaches_edge(self) -> bool:
-        """Whether the episode's target, or its brief's reference, reaches beyond
-        ``DITHER_FROM`` θ_lin, where the detector's cubic matters (its first dither then
-        reads the slope near the start)."""
+        """Whether the episode will dither beyond ``DITHER_FROM`` θ_lin, where the
+        detector's cubic matters, so that a probe near the start is worth its two
+        intervals (it reads the slope the far dithers are compared with): a target beyond
+        it, or a known reference that holds a value beyond it for ``FAR_HOLD`` intervals
+        before its last ``QUIET_END_S`` (a ramp's set points never settle, and the hold
+        after it lies in the quiet end: its probes would be read by no far dither)."""
+        edge = DITHER_FROM * self.ctx.angle_range
         ref = self._brief.reference_rad
-        reach = abs(self.target) if ref is None else float(np.max(np.abs(ref)))
-        return max(reach, abs(self.target)) >= DITHER_FROM * self.ctx.angle_range
+        if ref is None:
+            return abs(self.target) >= edge
+        r = np.asarray(ref, dtype=np.float32)  # as the targets are compared (reference_at)
+        r = r[: max(r.size - round(QUIET_END_S / self.ctx.control_interval), 0)]
+        if r.size < FAR_HOLD:
+            return False
+        cuts = np.flatnonzero(np.diff(r) != 0.0) + 1  # where a hold of one value ends
+        for run in np.split(r, cuts):
+            if run.size >= FAR_HOLD and abs(float(run[0])) >= edge:
+                return True
+        return False
 
     def _wants_dither(self) -> bool:
         """Whether a settled scan on the present target should dither for the detector's

@@ -126,9 +126,28 @@ def _replay():
     return mod
 
 
-def _run(task: str, seed: int, capsys) -> str:
-    assert _replay().main(["closed_loop", "held_out", task, str(seed)]) == 0
+def _run(task: str, seed: int, capsys, plant_set: str = "held_out") -> str:
+    assert _replay().main(["closed_loop", plant_set, task, str(seed)]) == 0
     return capsys.readouterr().out
+
+
+def _dithers(out: str) -> tuple[int, int]:
+    """(read, refused) dithers of a replay's linearity line."""
+    line = next(ln for ln in out.splitlines() if ln.startswith("detector linearity"))
+    inner = line.split("(")[1]
+    return int(inner.split(" dithers read")[0]), int(inner.split(", ")[1].split(" not")[0])
+
+
+@pytest.mark.parametrize(("task", "probes"), [("scan_ramp", False), ("edge_5um", True)])
+def test_probes_are_made_only_where_a_far_dither_can_follow(task, probes, capsys):
+    """Nominal seed 13: the scan ramp reaches beyond 0.6 θ_lin but its set points never
+    settle there before the quiet end, so no dither would be compared with a probe, and
+    none is made (stop 98 made one and read it, and the residual agent on that base lost
+    this ramp); the edge move's target holds beyond it, so it probes and dithers there."""
+    out = _run(task, 13, capsys, "nominal")
+    assert "hold window met: True" in out
+    read, refused = _dithers(out)
+    assert (read + refused > 0) == probes
 
 
 def _kappa(out: str) -> tuple[float, bool]:
