@@ -131,10 +131,14 @@ def _run(task: str, seed: int, capsys, plant_set: str = "held_out") -> str:
     return capsys.readouterr().out
 
 
+def _linearity_line(out: str) -> str:
+    """The replay's line with κ̂ and the dithers read and refused."""
+    return next(ln for ln in out.splitlines() if ln.startswith("detector linearity"))
+
+
 def _dithers(out: str) -> tuple[int, int]:
     """(read, refused) dithers of a replay's linearity line."""
-    line = next(ln for ln in out.splitlines() if ln.startswith("detector linearity"))
-    inner = line.split("(")[1]
+    inner = _linearity_line(out).split("(")[1]
     return int(inner.split(" dithers read")[0]), int(inner.split(", ")[1].split(" not")[0])
 
 
@@ -151,7 +155,7 @@ def test_probes_are_made_only_where_a_far_dither_can_follow(task, probes, capsys
 
 
 def _kappa(out: str) -> tuple[float, bool]:
-    line = next(ln for ln in out.splitlines() if ln.startswith("detector linearity"))
+    line = _linearity_line(out)
     return float(line.split("=")[1].split("±")[0]), " decided" in line
 
 
