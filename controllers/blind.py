@@ -14,6 +14,13 @@ writes, per (frequency, amplitude), the worst steady step over the map's across 
 and both directions (``controllers/data/blind_settings.csv``). A setting is *robust* when
 that worst ratio is at least −``BLIND_TOLERANCE``: blind, it can run the table backwards
 by at most that share of the travel the controller believes it made.
+
+``ASYMMETRY_PATH`` (``controllers/data/blind_asymmetry.csv``) is the same survey on the env's
+default model (the per-axis model with the sphere's translation) with the catalogue's
+friction asymmetry, |α| <= 0.3: only 2–3 V at 100–500 Hz keep their direction there. The
+map controllers take it as ``blind_settings=``; it is not their default, since those slow
+settings miss the long moves in time on plants that step far under the map
+(``experiments/blind_tradeoff.py``, docs/controllers.md).
 """
 
 from __future__ import annotations
@@ -29,9 +36,12 @@ from turntable_env.validation import check_finite, check_positive, describe
 
 from .step_map import read_table
 
-__all__ = ["BLIND_PATH", "BLIND_TOLERANCE", "BlindSettings"]
+__all__ = ["ASYMMETRY_PATH", "BLIND_PATH", "BLIND_TOLERANCE", "BlindSettings"]
 
 BLIND_PATH = Path(__file__).parent / "data" / "blind_settings.csv"
+# the same survey on the env's default model with the catalogue's friction asymmetry
+# (|α| <= 0.3): its robust settings keep their direction there, and are the slowest ones
+ASYMMETRY_PATH = Path(__file__).parent / "data" / "blind_asymmetry.csv"
 BLIND_TOLERANCE = 0.05  # largest backward step a blind setting may take, × the map's
 COLUMNS = ("frequency_hz", "amplitude_v", "worst_ratio", "backward_share")
 

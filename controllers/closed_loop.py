@@ -22,6 +22,7 @@ from __future__ import annotations
 from typing import Any
 
 from .base import MIN_LEARN, ControllerContext, Move, StepScanController
+from .blind import BlindSettings
 from .feedforward import MapPlanner
 from .step_gain import StepGains
 from .step_map import StepMap
@@ -35,7 +36,9 @@ class ClosedLoopStepController(StepScanController):
     Args:
         ctx: plant context; step_map: map (default: the shipped one);
         learning_rate: λ [-]; min_learn: smallest map move that updates γ [rad];
-        caution, spread: the gains' upper bounds (:class:`~controllers.step_gain.StepGains`).
+        caution, spread: the gains' upper bounds (:class:`~controllers.step_gain.StepGains`);
+        blind_settings: the settings it may step with blind
+            (:class:`~controllers.feedforward.MapPlanner`).
     """
 
     name = "closed_loop"
@@ -49,10 +52,12 @@ class ClosedLoopStepController(StepScanController):
         min_learn: float = MIN_LEARN,
         caution: float = 4.0,
         spread: float = 2.0,
+        blind_settings: BlindSettings | None = None,
         **kwargs: Any,
     ) -> None:
         super().__init__(ctx, **kwargs)
-        self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx)
+        self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx,
+                                  blind_settings=blind_settings)  # fmt: skip
         self.gains = StepGains(rate=learning_rate, caution=caution, spread=spread)
         self.min_learn = min_learn
 

@@ -181,7 +181,8 @@ class FeedForwardController(StepScanController):
 
     Args:
         ctx: plant context; step_map: map (default: the shipped one);
-        max_replans: re-plans from the detector allowed per commanded target.
+        max_replans: re-plans from the detector allowed per commanded target;
+        blind_settings: the settings it may step with blind (:class:`MapPlanner`).
     """
 
     name = "feedforward"
@@ -192,10 +193,12 @@ class FeedForwardController(StepScanController):
         step_map: StepMap | None = None,
         *,
         max_replans: int = 3,
+        blind_settings: BlindSettings | None = None,
         **kwargs: Any,
     ) -> None:
         super().__init__(ctx, **kwargs)
-        self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx)
+        self.planner = MapPlanner(step_map if step_map is not None else StepMap.load(), ctx,
+                                  blind_settings=blind_settings)  # fmt: skip
         self.max_replans = max_replans
         self.gains = StepGains()
 

@@ -13,6 +13,12 @@ direction, and the worst step over the nominal map's.
 
     python experiments/blind_settings.py [--axis B] [--out controllers/data/blind_settings.csv]
 
+With ``--fidelity translation --asymmetry 0.3`` the survey runs the env's default model on
+the box's corners with the catalogue's friction asymmetry at α = ±0.3 and ``--drawn``
+plants inside the box with α drawn: the table ``controllers/data/blind_asymmetry.csv``
+(:data:`controllers.blind.ASYMMETRY_PATH`), which keeps its direction on such plants and
+steps only at the slowest settings.
+
 It writes the worst ratio and the backward share per setting to the file the map
 controllers read (:mod:`controllers.blind`): blind, they step only with settings whose
 worst ratio is at least −``BLIND_TOLERANCE``.
@@ -57,21 +63,36 @@ def corners(fidelity: str, asymmetry: float = 0.0) -> list[tuple[Plant, dict[str
     return [(base.replace(factors=f, effects=e), f) for e in effects for f in boxes]
 
 
-def family() -> list[tuple[Plant, dict[str, float]]]:
-    """The survey's plants: every combination of the factor grids, and ``RANDOM_PLANTS``
-    drawn log-uniformly inside their box (the step is not monotone in the factors)."""
-    base = Plant("real")
+def family(
+    fidelity: str = "reduced", asymmetry: float = 0.0, drawn: int = RANDOM_PLANTS
+) -> list[tuple[Plant, dict[str, float]]]:
+    """The survey's plants on a plant of ``fidelity``. Without ``asymmetry``: every
+    combination of the factor grids, and ``drawn`` plants drawn log-uniformly inside their
+    box (the step is not monotone in the factors). With ``asymmetry`` > 0 (the catalogue's
+    friction asymmetry, |α| up to it): the box's eight corners at α = ±``asymmetry``
+    (:func:`corners`), and ``drawn`` plants inside the box with α drawn uniformly in
+    ±``asymmetry`` (the grid's 100 plants on the translation form would take 25 minutes
+    on one core)."""
+    box = {"friction": FRICTION, "preload": PRELOAD, "amplifier": AMPLIFIER}
+    rng = np.random.default_rng(2026)
+    factors = [
+        {k: float(np.exp(rng.uniform(np.log(v[0]), np.log(v[-1])))) for k, v in box.items()}
+        for _ in range(drawn)
+    ]
+    base = Plant("real", fidelity=fidelity)
+    if asymmetry > 0.0:
+        alphas = rng.uniform(-asymmetry, asymmetry, drawn)
+        inside = [
+            (base.replace(factors=f, effects={"friction_asymmetry": {"alpha": float(al)}}),
+             {**f, "alpha": float(al)})
+            for f, al in zip(factors, alphas, strict=True)
+        ]  # fmt: skip
+        return corners(fidelity, asymmetry) + inside
     grid = [
         {"friction": fr, "preload": pl, "amplifier": am}
         for fr, pl, am in itertools.product(FRICTION, PRELOAD, AMPLIFIER)
     ]
-    rng = np.random.default_rng(2026)
-    box = {"friction": FRICTION, "preload": PRELOAD, "amplifier": AMPLIFIER}
-    drawn = [
-        {k: float(np.exp(rng.uniform(np.log(v[0]), np.log(v[-1])))) for k, v in box.items()}
-        for _ in range(RANDOM_PLANTS)
-    ]
-    return [(base.replace(factors=f), f) for f in grid + drawn]
+    return [(base.replace(factors=f), f) for f in grid + factors]
 
 
 def steady_steps(
@@ -104,20 +125,30 @@ def main() -> None:
     ap.add_argument("--axis", default="B", choices=("A", "B", "C"))
     ap.add_argument("--out", default=str(BLIND_PATH), help="the table's file")
     ap.add_argument("--asymmetry", type=float, default=0.0,
-                    help="with --check: each corner also with friction asymmetry ±ALPHA "
-                         "(the catalogue's friction_asymmetry, |α| <= 0.4)")  # fmt: skip
+                    help="the catalogue's friction asymmetry, |α| <= ALPHA (at most 0.4): "
+                         "with --check each corner at ±ALPHA; in a survey the corners at "
+                         "±ALPHA and --drawn plants with α drawn")  # fmt: skip
+    ap.add_argument("--fidelity", default="reduced",
+                    choices=("reduced", "translation", "full", "independent"),
+                    help="the survey's model (default: the per-axis one the shipped table "
+                         "was made on)")  # fmt: skip
+    ap.add_argument("--drawn", type=int, default=RANDOM_PLANTS,
+                    help=f"plants drawn inside the box (default {RANDOM_PLANTS})")
     ap.add_argument("--check", choices=("reduced", "translation", "full", "independent"),
                     default=None,
                     help="only step the box's eight corners on a plant of this fidelity and "
                          "compare the shipped blind set with the other settings (no file "
                          "written)")  # fmt: skip
     args = ap.parse_args()
-    if not 0.0 <= args.asymmetry <= 0.4 or (args.asymmetry and not args.check):
-        ap.error(f"--asymmetry={args.asymmetry!r}: 0–0.4, with --check only")
+    if not 0.0 <= args.asymmetry <= 0.4:
+        ap.error(f"--asymmetry={args.asymmetry!r}: must be in 0–0.4")
+    if args.drawn < 0:
+        ap.error(f"--drawn={args.drawn!r}: must be >= 0")
     smap = StepMap.load()
     freqs = np.unique(smap.frequency)
     t0 = time.perf_counter()
-    plants = corners(args.check, args.asymmetry) if args.check else family()
+    plants = (corners(args.check, args.asymmetry) if args.check
+              else family(args.fidelity, args.asymmetry, args.drawn))  # fmt: skip
     steps, factors = steady_steps(plants, freqs, args.axis)
     sign = np.array([1.0, -1.0])  # the commanded direction of the last axis
     nominal = np.array(
@@ -127,9 +158,11 @@ def main() -> None:
     along = steps * sign  # > 0: the commanded direction
     print(
         f"{len(factors)} plants (friction ×{FRICTION[0]}–{FRICTION[-1]}, preload "
-        f"×{PRELOAD[0]}–{PRELOAD[-1]}, amplifier ×{AMPLIFIER[0]}–{AMPLIFIER[-1]}), axis "
-        f"{args.axis}, a = 0.9, k = 1, amplitudes {', '.join(f'{a:g}' for a in AMPLITUDES)} V, "
-        f"both directions; {time.perf_counter() - t0:.0f} s"
+        f"×{PRELOAD[0]}–{PRELOAD[-1]}, amplifier ×{AMPLIFIER[0]}–{AMPLIFIER[-1]}"
+        + (f", friction asymmetry |α| ≤ {args.asymmetry:g}" if args.asymmetry else "")
+        + f"), {plants[0][0].fidelity} model, axis {args.axis}, a = 0.9, k = 1, amplitudes "
+        f"{', '.join(f'{a:g}' for a in AMPLITUDES)} V, both directions; "
+        f"{time.perf_counter() - t0:.0f} s"
     )
     ratio = along / (nominal * sign)  # the plant's step over the map's, > 0: forwards
     worst = ratio.min(axis=(0, 3))  # (frequencies, amplitudes)
@@ -167,19 +200,36 @@ def main() -> None:
     path = BlindSettings(table).save(
         args.out,
         shares,
-        (
-            f"worst steady step over the map's, over {len(factors)} plants and both "
-            f"directions (axis {args.axis}, a = 0.9, k = 1)\nfriction and preload "
-            f"x{FRICTION[0]}-{FRICTION[-1]}, amplifier x{AMPLIFIER[0]}-{AMPLIFIER[-1]} "
-            f"(grid and {RANDOM_PLANTS} drawn)\n"
-            "regenerate: python experiments/blind_settings.py"
-        ),
+        _header(args, len(factors)),
     )
     print(f"written to {path}")
     j, i = np.unravel_index(int(np.argmax(worst)), worst.shape)
     print(
         f"most robust: {AMPLITUDES[i]:g} V at {freqs[j]:.0f} Hz, worst {worst[j, i]:.2f} "
         "of the map's step"
+    )
+
+
+def _header(args: argparse.Namespace, plants: int) -> str:
+    """The table file's comment: what was surveyed and the command that regenerates it."""
+    if args.fidelity == "reduced" and not args.asymmetry and args.drawn == RANDOM_PLANTS:
+        return (
+            f"worst steady step over the map's, over {plants} plants and both "
+            f"directions (axis {args.axis}, a = 0.9, k = 1)\nfriction and preload "
+            f"x{FRICTION[0]}-{FRICTION[-1]}, amplifier x{AMPLIFIER[0]}-{AMPLIFIER[-1]} "
+            f"(grid and {RANDOM_PLANTS} drawn)\n"
+            "regenerate: python experiments/blind_settings.py"
+        )
+    family = (f"corners at alpha = +-{args.asymmetry:g} and {args.drawn} drawn with |alpha| "
+              f"<= {args.asymmetry:g}" if args.asymmetry
+              else f"grid and {args.drawn} drawn")  # fmt: skip
+    return (
+        f"worst steady step over the map's, over {plants} plants and both directions "
+        f"(axis {args.axis}, a = 0.9, k = 1), {args.fidelity} model\nfriction and preload "
+        f"x{FRICTION[0]}-{FRICTION[-1]}, amplifier x{AMPLIFIER[0]}-{AMPLIFIER[-1]}; "
+        f"{family}\nregenerate: python experiments/blind_settings.py --fidelity "
+        f"{args.fidelity} --asymmetry {args.asymmetry:g} --drawn {args.drawn} --axis "
+        f"{args.axis} --out {args.out}"
     )
 
 

@@ -1,0 +1,84 @@
+"""What the asymmetry-robust blind set buys and costs (issue 32's run-away bound).
+
+A move from beyond the detector is made blind: nothing is read until the spot comes into
+view, so a setting that steps backwards on the plant at hand runs the table away until the
+blind budget is spent. The shipped blind set (``controllers/data/blind_settings.csv``) was
+surveyed on the per-axis model without effects; on held-out seed 18 (friction asymmetry
+α = 0.24 on the env's default model) its fastest setting steps backwards, and every
+controller runs away (412.9 µm for closed_loop). The same survey on the env's default model
+with the catalogue's friction asymmetry |α| <= 0.3 (``controllers/data/blind_asymmetry.csv``,
+``python experiments/blind_settings.py --fidelity translation --asymmetry 0.3 --drawn 16
+--out controllers/data/blind_asymmetry.csv``) keeps only slow settings.
+
+This runs the two map controllers with each blind set side by side on the benchmark's
+held-out and calibrated sets, every task (the other tasks start inside the detector and do
+not use the blind set), and prints per controller and set the mean success, the episodes
+passed and the largest run-away [µm], then the episodes whose success differs.
+
+    python experiments/blind_tradeoff.py [--workers 2] [--plant-sets held_out,calibrated]
+
+About 8 minutes on this 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from controllers import registry
+from controllers.benchmark import run_benchmark
+from controllers.blind import ASYMMETRY_PATH, BLIND_PATH, BlindSettings
+from controllers.closed_loop import ClosedLoopStepController
+from controllers.feedforward import FeedForwardController
+from controllers.metrics import RUNAWAY_LIMIT
+
+VARIANTS = {"closed_loop": ClosedLoopStepController, "feedforward": FeedForwardController}
+SUFFIX = "_asymmetry"
+
+
+def _factory(cls: type, path: str):
+    def make(ctx):
+        return cls(ctx, blind_settings=BlindSettings.load(path))
+
+    return make
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--plant-sets", default="held_out,calibrated")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    if args.workers < 1:
+        print(f"error: --workers={args.workers!r}: must be >= 1", file=sys.stderr)
+        return 2
+    names = []
+    for name, cls in VARIANTS.items():
+        registry.register(name + SUFFIX, _factory(cls, str(ASYMMETRY_PATH)),
+                          f"{name} stepping blind with the asymmetry-robust set",
+                          overwrite=True)  # fmt: skip
+        names += [name, name + SUFFIX]
+    try:
+        result = run_benchmark(names, plant_sets=args.plant_sets.split(","),
+                               backend="processes", workers=args.workers)  # fmt: skip
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    df = result.to_pandas()
+    print(f"blind set: {BLIND_PATH.name} (shipped) vs {ASYMMETRY_PATH.name} (suffix "
+          f"{SUFFIX}); run-away limit {RUNAWAY_LIMIT * 1e6:g} µm")  # fmt: skip
+    print("controller              | plant set  | mean success | passed  | largest run-away")
+    for (ctl, pset), g in df.groupby(["controller", "plant_set"], sort=False):
+        print(f"{ctl:23s} | {pset:10s} | {g.success.mean():12.3f} | "
+              f"{int(g.success.sum()):3d}/{len(g):3d} | {g.runaway_um.max():8.1f} µm")  # fmt: skip
+    print("episodes whose success differs (shipped → asymmetry-robust):")
+    key = ["plant_set", "task", "seed"]
+    for name in VARIANTS:
+        a = df[df.controller == name].set_index(key).success
+        b = df[df.controller == name + SUFFIX].set_index(key).success
+        for k in a.index[a != b.loc[a.index]]:
+            print(f"  {name:12s} {' '.join(map(str, k))}: {a[k]:.0f} → {b[k]:.0f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
