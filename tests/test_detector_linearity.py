@@ -180,3 +180,36 @@ def test_a_linear_detector_is_not_bent_by_the_dithers(capsys):
     the same slope at the centre and the edge, κ̂ stays undecided and the hold is met."""
     out = _run("edge_5um", 0, capsys)
     assert not _kappa(out)[1] and "hold window met: True" in out, out[-600:]
+
+
+@pytest.mark.parametrize(("far_intervals", "probes"), [(20, True), (6, False)])
+def test_a_reference_that_holds_far_long_enough_is_probed_for(far_intervals, probes):
+    """From −0.3 θ_lin (the first set point needs a step), a known reference at 0.2 θ_lin
+    that goes to 0.8 θ_lin (beyond DITHER_FROM) for ``far_intervals`` and comes back for the
+    rest of its 1 s (the last QUIET_END_S not dithered). Held for 20 intervals, at least
+    FAR_HOLD = SETTLING + 4 = 7, the far set point leaves room to settle and dither twice,
+    so closed_loop probes the slope near the centre before its first step and dithers; held
+    for 6, a far dither could not follow, so it makes no probe and no dither at all (the
+    far dithers need a probe nearer the centre to be compared with). The first target lies
+    inside 0.6 θ_lin in both: only the reference decides."""
+    import gymnasium as gym
+
+    import turntable_env  # noqa: F401  (registers the env)
+    from controllers import make
+    from controllers.base import FAR_HOLD, QUIET_END_S
+    from controllers.episode import run_episode
+    from controllers.lab import LabBrief
+
+    env = gym.make("PiezoTurntable-v0", terminate_on_success=False, max_episode_steps=100,
+                   noise=False)  # fmt: skip
+    dt = env.unwrapped.config.control_interval
+    near, far = 0.2 * THETA_S, 0.8 * THETA_S
+    ref = [near] * 5 + [far] * far_intervals
+    ref += [near] * (100 + 1 - len(ref))
+    assert (far_intervals >= FAR_HOLD) == probes and len(ref) - 5 - far_intervals > QUIET_END_S / dt
+    opts = {"start_angle": -0.3 * THETA_S, "reference": np.array(ref)}
+    ctl = make("closed_loop", env)
+    run_episode(env, ctl, seed=0, options=opts,
+                brief=LabBrief(near, opts["start_angle"], reference_rad=tuple(ref)))  # fmt: skip
+    made = ctl.linearity.dithers + ctl.linearity.rejected
+    assert (made > 0) == probes, made
