@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from controllers.base import Controller, ControllerContext
+from controllers.blind import BlindSettings
 from controllers.lab import LabBrief
 from controllers.shield import BlindShield
 
@@ -112,6 +113,8 @@ class AgentController(Controller):
         run: the agent's run directory.
         name: controller name (default: the algorithm).
         shield: filter the actions through the blind-travel shield (module docstring).
+        blind_settings: the blind set of the shield, or of a residual agent's base (default:
+            the shipped one, :mod:`controllers.blind`).
     """
 
     def __init__(
@@ -121,12 +124,14 @@ class AgentController(Controller):
         name: str | None = None,
         *,
         shield: bool = True,
+        blind_settings: BlindSettings | None = None,
     ) -> None:
         self.model, self.vecnorm, cfg = load_agent(run)
         self.name = name or cfg["run"]["algo"]
-        self.interface = make_interface(ctx, interface_of(cfg))
+        self.interface = make_interface(ctx, interface_of(cfg), blind_settings=blind_settings)
         # a residual agent's base has its own safety monitor, which the shield would blind
-        self.shield = BlindShield(ctx) if shield and not self.interface.monitors else None
+        self.shield = (BlindShield(ctx, blind_settings=blind_settings)
+                       if shield and not self.interface.monitors else None)  # fmt: skip
         entry = cfg.get(cfg["run"].get("env_id") or RAW_ENV_ID, {})
         width = self.interface.observation_space.shape[0]
         # the last k normalised features, oldest first, zeros before the episode's first

@@ -326,11 +326,15 @@ def interface_config(value: Any, name: str = "interface") -> InterfaceConfig:
 
 
 def make_interface(
-    ctx: ControllerContext, config: InterfaceConfig | Mapping[str, Any] | str | None = None
+    ctx: ControllerContext,
+    config: InterfaceConfig | Mapping[str, Any] | str | None = None,
+    blind_settings: Any = None,
 ) -> AgentInterface | RawInterface | ResidualInterface:
     """:class:`RawInterface` for ``config == RAW``; a residual agent's
-    (:class:`~agents.residual.ResidualInterface`) for a config with a ``base``; else
-    :class:`AgentInterface` (a mapping: :func:`interface_config`'s)."""
+    (:class:`~agents.residual.ResidualInterface`, its base stepping blind with
+    ``blind_settings``, a :class:`~controllers.blind.BlindSettings` or None for the base's
+    default) for a config with a ``base``; else :class:`AgentInterface` (a mapping:
+    :func:`interface_config`'s)."""
     if isinstance(config, Mapping):
         config = interface_config(config)
     if isinstance(config, str):
@@ -339,7 +343,8 @@ def make_interface(
         return RawInterface(ctx)
     if config is not None and config.base is not None:
         return ResidualInterface(
-            AgentInterface(ctx), config.base, config.scale_max, config.action_cost
+            AgentInterface(ctx), config.base, config.scale_max, config.action_cost,
+            blind_settings=blind_settings,
         )
     return AgentInterface(ctx, config)
 

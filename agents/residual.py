@@ -46,6 +46,7 @@ import gymnasium as gym
 import numpy as np
 
 from controllers.base import ControllerContext, StepScanController
+from controllers.blind import BlindSettings
 from controllers.closed_loop import ClosedLoopStepController
 from controllers.feedforward import FeedForwardController
 from controllers.fuzzy import FuzzyStepController
@@ -89,13 +90,21 @@ class ResidualInterface:
         scale_max: s at a = 1 (and 1/s at a = −1) [-], > 1.
         action_cost: λ of the reward's action term −λ·a² per interval [reward units], ≥ 0
             (:meth:`cost`).
+        blind_settings: the base's blind set (:mod:`controllers.blind`; None: the base's
+            default).
     """
 
     action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
     monitors = True  # the base's safety monitor watches the spot: no shield over it
 
-    def __init__(self, plain: Any, base: str, scale_max: float, action_cost: float = 0.0) -> None:
+    def __init__(self, plain: Any, base: str, scale_max: float, action_cost: float = 0.0,
+                 blind_settings: BlindSettings | None = None) -> None:  # fmt: skip
         check_residual(base, scale_max, action_cost)
+        if blind_settings is not None and not isinstance(blind_settings, BlindSettings):
+            raise ValueError(
+                f"blind_settings={type(blind_settings).__name__}: must be a BlindSettings or None"
+            )
+        self.blind_settings = blind_settings
         self.action_cost = float(action_cost)
         self.ctx: ControllerContext = plain.ctx
         self.base = base
@@ -106,7 +115,9 @@ class ResidualInterface:
     def row_state(self) -> StepScanController:
         """A new base controller for one turntable (reset by the episode's first
         observation in :meth:`observe`)."""
-        return BASES[self.base](self.ctx)
+        if self.blind_settings is None:
+            return BASES[self.base](self.ctx)
+        return BASES[self.base](self.ctx, blind_settings=self.blind_settings)
 
     def observe(
         self,

@@ -18,8 +18,8 @@ by at most that share of the travel the controller believes it made.
 ``ASYMMETRY_PATH`` (``controllers/data/blind_asymmetry.csv``) is the same survey on the env's
 default model (the per-axis model with the sphere's translation) with the catalogue's
 friction asymmetry, |α| <= 0.3: only 2–3 V at 100–500 Hz keep their direction there. The
-map controllers take it as ``blind_settings=``; it is not their default, since those slow
-settings miss the long moves in time on plants that step far under the map
+step controllers and the agents take it as ``blind_settings=``; it is not their default,
+since those slow settings miss the long moves in time on plants that step far under the map
 (``experiments/blind_tradeoff.py``, docs/controllers.md).
 """
 

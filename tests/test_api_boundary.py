@@ -16,6 +16,8 @@ import pytest
 import turntable_env  # noqa: F401  (registers the envs)
 from controllers import LabBrief, make
 from controllers.blind import BlindSettings
+from controllers.closed_loop import ClosedLoopStepController
+from controllers.fuzzy import FuzzyStepController
 from controllers.registry import register
 from controllers.shield import BlindShield
 from turntable_env.amplifier import Amplifier
@@ -314,6 +316,13 @@ def test_a_lab_brief_refuses_what_is_not_an_angle(make_it, needle):
         make_it()
 
 
+def _ctx():
+    from controllers.base import ControllerContext
+    from turntable_env.envs.config import EnvConfig
+
+    return ControllerContext.from_config(EnvConfig())
+
+
 # --- stop 74: the audit's rest (wrong types, deep TOML, an amplitude beyond the input) ----
 @pytest.mark.parametrize(
     "call, needle",
@@ -328,6 +337,8 @@ def test_a_lab_brief_refuses_what_is_not_an_angle(make_it, needle):
         (lambda: BlindSettings({(0.0, 2.0): -0.1}), "frequency"),
         (lambda: BlindSettings({100.0: -0.1}), "worst[100.0]"),
         (lambda: BlindShield(5), "ctx=int"),
+        (lambda: ClosedLoopStepController(_ctx(), blind_settings=5), "blind_settings=int"),
+        (lambda: FuzzyStepController(_ctx(), blind_settings="x"), "blind_settings=str"),
         (lambda: register("xx_not_kept", 5, "d"), "factory=5"),
         (lambda: register("xx_not_kept", lambda c: None, 5), "description=5"),
     ],
