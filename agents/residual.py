@@ -46,7 +46,7 @@ import gymnasium as gym
 import numpy as np
 
 from controllers.base import ControllerContext, StepScanController
-from controllers.blind import BlindSettings
+from controllers.blind import BlindSettings, check_blind_settings
 from controllers.closed_loop import ClosedLoopStepController
 from controllers.feedforward import FeedForwardController
 from controllers.fuzzy import FuzzyStepController
@@ -100,11 +100,7 @@ class ResidualInterface:
     def __init__(self, plain: Any, base: str, scale_max: float, action_cost: float = 0.0,
                  blind_settings: BlindSettings | None = None) -> None:  # fmt: skip
         check_residual(base, scale_max, action_cost)
-        if blind_settings is not None and not isinstance(blind_settings, BlindSettings):
-            raise ValueError(
-                f"blind_settings={type(blind_settings).__name__}: must be a BlindSettings or None"
-            )
-        self.blind_settings = blind_settings
+        self.blind_settings = check_blind_settings(blind_settings)
         self.action_cost = float(action_cost)
         self.ctx: ControllerContext = plain.ctx
         self.base = base

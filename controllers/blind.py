@@ -36,7 +36,13 @@ from turntable_env.validation import check_finite, check_positive, describe
 
 from .step_map import read_table
 
-__all__ = ["ASYMMETRY_PATH", "BLIND_PATH", "BLIND_TOLERANCE", "BlindSettings"]
+__all__ = [
+    "ASYMMETRY_PATH",
+    "BLIND_PATH",
+    "BLIND_TOLERANCE",
+    "BlindSettings",
+    "check_blind_settings",
+]
 
 BLIND_PATH = Path(__file__).parent / "data" / "blind_settings.csv"
 # the same survey on the env's default model with the catalogue's friction asymmetry
@@ -114,3 +120,11 @@ class BlindSettings:
         for (f, a), w in sorted(self.worst.items()):
             lines.append(f"{f:g},{a:g},{w:.4f},{shares[(f, a)]:.4f}")
         return write_atomic(path, "\n".join(lines) + "\n")
+
+
+def check_blind_settings(value: object) -> BlindSettings | None:
+    """``value`` if it is a :class:`BlindSettings` or None (the caller's default); else a
+    ValueError naming its type (every public ``blind_settings=`` argument)."""
+    if value is not None and not isinstance(value, BlindSettings):
+        raise ValueError(f"blind_settings={type(value).__name__}: must be a BlindSettings or None")
+    return value

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
-from .blind import BlindSettings
+from .blind import BlindSettings, check_blind_settings
 from .lab import LabBrief
 from .step_gain import StepGains
 from .step_map import StepMap
@@ -94,11 +94,7 @@ class MapPlanner:
         self.moves = {d: np.array(v) for d, v in moves.items()}
         if any(v.size == 0 for v in self.moves.values()):
             raise ValueError("step_map: no usable step in one of the directions")
-        if blind_settings is not None and not isinstance(blind_settings, BlindSettings):
-            raise ValueError(
-                f"blind_settings={type(blind_settings).__name__}: must be a BlindSettings or None"
-            )
-        survey = BlindSettings.load() if blind_settings is None else blind_settings
+        survey = check_blind_settings(blind_settings) or BlindSettings.load()
         # the moves a blind interval may make (robust direction; controllers.blind)
         self.robust = {d: survey.robust(v[:, 0], v[:, 1]) for d, v in self.moves.items()}
 

@@ -37,7 +37,7 @@ import numpy as np
 from turntable_env.envs.config import OBS
 
 from .base import LOST_SEARCH, SATURATION_FRACTION, ControllerContext, blind_budget
-from .blind import BlindSettings
+from .blind import BlindSettings, check_blind_settings
 from .feedforward import MapPlanner
 from .lab import LabBrief
 from .step_map import StepMap
@@ -64,10 +64,7 @@ class BlindShield:
             raise ValueError(f"ctx={type(ctx).__name__}: must be a ControllerContext")
         if step_map is not None and not isinstance(step_map, StepMap):
             raise ValueError(f"step_map={type(step_map).__name__}: must be a StepMap or None")
-        if blind_settings is not None and not isinstance(blind_settings, BlindSettings):
-            raise ValueError(
-                f"blind_settings={type(blind_settings).__name__}: must be a BlindSettings or None"
-            )
+        check_blind_settings(blind_settings)
         self.ctx = ctx
         self.map = step_map if step_map is not None else StepMap.load()
         self.freqs = np.unique(self.map.frequency)  # Hz, the map's
