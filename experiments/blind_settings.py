@@ -71,8 +71,8 @@ def family(
     box (the step is not monotone in the factors). With ``asymmetry`` > 0 (the catalogue's
     friction asymmetry, |α| up to it): the box's eight corners at α = ±``asymmetry``
     (:func:`corners`), and ``drawn`` plants inside the box with α drawn uniformly in
-    ±``asymmetry`` (the grid's 100 plants on the translation form would take 25 minutes
-    on one core)."""
+    ±``asymmetry`` (the 32 plants took 490 s on one core, as the survey prints: the grid's
+    100 would take about 25 minutes at that rate)."""
     box = {"friction": FRICTION, "preload": PRELOAD, "amplifier": AMPLIFIER}
     rng = np.random.default_rng(2026)
     factors = [
