@@ -171,6 +171,15 @@ class MapPlanner:
         g = 1.0 if gains is None else float(gains.estimate(d, mv[i, 0])[0][0])
         return self._move(i, d, float(nominal[i]) * g, float(nominal[i]))
 
+    def blind_rows(self, d: int) -> np.ndarray:
+        """(n, 5) rows of :attr:`moves` in direction ``d`` whose setting may step blind
+        (amplitude [V] and map travel per interval [rad] signed as ``d``); ValueError when
+        the blind set has none there."""
+        rows = self.moves[d][self.robust[d]]
+        if not len(rows):
+            raise ValueError(f"blind_settings: no robust setting in direction {d:+d}")
+        return rows
+
     def _move(self, i: int, d: int, disp: float, nominal: float) -> Move:
         mv = self.moves[d]
         return Move(float(mv[i, 0]), float(mv[i, 1]), self.a, self.k, d * disp, d * nominal)

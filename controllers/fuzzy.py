@@ -188,9 +188,7 @@ class FuzzyStepController(StepScanController):
             planner = MapPlanner(smap, ctx, blind_settings=blind_settings)
             self.blind_moves = {}
             for d in (1, -1):
-                rows = planner.moves[d][planner.robust[d]]
-                if rows.size == 0:
-                    raise ValueError(f"blind_settings: no robust setting in direction {d:+d}")
+                rows = planner.blind_rows(d)
                 amp, f, run = rows[int(np.argmax(np.abs(rows[:, 2])))][:3]
                 # the map's amplitude and travel carry the direction's sign
                 self.blind_moves[d] = Move(float(amp), float(f), 0.9, 1.0, float(run),

@@ -74,10 +74,8 @@ class BlindShield:
         # [Hz], map travel per interval [rad]) of its direction-robust moves
         planner = MapPlanner(self.map, ctx, blind_settings=blind_settings)
         self.blind: dict[int, np.ndarray] = {}
-        for d, mv in planner.moves.items():
-            rows = mv[planner.robust[d]]
-            if not len(rows):
-                raise ValueError(f"blind_settings: no robust setting in direction {d:+d}")
+        for d in planner.moves:
+            rows = planner.blind_rows(d)
             self.blind[d] = np.column_stack([np.abs(rows[:, 0]), rows[:, 1], np.abs(rows[:, 2])])
         self._sat = SATURATION_FRACTION * ctx.angle_range
         self.reset_state(saturated=False, brief=None)
