@@ -26,6 +26,7 @@ with no planned move left starts the safety monitor's search back
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -59,7 +60,9 @@ class MapPlanner:
             step there has no bounded ratio to the map's, so no plan relies on it.
         blind_settings: the survey of settings whose direction does not depend on the
             plant (default: the shipped one, :mod:`controllers.blind`); with none robust in
-            a direction a blind plan there finds no move.
+            a direction a blind plan there finds no move. A blind move may take a robust
+            setting of any waveform the survey and the map both hold (the default's a = 0.6
+            at 2 kHz); every other move keeps the family (a, k).
     """
 
     def __init__(
@@ -79,24 +82,33 @@ class MapPlanner:
                 f"runs at {ctx.control_interval!r} s"
             )
         self.a, self.k = a, k
-        moves: dict[int, list[tuple[float, float, float, float, float]]] = {1: [], -1: []}
-        for f in np.unique(step_map.frequency):
+        survey = check_blind_settings(blind_settings) or BlindSettings.load()
+        # the planner's own family, then the survey's other waveforms the map holds: those
+        # serve only blind moves (the reading saturated), where the robust ones are used
+        families = [(a, k)] + [fam for fam in survey.families() if fam in step_map.families()
+                               and not np.allclose(fam, (a, k))]  # fmt: skip
+        moves: dict[int, list[tuple[float, ...]]] = {1: [], -1: []}
+        for (fa, fk), f in itertools.product(families, np.unique(step_map.frequency)):
             m = round(f * ctx.control_interval)
             for d in (1, -1):
-                for i in step_map.family(ctx.axis, float(f), a, k, d):
+                for i in step_map.family(ctx.axis, float(f), fa, fk, d):
                     s = float(step_map.step[i])
                     if s * d < min_step or abs(step_map.amplitude[i]) < min_amplitude - 1e-9:
                         continue
                     run = m * s
                     rest = float(step_map.first[i]) + (m - 1) * s
                     amp = float(step_map.amplitude[i])
-                    moves[d].append((amp, float(f), run, rest, m * amp * amp))
+                    moves[d].append((amp, float(f), run, rest, m * amp * amp, fa, fk))
+        # rows: amplitude [V] (signed), frequency [Hz], map travel per interval running and
+        # from rest [rad], energy ∝ m·A², the waveform's a and k
         self.moves = {d: np.array(v) for d, v in moves.items()}
-        if any(v.size == 0 for v in self.moves.values()):
+        self.own = {d: np.isclose(v[:, 5], a) & np.isclose(v[:, 6], k) if v.size else
+                    np.zeros(0, bool) for d, v in self.moves.items()}  # fmt: skip
+        if any(not own.any() for own in self.own.values()):
             raise ValueError("step_map: no usable step in one of the directions")
-        survey = check_blind_settings(blind_settings) or BlindSettings.load()
         # the moves a blind interval may make (robust direction; controllers.blind)
-        self.robust = {d: survey.robust(v[:, 0], v[:, 1]) for d, v in self.moves.items()}
+        self.robust = {d: survey.robust(v[:, 0], v[:, 1], a=v[:, 5], k=v[:, 6])
+                       for d, v in self.moves.items()}  # fmt: skip
 
     def plan(
         self,
@@ -125,7 +137,8 @@ class MapPlanner:
         d = 1 if remaining > 0 else -1
         mv = self.moves[d]
         nominal = np.abs(mv[:, 3] if from_rest else mv[:, 2])
-        usable = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
+        usable = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] if blind
+                                                           else self.own[d])  # fmt: skip
         if gains is not None:
             allowed = ~gains.stalled(d, mv[:, 0]) & ~gains.reversed(d, mv[:, 0], mv[:, 1])
             if gains.backward[d] and not (usable & allowed).any():
@@ -159,7 +172,7 @@ class MapPlanner:
         monitor's search step (None if none fits)."""
         d = 1 if direction > 0 else -1
         mv = self.moves[d]
-        ok = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] | (not blind))
+        ok = (np.abs(mv[:, 0]) <= amplitude_limit) & (self.robust[d] if blind else self.own[d])
         if gains is not None and (ok & ~gains.reversed(d, mv[:, 0], mv[:, 1])).any():
             ok &= ~gains.reversed(d, mv[:, 0], mv[:, 1])  # never a setting that stepped back
         if gains is not None and (ok & ~gains.stalled(d, mv[:, 0])).any():
@@ -172,17 +185,29 @@ class MapPlanner:
         return self._move(i, d, float(nominal[i]) * g, float(nominal[i]))
 
     def blind_rows(self, d: int) -> np.ndarray:
-        """(n, 5) rows of :attr:`moves` in direction ``d`` whose setting may step blind
-        (amplitude [V] and map travel per interval [rad] signed as ``d``); ValueError when
-        the blind set has none there."""
+        """(n, 7) rows of :attr:`moves` in direction ``d`` whose setting may step blind
+        (amplitude [V] and map travel per interval [rad] signed as ``d``, the waveform's a
+        and k in the last two columns); ValueError when the blind set has none there."""
         rows = self.moves[d][self.robust[d]]
         if not len(rows):
             raise ValueError(f"blind_settings: no robust setting in direction {d:+d}")
         return rows
 
+    def blind_within(self, d: int, travel: float) -> Move:
+        """The blind move in direction ``d`` (±1) of the largest running map travel within
+        ``travel`` [rad] per interval (a move its caller sized: a rule's step count, a
+        policy's setting), or the smallest blind move where none is within it."""
+        rows = self.blind_rows(d)
+        run = np.abs(rows[:, 2])
+        below = run <= abs(travel)
+        i = int(np.argmax(np.where(below, run, -np.inf))) if below.any() else int(np.argmin(run))
+        amp, f, step, _rest, _energy, a, k = rows[i]
+        return Move(float(amp), float(f), float(a), float(k), float(step), float(step))
+
     def _move(self, i: int, d: int, disp: float, nominal: float) -> Move:
         mv = self.moves[d]
-        return Move(float(mv[i, 0]), float(mv[i, 1]), self.a, self.k, d * disp, d * nominal)
+        return Move(float(mv[i, 0]), float(mv[i, 1]), float(mv[i, 5]), float(mv[i, 6]),
+                    d * disp, d * nominal)  # fmt: skip
 
 
 class FeedForwardController(StepScanController):

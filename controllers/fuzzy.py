@@ -138,9 +138,10 @@ class FuzzyStepController(StepScanController):
         whose step per period at ``amplitude`` (mean over f ≤ max_steps/Δt) the online
         step gain is measured against (default: the shipped one); caution: the gain's
         upper bound before anything is measured (:class:`~controllers.step_gain.StepGains`);
-        blind_settings: with a blind set (:mod:`controllers.blind`), the way in from beyond
-            the detector steps with its fastest setting on the map, not the fixed waveform
-            (default None: the thesis's waveform throughout).
+        blind_settings: the blind set (:mod:`controllers.blind`; default: the shipped
+            one): on the way in from beyond the detector each interval steps with its
+            setting of the largest map travel within the rules' move (n periods of the
+            fixed waveform), not with the fixed waveform.
 
     The plant it is on: the error enters the rules divided by the learned step gain γ_d
     (input scaling, a plant that steps 2× the map sees half the error), and no interval
@@ -180,19 +181,10 @@ class FuzzyStepController(StepScanController):
         if any(self.reference_step[d] * d <= 0.0 for d in (1, -1)):
             raise ValueError(f"amplitude={amplitude!r}: the step map has no forward step there")
         self.gains = StepGains(caution=caution)
-        # with a blind set, the way in from beyond the detector takes its fastest setting
-        # on the map per direction instead of the fixed waveform (the thesis's rules do not
-        # know the direction can reverse there: controllers.blind)
-        self.blind_moves: dict[int, Move] | None = None
-        if blind_settings is not None:
-            planner = MapPlanner(smap, ctx, blind_settings=blind_settings)
-            self.blind_moves = {}
-            for d in (1, -1):
-                rows = planner.blind_rows(d)
-                amp, f, run = rows[int(np.argmax(np.abs(rows[:, 2])))][:3]
-                # the map's amplitude and travel carry the direction's sign
-                self.blind_moves[d] = Move(float(amp), float(f), 0.9, 1.0, float(run),
-                                           float(run))  # fmt: skip
+        # the way in from beyond the detector steps with the blind set's setting nearest
+        # under the rules' own move (the thesis's rules do not know the direction can
+        # reverse there: controllers.blind)
+        self.planner = MapPlanner(smap, ctx, blind_settings=blind_settings)
 
     def reset(self, obs: np.ndarray, brief: LabBrief) -> None:
         super().reset(obs, brief)
@@ -242,8 +234,8 @@ class FuzzyStepController(StepScanController):
         n = round(self.steps(scaled, change))
         if n == 0:
             return None
-        if self.blind_moves is not None and self.blind_approach(saturated):
-            return self.blind_moves[d]
+        if self.blind_approach(saturated):  # the rules' travel, with a robust setting
+            return self.planner.blind_within(d, abs(n) * self.reference_step[d])
         if not saturated:  # no more periods than could pass the target at the gain's bound
             cap = int(abs(err) / (abs(self.reference_step[d]) * float(upper[0])))
             n = int(np.sign(n)) * max(1, min(abs(n), cap))

@@ -9,9 +9,10 @@ rules, from what a lab sees (the reading, the brief, the action itself):
 
 * **robust direction**: on the way in from beyond the detector (no valid reading yet in
   the episode), a stepping action is replaced by the setting of the blind set
-  (:mod:`controllers.blind`: direction independent of the plant across a survey of 160
-  plants) in the same direction whose map travel per interval comes nearest below the
-  one asked for (the smallest, if none is below); a spot lost after it was seen is left
+  (:mod:`controllers.blind`: direction independent of the plant across a survey's
+  plants, of any waveform it holds) in the same direction whose map travel per interval
+  comes nearest below the one asked for (the smallest, if none is below:
+  :meth:`~controllers.feedforward.MapPlanner.blind_within`); a spot lost after it was seen is left
   to the controller's own moves near the edge, as the step controllers do;
 * **no stepping away**: a stepping action away from the detector, while the target lies
   inside it, idles the generator;
@@ -29,8 +30,6 @@ cannot check.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -70,13 +69,8 @@ class BlindShield:
         self.freqs = np.unique(self.map.frequency)  # Hz, the map's
         amps = np.abs(self.map.amplitude)
         self.amp_range = (float(amps.min()), float(amps.max()))  # V, the map's
-        # the blind set as the map planner has it: per direction, (amplitude [V], frequency
-        # [Hz], map travel per interval [rad]) of its direction-robust moves
-        planner = MapPlanner(self.map, ctx, blind_settings=blind_settings)
-        self.blind: dict[int, np.ndarray] = {}
-        for d in planner.moves:
-            rows = planner.blind_rows(d)
-            self.blind[d] = np.column_stack([np.abs(rows[:, 0]), rows[:, 1], np.abs(rows[:, 2])])
+        # the blind set as the map planner has it (its direction-robust moves)
+        self.planner = MapPlanner(self.map, ctx, blind_settings=blind_settings)
         self._sat = SATURATION_FRACTION * ctx.angle_range
         self.reset_state(saturated=False, brief=None)
 
@@ -126,11 +120,6 @@ class BlindShield:
         if self.seen:  # a spot lost near the edge: the controller's own moves, budgeted
             self.travel += asked
             return action
-        rows = self.blind[d]
-        below = rows[:, 2] <= asked
-        i = int(np.argmax(np.where(below, rows[:, 2], -math.inf))) if below.any() else int(
-            np.argmin(rows[:, 2])
-        )
-        a_r, f_r, travel = rows[i]
-        self.travel += travel
-        return sc.encode(d * a_r, f_r, 0.9, 1.0, offset)
+        move = self.planner.blind_within(d, asked)
+        self.travel += abs(move.expected)
+        return sc.encode(move.amplitude, move.frequency, move.a, move.k, offset)

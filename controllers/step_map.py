@@ -47,7 +47,7 @@ COLUMNS = (
 #: sweep grid of the shipped map
 AMPLITUDES = tuple(float(x) for x in np.arange(1.0, 10.01, 0.5))  # V, |input amplitude|
 FREQUENCIES = (100.0, 200.0, 500.0, 1000.0, 2000.0)  # Hz (whole periods per 10 ms)
-RAMP_RATIOS = (0.9, 0.95, 0.99)
+RAMP_RATIOS = (0.6, 0.9, 0.95, 0.99)
 SLEW_ADAPTATIONS = (0.0, 1.0)
 
 
@@ -109,6 +109,11 @@ class StepMap:
         return int(self.amplitude.size)
 
     # --- queries ----------------------------------------------------------------------
+    def families(self) -> list[tuple[float, float]]:
+        """The waveforms (a, k) the map holds, sorted (rounded as the file writes them)."""
+        return sorted({(round(float(a), 6), round(float(k), 6))
+                       for a, k in zip(self.a, self.k, strict=True)})  # fmt: skip
+
     def family(self, axis: str, frequency: float, a: float, k: float, direction: int) -> np.ndarray:
         """Row indices of one (axis, f, a, k, direction) family, sorted by |amplitude|."""
         if direction not in (-1, 1):

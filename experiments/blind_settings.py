@@ -17,7 +17,11 @@ With ``--fidelity translation --asymmetry 0.3`` the survey runs the env's defaul
 the box's corners with the catalogue's friction asymmetry at α = ±0.3 and ``--drawn``
 plants inside the box with α drawn: the table ``controllers/data/blind_asymmetry.csv``
 (:data:`controllers.blind.ASYMMETRY_PATH`), which keeps its direction on such plants and
-steps only at the slowest settings.
+steps only at the slowest settings of the planner's waveform; ``--ramp-ratios 0.6,0.9``
+adds the step map's a = 0.6 waveform (k = 1), whose 2 kHz settings keep their direction up
+to 4.5 V there, and ``--workers`` runs the plants over processes
+(:func:`turntable_env.scale.map_tasks`: the survey of 32 plants and two waveforms took
+382 s over two).
 
 It writes the worst ratio and the backward share per setting to the file the map
 controllers read (:mod:`controllers.blind`): blind, they step only with settings whose
@@ -37,6 +41,7 @@ from controllers.step_map import StepMap
 from turntable_env.envs.config import EnvConfig
 from turntable_env.envs.core import TurntableTask
 from turntable_env.plant import Plant
+from turntable_env.scale import map_tasks
 
 AMPLITUDES = tuple(float(a) for a in np.arange(2.0, 10.01, 0.5))  # V, the planner's (≥ 2 V)
 FRICTION = (0.5, 0.7, 1.0, 1.4, 2.0)  # × μ_s and μ_c
@@ -96,28 +101,45 @@ def family(
 
 
 def steady_steps(
-    plants: list[tuple[Plant, dict[str, float]]], frequencies: np.ndarray, axis: str
+    plants: list[tuple[Plant, dict[str, float]]],
+    frequencies: np.ndarray,
+    axis: str,
+    ramp_ratios: tuple[float, ...] = (0.9,),
+    workers: int | None = 1,
 ) -> tuple[np.ndarray, list[dict]]:
-    """(plants, frequencies, amplitudes, 2 directions) steady step per period [rad], noise
-    off, from rest at 0, of ``plants`` (one fidelity); and the plants' factors."""
-    cfg = EnvConfig(plant=Plant("real", fidelity=plants[0][0].fidelity), axis=axis, noise=False)
-    cases = [(d * a, f) for f in frequencies for a in AMPLITUDES for d in (1.0, -1.0)]
-    out = np.empty((len(plants), len(cases)))
+    """(plants, ramp ratios, frequencies, amplitudes, 2 directions) steady step per period
+    [rad], noise off, from rest at 0, of ``plants`` (one fidelity; k = 1), one job per
+    plant over ``workers`` processes (:func:`turntable_env.scale.map_tasks`); and the
+    plants' factors."""
+    jobs = [(plant, tuple(float(f) for f in frequencies), axis, tuple(ramp_ratios))
+            for plant, _f in plants]  # fmt: skip
+    if workers == 1:
+        out = [_plant_steps(j) for j in jobs]
+    else:
+        out = map_tasks(_plant_steps, jobs, backend="processes", workers=workers)
+    shape = (len(plants), len(ramp_ratios), len(frequencies), len(AMPLITUDES), 2)
+    return np.array(out).reshape(shape), [f for _p, f in plants]
+
+
+def _plant_steps(job: tuple[Plant, tuple[float, ...], str, tuple[float, ...]]) -> np.ndarray:
+    """One plant's steady step per period [rad] over the cases (ramp ratio, frequency,
+    amplitude, direction), k = 1: INTERVALS intervals from rest, the first not counted."""
+    plant, frequencies, axis, ramp_ratios = job
+    cfg = EnvConfig(plant=Plant("real", fidelity=plant.fidelity), axis=axis, noise=False)
+    cases = [(d * amp, f, a) for a in ramp_ratios for f in frequencies for amp in AMPLITUDES
+             for d in (1.0, -1.0)]  # fmt: skip
     rng = np.random.default_rng(0)
-    for i, (plant, _f) in enumerate(plants):
-        task = TurntableTask(cfg, len(cases))
-        for b in range(len(cases)):
-            task.reset_row(b, rng, {"start_angle": 0.0, "target_angle": 0.0}, plant=plant)
-        acts = np.array([cfg.scaling.encode(a, f, 0.9, 1.0) for a, f in cases])
-        angles = [task.angle.copy()]
-        for _ in range(INTERVALS):
-            task.step(acts, rng)
-            angles.append(task.angle.copy())
-        disp = np.diff(np.array(angles), axis=0)[1:].mean(axis=0)  # rad per interval
-        per = np.array([f * cfg.control_interval for _a, f in cases])
-        out[i] = disp / per
-    shape = (len(plants), len(frequencies), len(AMPLITUDES), 2)
-    return out.reshape(shape), [f for _p, f in plants]
+    task = TurntableTask(cfg, len(cases))
+    for b in range(len(cases)):
+        task.reset_row(b, rng, {"start_angle": 0.0, "target_angle": 0.0}, plant=plant)
+    acts = np.array([cfg.scaling.encode(amp, f, a, 1.0) for amp, f, a in cases])
+    angles = [task.angle.copy()]
+    for _ in range(INTERVALS):
+        task.step(acts, rng)
+        angles.append(task.angle.copy())
+    disp = np.diff(np.array(angles), axis=0)[1:].mean(axis=0)  # rad per interval
+    per = np.array([f * cfg.control_interval for _amp, f, _a in cases])
+    return disp / per
 
 
 def main() -> None:
@@ -139,83 +161,96 @@ def main() -> None:
                     help="only step the box's eight corners on a plant of this fidelity and "
                          "compare the shipped blind set with the other settings (no file "
                          "written)")  # fmt: skip
+    ap.add_argument("--ramp-ratios", default="0.9",
+                    help="the waveform families surveyed, ramp ratios a (k = 1) of the step "
+                         "map, comma-separated (default 0.9: the map planner's own)")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes over the plants (turntable_env.scale.map_tasks)")
     args = ap.parse_args()
     if not 0.0 <= args.asymmetry <= 0.4:
         ap.error(f"--asymmetry={args.asymmetry!r}: must be in 0–0.4")
     if args.drawn < 0:
         ap.error(f"--drawn={args.drawn!r}: must be >= 0")
+    if args.workers < 1:
+        ap.error(f"--workers={args.workers!r}: must be >= 1")
     smap = StepMap.load()
+    try:
+        ratios = tuple(float(x) for x in args.ramp_ratios.split(","))
+        for a in ratios:
+            smap.family(args.axis, 1000.0, a, 1.0, 1)
+    except ValueError:
+        ap.error(f"--ramp-ratios={args.ramp_ratios!r}: must be ramp ratios of the step map "
+                 f"({', '.join(f'{a:g}' for a in np.unique(smap.a))})")
+    if args.check and 0.9 not in ratios:
+        ap.error("--check compares the planner's family: --ramp-ratios must hold 0.9")
     freqs = np.unique(smap.frequency)
     t0 = time.perf_counter()
     plants = (corners(args.check, args.asymmetry) if args.check
               else family(args.fidelity, args.asymmetry, args.drawn))  # fmt: skip
-    steps, factors = steady_steps(plants, freqs, args.axis)
+    steps, factors = steady_steps(plants, freqs, args.axis, ratios, args.workers)
     sign = np.array([1.0, -1.0])  # the commanded direction of the last axis
     nominal = np.array(
-        [[[smap.step_size(args.axis, d * a, f, 0.9, 1.0) for d in sign] for a in AMPLITUDES]
-         for f in freqs]
+        [[[[smap.step_size(args.axis, d * amp, f, a, 1.0) for d in sign] for amp in AMPLITUDES]
+          for f in freqs] for a in ratios]
     )  # fmt: skip
     along = steps * sign  # > 0: the commanded direction
     print(
         f"{len(factors)} plants (friction ×{FRICTION[0]}–{FRICTION[-1]}, preload "
         f"×{PRELOAD[0]}–{PRELOAD[-1]}, amplifier ×{AMPLIFIER[0]}–{AMPLIFIER[-1]}"
         + (f", friction asymmetry |α| ≤ {args.asymmetry:g}" if args.asymmetry else "")
-        + f"), {plants[0][0].fidelity} model, axis {args.axis}, a = 0.9, k = 1, amplitudes "
+        + f"), {plants[0][0].fidelity} model, axis {args.axis}, a = "
+        f"{', '.join(f'{a:g}' for a in ratios)}, k = 1, amplitudes "
         f"{', '.join(f'{a:g}' for a in AMPLITUDES)} V, both directions; "
-        f"{time.perf_counter() - t0:.0f} s"
+        f"{time.perf_counter() - t0:.0f} s over {args.workers} process(es)"
     )
     ratio = along / (nominal * sign)  # the plant's step over the map's, > 0: forwards
-    worst = ratio.min(axis=(0, 3))  # (frequencies, amplitudes)
+    worst = ratio.min(axis=(0, 4))  # (ramp ratios, frequencies, amplitudes)
     if args.check:
         label = args.check + (f", friction asymmetry ±{args.asymmetry:g}" if args.asymmetry
                               else "")  # fmt: skip
-        _check(worst, freqs, label)
-        _reversals(ratio, freqs)
+        for r, a in enumerate(ratios):
+            _check(worst[r], freqs, label, a)
+        _reversals(ratio[:, ratios.index(0.9)], freqs)
         return
-    print("worst step over the map's, over plants and both directions (rows: amplitude [V])")
-    print("   V | " + " | ".join(f"{f:6.0f} Hz" for f in freqs))
-    for i, a in enumerate(AMPLITUDES):
-        print(f"{a:4.1f} | " + " | ".join(f"{worst[j, i]:9.2f}" for j in range(freqs.size)))
     back = along < 0.0
-    print(
-        "share of (plant, amplitude, direction) stepping backwards: "
-        + ", ".join(f"{f:.0f} Hz {back[:, j].mean():.3f}" for j, f in enumerate(freqs))
-    )
-    robust = [(float(freqs[j]), AMPLITUDES[i]) for j in range(freqs.size)
-              for i in range(len(AMPLITUDES)) if worst[j, i] >= MARGIN]  # fmt: skip
-    print(
-        f"robust settings (worst step ≥ {MARGIN:g} of the map's): "
-        + (", ".join(f"{a:g} V at {f:.0f} Hz" for f, a in robust) or "none")
-    )
-    blind = [(float(freqs[j]), AMPLITUDES[i]) for j in range(freqs.size)
-             for i in range(len(AMPLITUDES)) if worst[j, i] >= -BLIND_TOLERANCE]  # fmt: skip
-    print(
-        f"blind settings (worst ≥ −{BLIND_TOLERANCE:g}): "
-        + ", ".join(f"{a:g} V at {f:.0f} Hz" for f, a in blind)
-    )
-    table = {(float(f), a): float(worst[j, i]) for j, f in enumerate(freqs)
-             for i, a in enumerate(AMPLITUDES)}  # fmt: skip
-    shares = {(float(f), a): float(back[:, j, i].mean()) for j, f in enumerate(freqs)
-              for i, a in enumerate(AMPLITUDES)}  # fmt: skip
-    path = BlindSettings(table).save(
-        args.out,
-        shares,
-        _header(args, len(factors)),
-    )
+    cells = list(itertools.product(range(len(ratios)), range(freqs.size), range(len(AMPLITUDES))))
+    for r, a in enumerate(ratios):
+        print(f"a = {a:g}: worst step over the map's, over plants and both directions "
+              "(rows: amplitude [V])")  # fmt: skip
+        print("   V | " + " | ".join(f"{f:6.0f} Hz" for f in freqs))
+        for i, amp in enumerate(AMPLITUDES):
+            print(f"{amp:4.1f} | "
+                  + " | ".join(f"{worst[r, j, i]:9.2f}" for j in range(freqs.size)))  # fmt: skip
+        print(
+            "share of (plant, amplitude, direction) stepping backwards: "
+            + ", ".join(f"{f:.0f} Hz {back[:, r, j].mean():.3f}" for j, f in enumerate(freqs))
+        )
+    for label, bound in ((f"robust settings (worst step ≥ {MARGIN:g} of the map's)", MARGIN),
+                         (f"blind settings (worst ≥ −{BLIND_TOLERANCE:g})", -BLIND_TOLERANCE)):
+        chosen = [f"{AMPLITUDES[i]:g} V at {freqs[j]:.0f} Hz, a = {ratios[r]:g}"
+                  for r, j, i in cells if worst[r, j, i] >= bound]  # fmt: skip
+        print(f"{label}: " + ("; ".join(chosen) or "none"))
+    key = {(r, j, i): (float(freqs[j]), AMPLITUDES[i], ratios[r], 1.0) for r, j, i in cells}
+    table = {key[c]: float(worst[c]) for c in cells}
+    shares = {key[c]: float(back[:, c[0], c[1], c[2]].mean()) for c in cells}
+    path = BlindSettings(table).save(args.out, shares, _header(args, len(factors), ratios))
     print(f"written to {path}")
-    j, i = np.unravel_index(int(np.argmax(worst)), worst.shape)
+    r, j, i = np.unravel_index(int(np.argmax(worst)), worst.shape)
     print(
-        f"most robust: {AMPLITUDES[i]:g} V at {freqs[j]:.0f} Hz, worst {worst[j, i]:.2f} "
-        "of the map's step"
+        f"most robust: {AMPLITUDES[i]:g} V at {freqs[j]:.0f} Hz, a = {ratios[r]:g}, worst "
+        f"{worst[r, j, i]:.2f} of the map's step"
     )
 
 
-def _header(args: argparse.Namespace, plants: int) -> str:
+def _header(args: argparse.Namespace, plants: int, ratios: tuple[float, ...]) -> str:
     """The table file's comment: what was surveyed and the command that regenerates it."""
-    if args.fidelity == "reduced" and not args.asymmetry and args.drawn == RANDOM_PLANTS:
+    waveform = f"a = {', '.join(f'{a:g}' for a in ratios)}, k = 1"
+    default = (args.fidelity == "reduced" and not args.asymmetry
+               and args.drawn == RANDOM_PLANTS and ratios == (0.9,))  # fmt: skip
+    if default:
         return (
             f"worst steady step over the map's, over {plants} plants and both "
-            f"directions (axis {args.axis}, a = 0.9, k = 1)\nfriction and preload "
+            f"directions (axis {args.axis}, {waveform})\nfriction and preload "
             f"x{FRICTION[0]}-{FRICTION[-1]}, amplifier x{AMPLIFIER[0]}-{AMPLIFIER[-1]} "
             f"(grid and {RANDOM_PLANTS} drawn)\n"
             "regenerate: python experiments/blind_settings.py"
@@ -225,31 +260,38 @@ def _header(args: argparse.Namespace, plants: int) -> str:
               else f"grid and {args.drawn} drawn")  # fmt: skip
     return (
         f"worst steady step over the map's, over {plants} plants and both directions "
-        f"(axis {args.axis}, a = 0.9, k = 1), {args.fidelity} model\nfriction and preload "
+        f"(axis {args.axis}, {waveform}), {args.fidelity} model\nfriction and preload "
         f"x{FRICTION[0]}-{FRICTION[-1]}, amplifier x{AMPLIFIER[0]}-{AMPLIFIER[-1]}; "
         f"{family}\nregenerate: python experiments/blind_settings.py --fidelity "
         f"{args.fidelity} --asymmetry {args.asymmetry:g} --drawn {args.drawn} --axis "
-        f"{args.axis} --out {args.out}"
+        f"{args.axis} --ramp-ratios {','.join(f'{a:g}' for a in ratios)} --out {args.out}"
     )
 
 
-def _check(worst: np.ndarray, freqs: np.ndarray, fidelity: str) -> None:
-    """Print the shipped blind set's worst step on the corners against the others'."""
+def _check(worst: np.ndarray, freqs: np.ndarray, fidelity: str, a: float = 0.9) -> None:
+    """Print the default blind set's worst step on the corners against the others', for
+    the waveform of ramp ratio ``a`` (k = 1)."""
     survey = BlindSettings.load()
     grid = [(j, i) for j in range(freqs.size) for i in range(len(AMPLITUDES))]
-    inside = [survey.robust(np.array([AMPLITUDES[i]]), np.array([freqs[j]]))[0] for j, i in grid]
+    inside = [survey.robust(np.array([AMPLITUDES[i]]), np.array([freqs[j]]), a=a)[0]
+              for j, i in grid]  # fmt: skip
     for label, keep in (("blind set", True), ("other settings", False)):
         pairs = zip(grid, inside, strict=True)
         cells = [(worst[j, i], AMPLITUDES[i], freqs[j]) for (j, i), k in pairs if k == keep]
+        if not cells:
+            print(f"a = {a:g}, {label}: none")
+            continue
         back = sum(w < 0.0 for w, _a, _f in cells)
-        w, a, f = min(cells)
+        w, amp, f = min(cells)
         print(
-            f"{label} on the {fidelity} corners: {len(cells)} settings, {back} step backwards "
-            f"on a corner; worst {w:.2f} of the map's step ({a:g} V at {f:.0f} Hz)"
+            f"a = {a:g}, {label} on the {fidelity} corners: {len(cells)} settings, {back} "
+            f"step backwards on a corner; worst {w:.2f} of the map's step ({amp:g} V at "
+            f"{f:.0f} Hz)"
         )
-    for a in (6.0, 6.5):
-        j = int(np.flatnonzero(np.isclose(freqs, 1000.0))[0])
-        print(f"  {a:g} V at 1 kHz: worst {worst[j, AMPLITUDES.index(a)]:.2f}")
+    if a == 0.9:
+        for amp in (6.0, 6.5):
+            j = int(np.flatnonzero(np.isclose(freqs, 1000.0))[0])
+            print(f"  {amp:g} V at 1 kHz: worst {worst[j, AMPLITUDES.index(amp)]:.2f}")
 
 
 def _reversals(ratio: np.ndarray, freqs: np.ndarray) -> None:

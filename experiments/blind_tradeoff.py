@@ -1,21 +1,24 @@
-"""What the asymmetry-robust blind set buys and costs (issue 32's run-away bound).
+"""What the asymmetry-robust blind set buys and costs against the first one (issue 32's
+run-away bound).
 
 A move from beyond the detector is made blind: nothing is read until the spot comes into
 view, so a setting that steps backwards on the plant at hand runs the table away until the
-blind budget is spent. The shipped blind set (``controllers/data/blind_settings.csv``) was
-surveyed on the per-axis model without effects; on held-out seed 18 (friction asymmetry
-α = 0.24 on the env's default model) its fastest setting steps backwards, and every
-controller runs away (412.9 µm for closed_loop). The same survey on the env's default model
-with the catalogue's friction asymmetry |α| <= 0.3 (``controllers/data/blind_asymmetry.csv``,
-``python experiments/blind_settings.py --fidelity translation --asymmetry 0.3 --drawn 16
---out controllers/data/blind_asymmetry.csv``) keeps only slow settings.
+blind budget is spent. The first blind set (``controllers/data/blind_settings.csv``, the
+default until stop 101) was surveyed on the per-axis model without effects; on held-out
+seed 18 (friction asymmetry α = 0.24 on the env's default model) its fastest setting steps
+backwards, and every controller ran away (412.9 µm for closed_loop). The same survey on the
+env's default model with the catalogue's friction asymmetry |α| <= 0.3
+(``controllers/data/blind_asymmetry.csv``, the default since stop 101: ``python
+experiments/blind_settings.py --fidelity translation --asymmetry 0.3 --drawn 16
+--ramp-ratios 0.6,0.9 --out controllers/data/blind_asymmetry.csv``) keeps only 2–3 V of
+the planner's waveform, and 2–4.5 V at 2 kHz with the ramp ratio a = 0.6.
 
-This runs the map controllers, fuzzy (which otherwise keeps the thesis's 6 V waveform
-blind) and the shipped agents (PPO and SAC through their shield, ``ppo_residual`` through
-its fuzzy base) with each blind set side by side on the benchmark's held-out and calibrated
-sets, every task (the tasks that start inside the detector do not use the blind set), and
-prints per controller and set the mean success, the episodes passed and the largest
-run-away [µm], then the episodes whose success differs.
+This runs the map controllers, fuzzy (blind, the set's fastest setting) and the shipped
+agents (PPO and SAC through their shield, ``ppo_residual`` through its fuzzy base) with
+each blind set side by side on the benchmark's held-out and calibrated sets, every task
+(the tasks that start inside the detector do not use the blind set), and prints per
+controller and set the mean success, the episodes passed and the largest run-away [µm],
+then the episodes whose success differs.
 
     python experiments/blind_tradeoff.py [--workers 2] [--plant-sets held_out,calibrated]
 
@@ -64,9 +67,9 @@ def _agent(ctx, bs, *, run, name):
     return AgentController(ctx, run, name, blind_settings=bs)
 
 
-def _factory(make: Callable[..., Controller], path: str | None):
+def _factory(make: Callable[..., Controller], path: str):
     def build(ctx):
-        return make(ctx, None if path is None else BlindSettings.load(path))
+        return make(ctx, BlindSettings.load(path))
 
     return build
 
@@ -82,9 +85,9 @@ def main() -> int:
     variants = _variants()
     names = []
     for name, make in variants.items():
-        for suffix, path in (("", None), (SUFFIX, str(ASYMMETRY_PATH))):
+        for suffix, path in (("", str(BLIND_PATH)), (SUFFIX, str(ASYMMETRY_PATH))):
             registry.register(name + suffix, _factory(make, path),
-                              f"{name} stepping blind with {Path(path or BLIND_PATH).name}",
+                              f"{name} stepping blind with {Path(path).name}",
                               overwrite=True)  # fmt: skip
             names.append(name + suffix)
     try:
@@ -94,13 +97,13 @@ def main() -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     df = result.to_pandas()
-    print(f"blind set: {BLIND_PATH.name} (shipped) vs {ASYMMETRY_PATH.name} (suffix "
+    print(f"blind set: {BLIND_PATH.name} (the first) vs {ASYMMETRY_PATH.name} (suffix "
           f"{SUFFIX}); run-away limit {RUNAWAY_LIMIT * 1e6:g} µm")  # fmt: skip
     print("controller              | plant set  | mean success | passed  | largest run-away")
     for (ctl, pset), g in df.groupby(["controller", "plant_set"], sort=False):
         print(f"{ctl:23s} | {pset:10s} | {g.success.mean():12.3f} | "
               f"{int(g.success.sum()):3d}/{len(g):3d} | {g.runaway_um.max():8.1f} µm")  # fmt: skip
-    print("episodes whose success differs (shipped → asymmetry-robust):")
+    print("episodes whose success differs (first → asymmetry-robust):")
     key = ["plant_set", "task", "seed"]
     for name in variants:
         a = df[df.controller == name].set_index(key).success

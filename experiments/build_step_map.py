@@ -2,7 +2,8 @@
 
 Sweeps the simulator through the environment's task (real parameters, 10 ms interval,
 noise off): axes A, B, C × ±1…10 V in 0.5 V steps × 100/200/500/1000/2000 Hz ×
-a = 0.9/0.95/0.99 × k = 0/1, six intervals each. Prints the row count, the wall time
+a = 0.6/0.9/0.95/0.99 × k = 0/1 (a = 0.6 for the blind set's
+fastest settings, :mod:`controllers.blind`), six intervals each. Prints the row count, the wall time
 and a few rows of the nominal family (axis B, a = 0.9, k = 1).
 
     python experiments/build_step_map.py [--out PATH]

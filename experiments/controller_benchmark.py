@@ -159,6 +159,12 @@ def main() -> None:
     out = Path(args.out)
     if not args.summarize:
         from controllers.benchmark import run_benchmark, write_outputs
+        from turntable_env.files import check_writable
+
+        try:  # before the run, not after it: a directory it may not replace is refused now
+            check_writable("out", out, directory=True)
+        except ValueError as e:
+            ap.error(str(e))
 
         names = args.controllers.split(",") if args.controllers else None
         res = run_benchmark(

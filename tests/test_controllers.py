@@ -357,17 +357,20 @@ def test_a_plant_stepping_backwards_beyond_the_detector_is_stopped_not_run_away(
 
 def _steady_step_ratio(plants, settings, axis="B"):
     """(plants, settings, directions) steady step per period over the shipped map's, noise
-    off, from rest: > 0 is the commanded direction. The plants share one fidelity."""
+    off, from rest: > 0 is the commanded direction. A setting is (amplitude [V], frequency
+    [Hz]) of the planner's waveform (a = 0.9, k = 1) or (amplitude, frequency, a), k = 1.
+    The plants share one fidelity."""
     from controllers.step_map import StepMap
     from turntable_env.envs.config import EnvConfig
     from turntable_env.envs.core import TurntableTask
 
     smap = StepMap.load()
     cfg = EnvConfig(plant=Plant("real", fidelity=plants[0].fidelity), axis=axis, noise=False)
-    cases = [(d * a, f) for a, f in settings for d in (1.0, -1.0)]
-    acts = np.array([cfg.scaling.encode(a, f, 0.9, 1.0) for a, f in cases])
-    nominal = np.array([smap.step_size(axis, a, f, 0.9, 1.0) for a, f in cases])
-    per = np.array([f * cfg.control_interval for _a, f in cases])
+    cases = [(d * s[0], s[1], s[2] if len(s) > 2 else 0.9) for s in settings
+             for d in (1.0, -1.0)]  # fmt: skip
+    acts = np.array([cfg.scaling.encode(amp, f, a, 1.0) for amp, f, a in cases])
+    nominal = np.array([smap.step_size(axis, amp, f, a, 1.0) for amp, f, a in cases])
+    per = np.array([f * cfg.control_interval for _amp, f, _a in cases])
     rng = np.random.default_rng(0)
     out = []
     for plant in plants:
@@ -387,9 +390,10 @@ def _steady_step_ratio(plants, settings, axis="B"):
 )
 def test_the_blind_settings_keep_their_direction_where_a_fast_one_does_not(fidelity, fast):
     """A blind move cannot be checked, so the map controllers step blind only with the
-    settings whose worst step over the map's, across 160 plants with friction and preload
-    ×0.5–2 and amplifier ×0.5–1.5, is at least −BLIND_TOLERANCE (controllers/blind.py,
-    experiments/blind_settings.py, on the reduced model). On that family's eight corners,
+    settings whose worst step over the map's, across a survey's plants, is at least
+    −BLIND_TOLERANCE (controllers/blind.py, experiments/blind_settings.py). The first survey
+    (``BLIND_PATH``, the default until stop 101), on the reduced model: 160 plants with
+    friction and preload ×0.5–2 and amplifier ×0.5–1.5. On that family's eight corners,
     re-measured here with the test's own stepping, the largest blind settings (6 V and
     6.5 V at 1 kHz) step forwards by at least 0.03 of the map's step in both directions,
     while a fast setting outside the blind set steps backwards on a corner: on the reduced
@@ -397,9 +401,9 @@ def test_the_blind_settings_keep_their_direction_where_a_fast_one_does_not(fidel
     parameters, which the survey never ran), 9.5 V at 1 kHz (friction and preload ×2).
     `python experiments/blind_settings.py --check independent` prints every setting's
     worst on these corners."""
-    from controllers.blind import BlindSettings
+    from controllers.blind import BLIND_PATH, BlindSettings
 
-    survey = BlindSettings.load()
+    survey = BlindSettings.load(BLIND_PATH)
     blind = [(6.0, 1000.0), (6.5, 1000.0)]
     assert survey.robust(np.array([a for a, _f in blind]), np.array([f for _a, f in blind])).all()
     assert not survey.robust(np.array([fast[0]]), np.array([fast[1]]))[0]
@@ -427,22 +431,28 @@ def _held_out_seed_18():
 
 @pytest.mark.slow  # the translation form on 17 plants (about 10 s of CPU)
 def test_the_asymmetry_blind_set_keeps_its_direction_where_the_shipped_one_does_not():
-    """The shipped blind set was surveyed on the per-axis model without effects. On held-out
-    seed 18 (the env's default model, friction asymmetry α = 0.24) its fastest setting,
-    6 V at 1 kHz, steps backwards when commanded forwards: there every controller ran away
-    from beyond the detector (docs/controllers.md). The same survey on the translation form
-    with the catalogue's asymmetry |α| <= 0.3 (controllers/data/blind_asymmetry.csv,
-    ``python experiments/blind_settings.py --fidelity translation --asymmetry 0.3 --drawn
-    16 --out controllers/data/blind_asymmetry.csv``) leaves that setting out; its fastest,
-    3 V at 500 Hz, steps within BLIND_TOLERANCE of forwards in both directions on that
-    plant and on the box's eight corners at α = ±0.3, re-measured here."""
-    from controllers.blind import ASYMMETRY_PATH, BLIND_TOLERANCE, BlindSettings
+    """The first blind set (``BLIND_PATH``) was surveyed on the per-axis model without
+    effects. On held-out seed 18 (the env's default model, friction asymmetry α = 0.24) its
+    fastest setting, 6 V at 1 kHz, steps backwards when commanded forwards: there every
+    controller ran away from beyond the detector (docs/controllers.md). The survey on the
+    translation form with the catalogue's asymmetry |α| <= 0.3 (``ASYMMETRY_PATH``, the
+    default since stop 101: ``python experiments/blind_settings.py --fidelity translation
+    --asymmetry 0.3 --drawn 16 --ramp-ratios 0.6,0.9 --out
+    controllers/data/blind_asymmetry.csv``) leaves that setting out. Its fastest in the
+    planner's waveform, 3 V at 500 Hz, and its fastest of all, 4.5 V at 2 kHz with a = 0.6
+    (5 V there steps backwards on a surveyed plant), step within BLIND_TOLERANCE of
+    forwards in both directions on that plant and on the box's eight corners at α = ±0.3,
+    re-measured here."""
+    from controllers.blind import ASYMMETRY_PATH, BLIND_PATH, BLIND_TOLERANCE, BlindSettings
 
-    shipped, asym = BlindSettings.load(), BlindSettings.load(ASYMMETRY_PATH)
-    fast, slow = (6.0, 1000.0), (3.0, 500.0)
+    shipped, asym = BlindSettings.load(BLIND_PATH), BlindSettings.load(ASYMMETRY_PATH)
+    assert BlindSettings.load().worst == asym.worst  # the default
+    fast, slow, fine = (6.0, 1000.0), (3.0, 500.0), (4.5, 2000.0, 0.6)
     assert shipped.robust(np.array([fast[0]]), np.array([fast[1]]))[0]
     assert not asym.robust(np.array([fast[0]]), np.array([fast[1]]))[0]
     assert asym.robust(np.array([slow[0]]), np.array([slow[1]]))[0]
+    assert asym.robust(np.array([4.5]), np.array([2000.0]), a=0.6)[0]
+    assert not asym.robust(np.array([5.0]), np.array([2000.0]), a=0.6)[0]
     corners = [
         Plant("real", fidelity="translation").replace(
             factors={"friction": fr, "preload": pl, "amplifier": am},
@@ -450,32 +460,49 @@ def test_the_asymmetry_blind_set_keeps_its_direction_where_the_shipped_one_does_
         )
         for al in (-0.3, 0.3) for fr in (0.5, 2.0) for pl in (0.5, 2.0) for am in (0.5, 1.5)
     ]  # fmt: skip
-    ratio = _steady_step_ratio([_held_out_seed_18(), *corners], [fast, slow])
+    ratio = _steady_step_ratio([_held_out_seed_18(), *corners], [fast, slow, fine])
     assert ratio[0, 0, 0] < -0.2, ratio[0, 0]  # forwards commanded, backwards stepped
-    assert ratio[:, 1].min() >= -BLIND_TOLERANCE, ratio[:, 1]
+    assert ratio[:, 1:].min() >= -BLIND_TOLERANCE, ratio[:, 1:]
 
 
 @pytest.mark.parametrize("direction", [1, -1])
-def test_fuzzy_steps_blind_with_the_blind_sets_fastest_setting_in_its_direction(direction):
-    """With a blind set, fuzzy's way in from beyond the detector takes the set's fastest
-    setting on the map in the commanded direction (3 V at 500 Hz for the asymmetry-robust
-    set), and the move carries that direction in its amplitude and its travel; from a
-    saturated reading on the far side, its act() asks for it."""
-    from controllers.blind import ASYMMETRY_PATH, BlindSettings
+@pytest.mark.parametrize(("path", "setting"), [("BLIND_PATH", (6.5, 1000.0, 0.9)),
+                                                ("ASYMMETRY_PATH", (4.5, 2000.0, 0.6))])
+def test_fuzzy_steps_blind_with_a_robust_setting_within_its_rules_move(
+    direction, path, setting
+):
+    """Fuzzy's way in from beyond the detector steps with the blind set's setting of the
+    largest map travel within the rules' move (MapPlanner.blind_within: the fastest, 6.5 V
+    at 1 kHz, a = 0.9, for the first set and 4.5 V at 2 kHz, a = 0.6, for the
+    asymmetry-robust default, where the move allows; the smallest where none is within
+    it), in the commanded direction, waveform and all: from a saturated reading on the far
+    side its act() asks for a robust setting no longer than the rules' largest move."""
+    from controllers import blind
+    from controllers.blind import BlindSettings
     from controllers.fuzzy import FuzzyStepController
 
     env = _env(noise=False)
     ctx = ControllerContext.from_env(env)
-    ctl = FuzzyStepController(ctx, blind_settings=BlindSettings.load(ASYMMETRY_PATH))
-    mv = ctl.blind_moves[direction]
-    assert (abs(mv.amplitude), mv.frequency) == (3.0, 500.0)
-    assert mv.amplitude * direction > 0 and mv.expected * direction > 0
+    survey = BlindSettings.load(getattr(blind, path))
+    ctl = FuzzyStepController(ctx, blind_settings=survey)
+    fastest = ctl.planner.blind_within(direction, np.inf)
+    assert (abs(fastest.amplitude), fastest.frequency, fastest.a, fastest.k) == (*setting, 1.0)
+    assert fastest.amplitude * direction > 0 and fastest.expected * direction > 0
+    runs = np.abs(ctl.planner.blind_rows(direction)[:, 2])
+    smallest = ctl.planner.blind_within(direction, 0.5 * runs.min())
+    assert abs(smallest.expected) == pytest.approx(runs.min())
+    middle = np.sort(runs)[len(runs) // 2]
+    assert abs(ctl.planner.blind_within(direction, middle * (1 + 1e-9)).expected) == middle
     opts = {"start_angle": -direction * 50e-6 / R_TABLE, "target_angle": 0.0}
     obs, _ = env.reset(seed=0, options=opts)
     ctl.reset(obs, _known(opts, 0.3))
-    amp, freq = ctx.scaling.decode(np.asarray(ctl.act(obs), dtype=float))[:2]
-    assert amp == pytest.approx(3.0 * direction, rel=1e-6)
-    assert freq == pytest.approx(500.0, rel=1e-6)
+    amp, freq, a, k = ctx.scaling.decode(np.asarray(ctl.act(obs), dtype=float))[:4]
+    mv = ctl.last_move
+    assert np.allclose((amp, freq, a, k), (mv.amplitude, mv.frequency, mv.a, mv.k), rtol=1e-6)
+    assert amp * direction > 0
+    assert survey.robust(np.array([mv.amplitude]), np.array([mv.frequency]), a=mv.a, k=mv.k)[0]
+    travel = abs(mv.expected)
+    assert travel <= ctl.max_steps * abs(ctl.reference_step[direction]) or travel == runs.min()
 
 
 @pytest.mark.slow  # four episodes of up to 200 intervals on the translation form
@@ -486,22 +513,24 @@ def test_the_asymmetry_blind_set_brings_seed_18_in_without_running_away(
 ):
     """Held-out seed 18's move forwards to the centre from beyond the detector (dead
     reckoning exact, stated ±30 %), as the benchmark's 200 µm move for closed_loop and its
-    50 µm move for fuzzy (where each ran away). With the shipped blind set (fuzzy: its fixed
-    6 V waveform) the controller steps backwards unseen and runs the table more than the
-    benchmark's 50 µm bound away before its blind budget stops it; with the asymmetry-robust
-    set it steps forwards, slowly, into the detector without running away. Closed_loop then
-    ends within 1 µm of the target; fuzzy's fixed 6 V waveform steps backwards out of the
-    detector again on this plant (its rules keep no direction record, unlike the map
-    controllers' room for a reversal), and its monitor holds the table just beyond the edge.
+    50 µm move for fuzzy (where each ran away). With the first blind set (``BLIND_PATH``)
+    the controller steps backwards unseen: closed_loop runs the table more than the
+    benchmark's 50 µm bound away before its blind budget stops it, fuzzy (its rules' moves
+    made with that set's settings) more than 20 µm; with the
+    asymmetry-robust set (the default) it steps forwards into the detector without running
+    away. Closed_loop then ends within 1 µm of the target; fuzzy's fixed 6 V waveform steps
+    backwards out of the detector again on this plant (its rules keep no direction record,
+    unlike the map controllers' room for a reversal), and its monitor holds the table just
+    beyond the edge.
     """
-    from controllers.blind import ASYMMETRY_PATH, BlindSettings
+    from controllers.blind import ASYMMETRY_PATH, BLIND_PATH, BlindSettings
     from controllers.closed_loop import ClosedLoopStepController
     from controllers.fuzzy import FuzzyStepController
 
     steps = 200 if move_m > 100e-6 else 150  # the tasks' 2 s and 1.5 s
     env = _env(plant=_held_out_seed_18(), max_episode_steps=steps, noise=False)
     ctx = ControllerContext.from_env(env)
-    survey = BlindSettings.load(ASYMMETRY_PATH) if asymmetry_set else None
+    survey = BlindSettings.load(ASYMMETRY_PATH if asymmetry_set else BLIND_PATH)
     cls = {"closed_loop": ClosedLoopStepController, "fuzzy": FuzzyStepController}[name]
     opts = {"start_angle": -move_m / R_TABLE, "target_angle": 0.0}
     res = run_episode(env, cls(ctx, blind_settings=survey), seed=0, options=opts,
@@ -512,18 +541,23 @@ def test_the_asymmetry_blind_set_brings_seed_18_in_without_running_away(
         assert np.abs(res.angle).min() < ctx.angle_range  # the spot came into view
         if name == "closed_loop":
             assert abs(res.angle[-1]) * R_TABLE < 1e-6
-    else:
-        assert runaway > 50e-6
+    else:  # backwards unseen: closed_loop beyond the bound, fuzzy's shorter moves 32 µm
+        assert runaway > (50e-6 if name == "closed_loop" else 20e-6)
 
 
-@pytest.mark.parametrize("shielded", [False, True])
-def test_the_shield_keeps_a_policy_stepping_backwards_blind_from_running_away(shielded):
+@pytest.mark.parametrize("shield_set", [None, "BLIND_PATH", "ASYMMETRY_PATH"])
+def test_the_shield_keeps_a_policy_stepping_backwards_blind_from_running_away(shield_set):
     """A policy that always asks for 9.5 V at 2 kHz towards the target, on held-out seed 5
     of suite seed 1 (friction ×1.60, preload ×1.49, amplifier ×0.65: 2 kHz steps backwards
     there) from 198 µm beyond the detector: bare, it runs the table more than 10 µm away
     in 100 intervals; behind the BlindShield (controllers/shield.py) the blind moves take
-    the direction-robust settings and the table reaches the detector without stepping away.
+    the direction-robust settings and the table does not step away. With the first blind
+    set (6.5 V at 1 kHz) it reaches the detector; the asymmetry-robust default's settings
+    (up to 4.5 V at 2 kHz, a = 0.6, and 3 V at 500 Hz) barely step on a plant this slow
+    (the cost of a set that keeps its direction under friction asymmetry: docs/controllers.md).
     """
+    from controllers import blind
+    from controllers.blind import BlindSettings
     from controllers.shield import BlindShield
 
     plant = Plant("real").replace(factors={"friction": 1.597, "preload": 1.489,
@@ -534,20 +568,23 @@ def test_the_shield_keeps_a_policy_stepping_backwards_blind_from_running_away(sh
     opts = {"start_angle": start, "target_angle": -1.6e-6 / R_TABLE}
     brief = LabBrief(opts["target_angle"], start_estimate_rad=1.15 * start, start_error=0.3)
     obs, _ = env.reset(seed=0, options=opts)
-    shield = BlindShield(ctx)
-    shield.reset(obs, brief)
+    shield = None
+    if shield_set is not None:
+        shield = BlindShield(ctx, blind_settings=BlindSettings.load(getattr(blind, shield_set)))
+        shield.reset(obs, brief)
     fast = ctx.scaling.encode(-9.5, 2000.0, 0.9, 1.0, 0.0)
     angles = [start]
     for _ in range(100):
-        action = shield.filter(obs, fast) if shielded else fast
+        action = shield.filter(obs, fast) if shield is not None else fast
         obs, *_, info = env.step(action)
         angles.append(info["angle_rad"])
     away = (max(angles) - start) * R_TABLE
-    if shielded:
-        assert away <= 1e-6
-        assert min(np.abs(angles)) <= ctx.angle_range  # the spot was reached
-    else:
+    if shield is None:
         assert away > 10e-6
+    else:
+        assert away <= 1e-6
+        reached = min(np.abs(angles)) <= ctx.angle_range
+        assert reached == (shield_set == "BLIND_PATH")
 
 
 def test_the_shield_passes_a_valid_reading_and_idles_a_move_away_from_the_detector():
@@ -582,24 +619,52 @@ def test_the_blind_settings_file_is_validated(tmp_path):
     p.write_text("frequency_hz,amplitude_v,worst\n")
     with pytest.raises(ValueError, match=r"blind\.csv:1: header"):
         BlindSettings.load(p)
+    # a survey of the planner's waveform alone may leave out a and k (a = 0.9, k = 1)
+    p = tmp_path / "legacy.csv"  # (load caches by path)
+    p.write_text("frequency_hz,amplitude_v,worst_ratio,backward_share\n1000,6,0.1,0\n")
+    legacy = BlindSettings.load(p)
+    assert legacy.families() == [(0.9, 1.0)]
+    assert legacy.robust(np.array([6.0]), np.array([1000.0]))[0]
+    assert not legacy.robust(np.array([6.0]), np.array([1000.0]), a=0.6)[0]
+    # the survey of several waveforms: a ramp ratio outside the generator's 0.5–0.99
+    p = tmp_path / "blind.csv"
+    p.write_text("frequency_hz,amplitude_v,a,k,worst_ratio,backward_share\n"
+                 "2000,4,0.6,1,0.01,0\n2000,4,0.3,1,0.01,0\n")  # fmt: skip
+    with pytest.raises(ValueError, match=r"blind\.csv:3: column 'a' = 0\.3"):
+        BlindSettings.load(p)
 
 
+@pytest.mark.parametrize("first_set", [True, False])
 @pytest.mark.parametrize("name", ["feedforward", "closed_loop"])
-def test_a_plant_stepping_backwards_at_the_fast_settings_is_reached_blind(name):
+def test_a_plant_stepping_backwards_at_the_fast_settings_is_reached_blind(name, first_set):
     """Held-out seed 5 of suite seed 1 (benchmark 2.3): friction ×1.60, preload ×1.49,
     amplifier ×0.65, on which 2 kHz steps backwards (at 9.5 V more than 10 µm in 100
     intervals: the shield test below). The map controllers planned their blind 200 µm move
-    at 2 kHz and ran 59 µm away; with the blind settings (controllers/blind.py) they
-    arrive."""
+    at 2 kHz and ran 59 µm away; with the first blind set (controllers/blind.py,
+    ``BLIND_PATH``) they arrive. With the asymmetry-robust default they do not step away
+    either, but its settings barely step on a plant this slow and the table stays beyond
+    the detector: the trade docs/controllers.md measures."""
+    from controllers.blind import BLIND_PATH, BlindSettings
+    from controllers.registry import spec
+
     plant = Plant("real").replace(factors={"friction": 1.597, "preload": 1.489,
                                            "amplifier": 0.647})  # fmt: skip
     env = _env(plant=plant, max_episode_steps=200, noise=False)
     start = 198.4e-6 / R_TABLE
     opts = {"start_angle": start, "target_angle": -1.6e-6 / R_TABLE}
     brief = LabBrief(opts["target_angle"], start_estimate_rad=1.15 * start, start_error=0.3)
-    res = run_episode(env, make(name, env), seed=0, options=opts, brief=brief)
+    ctx = ControllerContext.from_env(env)
+    if first_set:
+        cls = type(spec(name).factory(ctx))
+        ctl = cls(ctx, blind_settings=BlindSettings.load(BLIND_PATH))
+    else:
+        ctl = make(name, env)
+    res = run_episode(env, ctl, seed=0, options=opts, brief=brief)
     assert (np.abs(res.angle).max() - start) * R_TABLE <= 1e-6  # no step away
-    assert res.metrics()["final_error_nm"] <= 10.0
+    if first_set:
+        assert res.metrics()["final_error_nm"] <= 10.0
+    else:
+        assert np.abs(res.angle).min() > ctx.angle_range
 
 
 @pytest.mark.parametrize("name", ["feedforward", "fuzzy", "closed_loop"])

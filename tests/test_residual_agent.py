@@ -155,22 +155,19 @@ def test_the_benchmark_runs_a_residual_agent_as_it_was_trained(tmp_path):
 def test_a_residual_agents_base_steps_blind_with_the_blind_set_it_is_given(base):
     """make_interface(..., blind_settings=) hands the blind set to the residual agent's base
     controller (AgentController passes its own there, as the shield's for other agents):
-    with the asymmetry-robust set (controllers/data/blind_asymmetry.csv) no blind move of
-    the base is above 3 V, where the shipped set allows 6.5 V at 1 kHz; anything but a
+    with the first blind set (controllers/data/blind_settings.csv) its blind moves go up to
+    6.5 V (at 1 kHz), with the asymmetry-robust set (controllers/data/blind_asymmetry.csv),
+    which is also the default, up to 4.5 V (at 2 kHz, a = 0.6); anything but a
     BlindSettings is refused by name."""
     from agents.interface import make_interface
-    from controllers.blind import ASYMMETRY_PATH, BlindSettings
+    from controllers.blind import ASYMMETRY_PATH, BLIND_PATH, BlindSettings
 
     ctx = ControllerContext.from_env(gym.make("PiezoTurntable-v0"))
     config = InterfaceConfig(base=base)
-    for survey, top in ((BlindSettings.load(ASYMMETRY_PATH), 3.0), (None, 6.5)):
-        state = make_interface(ctx, config, blind_settings=survey).row_state()
-        if base == "fuzzy":
-            amps = [] if survey is None else [m.amplitude for m in state.blind_moves.values()]
-            assert (state.blind_moves is None) == (survey is None)
-        else:
-            p = state.planner
-            amps = [a for d in (1, -1) for a in p.moves[d][p.robust[d], 0]]
-        assert not amps or max(abs(a) for a in amps) == pytest.approx(top)
+    asym = BlindSettings.load(ASYMMETRY_PATH)
+    for survey, top in ((asym, 4.5), (None, 4.5), (BlindSettings.load(BLIND_PATH), 6.5)):
+        p = make_interface(ctx, config, blind_settings=survey).row_state().planner
+        amps = [a for d in (1, -1) for a in p.blind_rows(d)[:, 0]]
+        assert max(abs(a) for a in amps) == pytest.approx(top)
     with pytest.raises(ValueError, match="blind_settings=int"):
         make_interface(ctx, config, blind_settings=5)
