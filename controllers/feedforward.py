@@ -59,7 +59,7 @@ class MapPlanner:
             at 500 Hz and 2 kHz: ``experiments/step_gain_survey.py``), and another plant's
             step there has no bounded ratio to the map's, so no plan relies on it.
         blind_settings: the survey of settings whose direction does not depend on the
-            plant (default: the shipped one, :mod:`controllers.blind`); with none robust in
+            plant (default: ``ASYMMETRY_PATH``'s, :mod:`controllers.blind`); with none robust in
             a direction a blind plan there finds no move. A blind move may take a robust
             setting of any waveform the survey and the map both hold (the default's a = 0.6
             at 2 kHz); every other move keeps the family (a, k).

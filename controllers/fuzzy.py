@@ -138,10 +138,11 @@ class FuzzyStepController(StepScanController):
         whose step per period at ``amplitude`` (mean over f ≤ max_steps/Δt) the online
         step gain is measured against (default: the shipped one); caution: the gain's
         upper bound before anything is measured (:class:`~controllers.step_gain.StepGains`);
-        blind_settings: the blind set (:mod:`controllers.blind`; default: the shipped
-            one): on the way in from beyond the detector each interval steps with its
-            setting of the largest map travel within the rules' move (n periods of the
-            fixed waveform), not with the fixed waveform.
+        blind_settings: the blind set (:mod:`controllers.blind`; default: the
+            asymmetry-robust one, ``ASYMMETRY_PATH``): on the way in from beyond the
+            detector each interval steps with its setting of the largest map travel
+            within the rules' move (n periods of the fixed waveform), not with the fixed
+            waveform.
 
     The plant it is on: the error enters the rules divided by the learned step gain γ_d
     (input scaling, a plant that steps 2× the map sees half the error), and no interval

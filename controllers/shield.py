@@ -50,7 +50,8 @@ class BlindShield:
     Args:
         ctx: the plant context (axis, Δt, action scaling, detector range, rig reading).
         step_map: the map whose travel the budget counts (default: the shipped one).
-        blind_settings: the survey of direction-robust settings (default: the shipped one).
+        blind_settings: the survey of direction-robust settings (default:
+            ``controllers.blind.ASYMMETRY_PATH``'s).
     """
 
     def __init__(
