@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .base import ControllerContext, Move, StepScanController
-from .blind import BlindSettings, check_blind_settings
+from .blind import FAMILY, BlindSettings, check_blind_settings
 from .lab import LabBrief
 from .step_gain import StepGains
 from .step_map import StepMap
@@ -70,8 +70,8 @@ class MapPlanner:
         step_map: StepMap,
         ctx: ControllerContext,
         *,
-        a: float = 0.9,
-        k: float = 1.0,
+        a: float = FAMILY[0],
+        k: float = FAMILY[1],
         min_step: float = 1e-6,
         min_amplitude: float = 2.0,
         blind_settings: BlindSettings | None = None,

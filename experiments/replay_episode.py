@@ -23,19 +23,15 @@ import numpy as np
 from controllers import make
 from controllers.base import ControllerContext
 from controllers.benchmark import SUITE_SEED
-from controllers.blind import ASYMMETRY_PATH, BlindSettings
-from controllers.closed_loop import ClosedLoopStepController
-from controllers.feedforward import FeedForwardController
-from controllers.fuzzy import FuzzyStepController
+from controllers.blind import BLIND_PATH, BlindSettings
 from controllers.metrics import BAND, HOLD
 from controllers.plant_sets import PLANT_SETS
 from controllers.tasks import TASKS
 from turntable_env.envs.config import OBS, EnvConfig
 from turntable_env.envs.core import TurntableTask
 
-# the step controllers that take a blind set (controllers.blind)
-STEP = {"closed_loop": ClosedLoopStepController, "feedforward": FeedForwardController,
-        "fuzzy": FuzzyStepController}  # fmt: skip
+# the step controllers, which take a blind set (controllers.blind)
+STEP = ("closed_loop", "feedforward", "fuzzy")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -46,9 +42,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("seed", type=int)
     ap.add_argument("--from", dest="start", type=int, default=0, help="first interval printed")
     ap.add_argument("--seeds", type=int, default=20, help="the cell's seed count")
-    ap.add_argument("--blind", choices=("shipped", "asymmetry"), default="shipped",
-                    help="the blind set a map controller steps with beyond the detector "
-                         "(controllers.blind: BLIND_PATH or ASYMMETRY_PATH)")
+    ap.add_argument("--blind", choices=("default", "first"), default="default",
+                    help="the blind set a step controller steps with beyond the detector "
+                         "(controllers.blind: ASYMMETRY_PATH, the default, or BLIND_PATH, "
+                         "the default until stop 101)")
     args = ap.parse_args(argv)
     if not 0 <= args.seed < args.seeds:
         ap.error(f"seed={args.seed}: must lie in [0, --seeds={args.seeds})")
@@ -62,12 +59,11 @@ def main(argv: list[str] | None = None) -> int:
     sim = TurntableTask(cfg, 1)
     sim.reset_row(0, np.random.default_rng([SUITE_SEED, args.seed, 1]), spec.options(),
                   plant=plant)  # fmt: skip
-    if args.blind == "asymmetry":
-        if args.controller not in STEP:
-            ap.error(f"--blind asymmetry: controller must be one of {sorted(STEP)}")
-        ctl = STEP[args.controller](ctx, blind_settings=BlindSettings.load(ASYMMETRY_PATH))
-    else:
-        ctl = make(args.controller, ctx)
+    if args.blind == "first" and args.controller not in STEP:
+        ap.error(f"--blind first: controller must be one of {', '.join(STEP)}")
+    ctl = make(args.controller, ctx)
+    if args.blind == "first":
+        ctl = type(ctl)(ctx, blind_settings=BlindSettings.load(BLIND_PATH))
     obs = sim.observation()
     ctl.reset(obs[0], spec.brief)
     # the cell's noise draws (one column per seed), as the benchmark draws them
