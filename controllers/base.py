@@ -65,12 +65,22 @@ The reading of a bent detector: an odd cubic of the photodiode (the catalogue's
 ``detector_nonlinearity``) leaves a table held on a target near the edge κ·θ³/θ_lin² off it,
 and no reading alone tells. The controller's own offset does: in scan mode the table
 follows it, K·Δu, so an offset dither out and back reads the detector's local slope
-(:mod:`controllers.detector_linearity`). An episode whose target lies beyond
-``DITHER_FROM`` θ_lin, or whose known reference holds a set point beyond it long enough
-to dither there, dithers ``PROBES`` times before its first step (the slope near the
-centre), and a settled target beyond it up to ``DITHERS`` times (the slope near
-the edge); the first dither at each place conditions the contacts and is not read. Once
-κ̂ is decided the reading is inverted through the cubic.
+(:mod:`controllers.detector_linearity`). Where a cubic of the largest κ planned for
+(``KAPPA_PRIOR``) would move the reading by more than ``DITHER_SHARE`` of the tolerance
+(beyond :attr:`ControllerContext.dither_from`, 0.18 θ_lin on the real turntable): an
+episode whose target lies beyond it, or whose known reference holds a set point beyond it
+long enough to dither there, first measures the reading's noise over ``NOISE_MIN`` idle
+intervals (a floor vibration's too: a dither's slope is weighed by it) and dithers
+``PROBES`` times before its first step; a settled target beyond it dithers up to
+``DITHERS`` times, back to back while the corrected reading holds it on the target, where
+a dither read at an m² at most half or at least twice its own pairs with it. A known
+reference whose last value needs κ but whose own places pair with none of it (a ramp from
+−4 to +4 µm) first visits the detector's centre for ``VISIT_DITHERS`` dithers; and a place
+near the centre is dithered on where it pairs with such a last value. The first dither at
+each place conditions the contacts and is not read. Once κ̂ is decided the reading is
+inverted through the cubic, and a target that then reads beyond the clip (κ̂ > 0 near the
+edge) is held open loop from an anchor inside it (``ANCHOR_FRACTION``), the offset stepped
+by the rest over the fitted scan gain.
 """
 
 from __future__ import annotations
@@ -112,6 +122,7 @@ HOLD_SIGMAS = 3.0
 # their error changes are no noise sample, and their errors go to the PID, not the hold
 SETTLING = 3
 NOISE_WINDOW = 12  # scan intervals whose error changes estimate the reading's noise
+NOISE_MIN = 4  # error changes measured before a dither is read (its slope is weighed by them)
 MIN_LEARN = 5e-6  # rad: smallest map move the step gains learn from (50 nm at R = 10 mm)
 # the share of the error the first scan interval after stepping closes through K⁻¹ [-]:
 # below 1, so a plant whose scan gain is up to 25 % above the model's does not overshoot
@@ -121,18 +132,34 @@ HANDOVER_GAIN = 0.8
 # the table by nothing)
 DEAD_MIN = 0.3
 # the detector's linearity (controllers.detector_linearity), read from offset dithers out
-# and back over two scan intervals: one before the first step of an episode that starts
-# inside the detector, up to DITHERS on a settled target beyond DITHER_FROM × θ_lin
+# and back over two scan intervals: PROBES before the first step of an episode that starts
+# inside the detector, up to DITHERS on a settled target beyond ControllerContext.dither_from
 DITHER_FRACTION = 0.4  # of u_max: the dither's offset step, towards the detector's centre
 # (8 V made low-friction held-out plants slip in scratch trials: their way back fell short)
-DITHER_FROM = 0.6  # of θ_lin: nearer the centre a cubic moves the reading by ≤ 0.36·κ·θ
-DITHERS = 5  # dithers per target at most (the first after stepping conditions the contacts)
+# the largest |κ| a dither plan prepares for [-] (the held-out draws' 0.05–0.15, the
+# catalogue's typical 0.1): a target is dithered where a cubic of it would move the reading
+# by more than DITHER_SHARE of the env's tolerance, KAPPA_PRIOR·m³·θ_lin > DITHER_SHARE·tol
+# (m ≥ 0.18 for the 1 µrad tolerance and θ_lin = 571 µrad; ControllerContext.dither_from)
+KAPPA_PRIOR = 0.15
+DITHER_SHARE = 0.5
+DITHERS = 8  # dithers per target at most (the first after stepping conditions the contacts)
 FAR_HOLD = SETTLING + 4  # intervals a far set point must hold for two dithers after settling
-PROBES = 2  # dithers before the first step (the first conditions the contacts)
+PROBES = 6  # dithers before the first step (the first conditions the contacts)
 # the last seconds of a known reference (a tracking task's brief) are not dithered: the set
 # point is then held for use, and a dither with the PID's settling takes 5 intervals
 QUIET_END_S = 0.3
-
+# a known reference whose last level needs κ (beyond ControllerContext.dither_from) but
+# whose levels give no dither site at an m² at most half or at least twice its own (a ramp
+# from −4 to +4 µm, back and forth about the centre) first visits the detector's centre:
+# the controller aims at θ = 0 for VISIT_DITHERS dithers there (the first conditions the
+# contacts), at most until VISIT_SHARE of the reference before its quiet end has passed
+VISIT_DITHERS = PROBES
+VISIT_SHARE = 0.5
+# a target whose reading through the decided cubic lies beyond the clip (κ > 0.09 reads the
+# edge move's 0.93 θ_lin above θ_lin) is held open loop from an anchor inside it: the PID
+# settles on the angle that reads ANCHOR_FRACTION of the saturation's, then the offset
+# steps by the rest over K̂, the fitted scan gain (the stick plant follows it, K·Δu)
+ANCHOR_FRACTION = 0.97
 
 
 def blind_budget(estimate: float, error: float, angle_range: float) -> float:
@@ -141,6 +168,7 @@ def blind_budget(estimate: float, error: float, angle_range: float) -> float:
     distance to the detector's edge ``angle_range`` [rad] (at least one detector range)."""
     dist = max(abs(estimate) - angle_range, angle_range)
     return BLIND_FACTOR * (1.0 + error) * dist
+
 
 @dataclass(frozen=True)
 class ControllerContext:
@@ -217,6 +245,13 @@ class ControllerContext:
         """The table angle at the edge of the detector's linear range [rad]: θ_lin of
         Eq. 4.1 converted with the rig's mirror tilt and gain (:meth:`Detector.table_angle`)."""
         return float(self.detector.table_angle(self.detector.angle_range))
+
+    @property
+    def dither_from(self) -> float:
+        """The target m = |θ|/θ_lin [-] from which a detector cubic of ``KAPPA_PRIOR`` would
+        move the reading by more than ``DITHER_SHARE`` of the band: κ·θ³/θ_lin² (the
+        catalogue's ``detector_nonlinearity``) = DITHER_SHARE·tolerance."""
+        return float(np.cbrt(DITHER_SHARE * self.tolerance / (KAPPA_PRIOR * self.angle_range)))
 
     @property
     def scan_range(self) -> float:
@@ -345,17 +380,21 @@ class StepScanController(Controller):
         obs = self.ctx.lab_observation(obs)
         self._brief = brief
         self._interval = 0  # k, the index of the observation the next act() reads
-        self.target = self._aim(float(obs[OBS.target_angle_rad]))
-        meas = float(obs[OBS.measured_angle_rad])
-        sat = self.saturated(meas)
+        self._dithered: dict[float, int] = {}  # dithers made per target [rad]
+        self._visit = self._plans_visit()  # aims at the centre until its dithers are done
         self.misalignment.reset()
         self.linearity.reset()
+        self._beyond: tuple[float, float] | None = None  # (target [rad], offset [V]) held
+        self.target = self._anchored(self._aim(float(obs[OBS.target_angle_rad])))
+        meas = float(obs[OBS.measured_angle_rad])
+        sat = self.saturated(meas)
         # a dither under way: (phase 1 out / 2 back, offset before [V], its step [V],
         # readings before and after the way out [rad])
         self._cycle: tuple[int, float, float, float, float] | None = None
-        self._dithered: dict[float, int] = {}  # dithers made per target [rad]
         self._site = 0  # dithers made since the last step (the first only conditions)
         self._probes = 0  # dithers made before the first step (up to PROBES)
+        self._idle_raw: float | None = None  # the last idle start interval's raw reading
+        self._dither_target: float | None = None  # the target the last dither began on
         if not sat:
             meas = self._read(obs, meas)
         self.estimate = meas  # rad, believed angle: the reading where it is valid, ...
@@ -396,11 +435,28 @@ class StepScanController(Controller):
         against r[k+1]); the observation's ``commanded`` r[k] where the brief has no
         reference or disagrees with it (another reference than the brief's)."""
         brief, k = self._brief, self._interval
+        if self._visit:
+            deadline = VISIT_SHARE * (len(brief.reference_rad) - self._quiet())
+            if self._dithered.get(0.0, 0) >= VISIT_DITHERS or k >= deadline:
+                self._visit = False  # (the reference goes on from where it is now)
+            else:
+                return 0.0
         if brief.reference_rad is None or np.float32(brief.reference_at(k)) != np.float32(
             commanded
         ):
             return commanded
         return brief.reference_at(k + 1)
+
+    def _anchored(self, target: float) -> float:
+        """The angle [rad] aimed at for ``target``: the target itself, or where its reading
+        through the decided cubic lies beyond ``ANCHOR_FRACTION`` of the saturation's,
+        the anchor inside that reads it (``_far_target`` keeps the target)."""
+        self._far_target: float | None = None
+        lin, edge = self.linearity, ANCHOR_FRACTION * self._sat
+        if lin.kappa <= 0.0 or abs(lin.reading(target)) < edge:
+            return target
+        self._far_target = target
+        return lin.table_angle(math.copysign(edge, target))
 
     def saturated(self, measured: float) -> bool:
         return abs(measured) >= self._sat
@@ -501,8 +557,12 @@ class StepScanController(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         obs = self.ctx.lab_observation(obs)
         meas = float(obs[OBS.measured_angle_rad])
-        self.target = self._aim(float(obs[OBS.target_angle_rad]))  # r[k+1] where known
+        self.target = self._anchored(self._aim(float(obs[OBS.target_angle_rad])))
         self._interval += 1
+        if self._beyond is not None:  # held open loop beyond the clip, on the same target
+            if self._beyond[0] == self._far_target:
+                return self._idle(self._beyond[1], meas)
+            self._beyond = None
         sat = self.saturated(meas)
         if not sat:  # the table angle behind the x reading (a misaligned detector's)
             meas = self._read(obs, meas)
@@ -533,8 +593,9 @@ class StepScanController(Controller):
                 return dither
         if (self._probes < PROBES and not sat and self.steps and self.last_move is None
                 and self.mode == "step" and self._site == self._probes
-                and self._reaches_edge()
-                and abs(self.target - meas) > self.scan_fraction * self.ctx.scan_range):
+                and self._reaches_edge()):
+            if len(self._noise) < NOISE_MIN:  # the reading's noise first (a vibration's too)
+                return self._quiet_start(meas)
             dither = self._dither_start(meas)  # the centre's slope, before the first step
             if dither is not None:
                 self._probes += 1
@@ -627,6 +688,7 @@ class StepScanController(Controller):
         if abs(u - self.offset) < 0.5:
             return None
         self._cycle = (1, self.offset, u - self.offset, self._raw, math.nan)
+        self._dither_target = self.target  # (a next one follows at once only on it)
         return self._idle(u, meas)
 
     def _dither_on(self, meas: float, saturated: bool) -> np.ndarray | None:
@@ -645,12 +707,29 @@ class StepScanController(Controller):
         self._cycle = None
         self._site += 1
         if self._site > 1:  # the first loop after stepping (or at rest) is no steady one
-            sigma = float(np.median(self._noise)) / 0.954 if len(self._noise) >= 4 else 0.0
+            sigma = float(np.median(self._noise)) / 0.954 if len(self._noise) >= NOISE_MIN else 0.0
             self.linearity.add(du, (r0, r1, self._raw), sigma)
-        # the dither's changes are no noise sample, and the PID settles again (on the
-        # reading corrected by the κ̂ it may have decided) before the next dither
+        # a settled target's next dither follows at once where the reading, corrected by
+        # the κ̂ decided so far, still puts the table on it (the way back left it where it
+        # was); else the dither's changes are no noise sample, and the PID settles again
+        on_target = abs(self.target - meas) <= max(self.ctx.tolerance, self._hold_band)
+        if (self.mode == "scan" and self.target == self._dither_target and on_target
+                and self._wants_dither()):
+            dither = self._dither_start(meas)
+            if dither is not None:
+                self._dithered[self.target] = self._dithered.get(self.target, 0) + 1
+                return dither
         self._scan_err, self._scan_streak = None, 0
         return None
+
+    def _quiet_start(self, meas: float) -> np.ndarray:
+        """An idle interval before the probes: the change of the raw reading between two
+        idle intervals is the reading's noise (and a floor vibration's), which the dithers'
+        slopes are weighed with (the scan's holds measure it later)."""
+        if self._idle_raw is not None:
+            self._noise.append(abs(self._raw - self._idle_raw))
+        self._idle_raw = self._raw
+        return self._idle(self.offset, meas)
 
     def _idle(self, u: float, meas: float) -> np.ndarray:
         """One interval with the generator idle at scan offset ``u`` [V] (a dither's)."""
@@ -660,47 +739,82 @@ class StepScanController(Controller):
         self._scan_err = None
         return self.ctx.scaling.encode(0.0, 100.0, 0.9, 0.0, u)
 
-    def _reaches_edge(self) -> bool:
-        """Whether the episode will dither beyond ``DITHER_FROM`` θ_lin, where the
-        detector's cubic matters, so that a probe near the start is worth its two
-        intervals (it reads the slope the far dithers are compared with): a target beyond
-        it, or a known reference that holds a value beyond it for ``FAR_HOLD`` intervals
-        before its last ``QUIET_END_S`` (a ramp's set points never settle, and the hold
-        after it lies in the quiet end: its probes would be read by no far dither)."""
-        edge = DITHER_FROM * self.ctx.angle_range
+    def _quiet(self) -> int:
+        """The intervals at the end of a known reference that are not dithered."""
+        return round(QUIET_END_S / self.ctx.control_interval)
+
+    def _levels(self) -> list[float]:
+        """A known reference's start and the values it holds for ``FAR_HOLD`` intervals
+        before its last ``QUIET_END_S`` [rad] (where a dither can be made)."""
         ref = self._brief.reference_rad
         if ref is None:
-            return abs(self.target) >= edge
+            return []
         r = np.asarray(ref, dtype=np.float32)  # as the targets are compared (reference_at)
-        r = r[: max(r.size - round(QUIET_END_S / self.ctx.control_interval), 0)]
-        if r.size < FAR_HOLD:
-            return False
+        r = r[: max(r.size - self._quiet(), 0)]
         cuts = np.flatnonzero(np.diff(r) != 0.0) + 1  # where a hold of one value ends
-        for run in np.split(r, cuts):
-            if run.size >= FAR_HOLD and abs(float(run[0])) >= edge:
-                return True
-        return False
+        held = [float(run[0]) for run in np.split(r, cuts) if run.size >= FAR_HOLD]
+        return [float(ref[0]), *held]
+
+    def _plans_visit(self) -> bool:
+        """Whether the episode first visits the detector's centre for its dithers: a known
+        reference whose last value lies beyond ``dither_from`` θ_lin, none of whose
+        :meth:`_levels` pairs with it (m² at most half or at least twice its own)."""
+        ref = self._brief.reference_rad
+        if ref is None or not self.steps:
+            return False
+        lim = self.ctx.angle_range
+        end = (float(ref[-1]) / lim) ** 2
+        if end < self.ctx.dither_from**2:
+            return False
+        pairs = [(v / lim) ** 2 <= 0.5 * end or (v / lim) ** 2 >= 2.0 * end
+                 for v in self._levels()]  # fmt: skip
+        return not any(pairs)
+
+    def _reaches_edge(self) -> bool:
+        """Whether the episode will dither beyond ``dither_from`` θ_lin, where the
+        detector's cubic matters, so that a probe near the start is worth its intervals (it
+        reads the slope the far dithers are compared with): a target beyond it, a known
+        reference that holds a value beyond it for ``FAR_HOLD`` intervals before its last
+        ``QUIET_END_S``, or one that visits the centre (the start is then the far place;
+        a ramp's set points never settle, and the hold after it lies in the quiet end)."""
+        edge = self.ctx.dither_from * self.ctx.angle_range
+        if self._brief.reference_rad is None:
+            return abs(self.target) >= edge
+        if self._visit:  # the start is the far place the centre's dithers pair with
+            return True
+        return any(abs(v) >= edge for v in self._levels()[1:])
 
     def _wants_dither(self) -> bool:
         """Whether a settled scan on the present target should dither for the detector's
-        linearity: the target lies beyond ``DITHER_FROM`` θ_lin and has had fewer than
-        ``DITHERS``, a known reference does not end within ``QUIET_END_S``, κ̂ is neither
-        decided precisely enough (its error at the target within a quarter of the band)
-        nor clearly under ``KAPPA_MIN`` (|κ̂| + 2σ), and the episode has a dither nearer
-        the centre to compare with."""
-        m2 = (self.target / self.ctx.angle_range) ** 2
-        if m2 < DITHER_FROM**2 or self._dithered.get(self.target, 0) >= DITHERS:
+        linearity: the centre while a visit lasts; otherwise not on an anchor, and only
+        where the target lies beyond ``dither_from`` θ_lin (or nearer the centre, pairing
+        with a known reference's last value beyond it) and has had fewer than ``DITHERS``,
+        a known reference does not end within ``QUIET_END_S``, κ̂ is neither decided
+        precisely enough (its error at the target within a quarter of the tolerance) nor
+        clearly under ``KAPPA_MIN`` (|κ̂| + 2σ), and a dither read elsewhere pairs with
+        this place (:meth:`DetectorLinearity.lever`)."""
+        if self._visit:  # the centre's dithers (their count ends the visit)
+            return True
+        if self._far_target is not None:  # an anchor: κ̂ is decided, the hold goes beyond
+            return False
+        lim, edge = self.ctx.angle_range, self.ctx.dither_from**2
+        m2 = (self.target / lim) ** 2
+        if self._dithered.get(self.target, 0) >= DITHERS:
             return False
         ref = self._brief.reference_rad
-        quiet = round(QUIET_END_S / self.ctx.control_interval)
-        if ref is not None and len(ref) - self._interval <= quiet:
+        if ref is not None and len(ref) - self._interval <= self._quiet():
+            return False
+        # a target near the centre is worth dithering on where it pairs with a known
+        # reference's last value that needs κ (the slope there is the fit's intercept)
+        end = (float(ref[-1]) / lim) ** 2 if ref is not None else 0.0
+        if m2 < edge and not (end >= edge and m2 <= 0.5 * end):
             return False
         k, sd, decided = self.linearity.estimate()
         # decided, the target's error from κ's uncertainty within a quarter of the band
         precise = decided and sd * m2 * abs(self.target) <= 0.25 * self.ctx.tolerance
         # or clearly under KAPPA_MIN (a linear detector: nothing more to learn)
         linear = abs(k) + 2.0 * sd < KAPPA_MIN
-        return not (precise or linear) and self.linearity.nearest_centre() <= 0.5 * m2
+        return not (precise or linear) and self.linearity.lever(m2)
 
     def _scan(self, err: float, meas: float, handover: bool = False) -> np.ndarray:
         # the reading's noise: robust σ of the error's change between scan intervals on a
@@ -715,14 +829,21 @@ class StepScanController(Controller):
         self._scan_err, self._scan_target, self._scan_offset = err, self.target, self.offset
         hold = 0.0
         settled = self._scan_streak >= SETTLING  # (a hand-over's transient is no noise)
-        if settled and len(self._noise) >= 4:  # median |Δe| = 0.954 σ for Gaussian noise
+        if settled and len(self._noise) >= NOISE_MIN:  # median |Δe| = 0.954 σ (Gaussian)
             hold = HOLD_SIGMAS * float(np.median(self._noise)) / 0.954
         self._hold_band = hold  # rad
-        if settled and not handover and self._wants_dither():
+        if settled and not handover and len(self._noise) >= NOISE_MIN and self._wants_dither():
             dither = self._dither_start(meas)
             if dither is not None:
                 self._dithered[self.target] = self._dithered.get(self.target, 0) + 1
                 return dither
+        gain = self.linearity.scan_gain
+        if (settled and not handover and self._far_target is not None and gain is not None
+                and abs(err) <= max(self.ctx.tolerance, hold)):  # on the anchor: beyond it
+            u = self.pid.u + (self._far_target - self.target) / gain
+            if abs(u) <= self.ctx.input_limit:
+                self._beyond = (self._far_target, u)
+                return self._idle(u, meas)
         # after stepping, the scan plant's inverse closes HANDOVER_GAIN of the error at once
         # (P(z) = K·z⁻¹: the PID's first, integral-only update would take about four
         # intervals); the PID goes on from there

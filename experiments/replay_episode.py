@@ -1,11 +1,13 @@
 """Replay one benchmark episode of a step controller and print it interval by interval.
 
     python experiments/replay_episode.py CONTROLLER PLANT_SET TASK SEED [--from K] [--seeds N]
+        [--suite-seed S]
 
 The episode is the benchmark's own (``controllers.benchmark``: the same plant draw, start,
 reference, brief and noise draws for that seed; ``--seeds`` is the cell's seed count, which
 the noise array is drawn for: 20, or 3 for ``full_3d`` and 5 for ``independent``), run
-alone. It prints the plant draw, then from interval ``--from`` on: the true error θ − r
+alone (``--suite-seed``: another draw of the suite, as ``turntable benchmark --suite-seed``).
+It prints the plant draw, then from interval ``--from`` on: the true error θ − r
 and the reading's at R_table [µm] (the true angle is evaluation only: the controller sees
 the reading), the controller's mode and action (amplitude [V], frequency [Hz], scan
 offset [V]), and at the end whether the hold window was met, the scan's lost motion the
@@ -42,6 +44,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("seed", type=int)
     ap.add_argument("--from", dest="start", type=int, default=0, help="first interval printed")
     ap.add_argument("--seeds", type=int, default=20, help="the cell's seed count")
+    ap.add_argument("--suite-seed", type=int, default=SUITE_SEED,
+                    help=f"the suite's seed (default: the committed suite's {SUITE_SEED})")
     ap.add_argument("--blind", choices=("default", "first"), default="default",
                     help="the blind set a step controller steps with beyond the detector "
                          "(controllers.blind: ASYMMETRY_PATH, the default, or BLIND_PATH, "
@@ -53,11 +57,11 @@ def main(argv: list[str] | None = None) -> int:
     cfg = EnvConfig(plant=pset.base, axis="B", terminate_on_success=False, detector_y=True)
     ctx = ControllerContext.from_config(cfg)
     det = cfg.parameter_set.detector
-    spec = task.episode(args.seed, det, SUITE_SEED)
-    plant, draw = pset.plant(args.seed, SUITE_SEED)
+    spec = task.episode(args.seed, det, args.suite_seed)
+    plant, draw = pset.plant(args.seed, args.suite_seed)
     print("plant draw:", {k: (round(v, 4) if isinstance(v, float) else v) for k, v in draw.items()})
     sim = TurntableTask(cfg, 1)
-    sim.reset_row(0, np.random.default_rng([SUITE_SEED, args.seed, 1]), spec.options(),
+    sim.reset_row(0, np.random.default_rng([args.suite_seed, args.seed, 1]), spec.options(),
                   plant=plant)  # fmt: skip
     if args.blind == "first" and args.controller not in STEP:
         ap.error(f"--blind first: controller must be one of {', '.join(STEP)}")
@@ -67,8 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     obs = sim.observation()
     ctl.reset(obs[0], spec.brief)
     # the cell's noise draws (one column per seed), as the benchmark draws them
-    noise = np.random.default_rng([SUITE_SEED, 2]).standard_normal((task.horizon, args.seeds))
-    noise_y = np.random.default_rng([SUITE_SEED, 3]).standard_normal((task.horizon, args.seeds))
+    shape = (task.horizon, args.seeds)
+    noise = np.random.default_rng([args.suite_seed, 2]).standard_normal(shape)
+    noise_y = np.random.default_rng([args.suite_seed, 3]).standard_normal(shape)
     um = det.table_radius * 1e6
     t_end, err = task.horizon * cfg.control_interval, []
     for k in range(task.horizon):

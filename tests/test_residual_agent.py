@@ -65,9 +65,12 @@ def test_the_scale_moves_the_base_plan_monotonically(base, target):
     obs, _ = env.reset(seed=0, options={"start_angle": 0.0, "target_angle": target})
     ctl = iface.row_state()
     iface.observe(obs, ctl, first=True)
-    # past the base's dithers before its first step (a target beyond 0.6 θ_lin reads the
-    # detector's slope at the start, controllers/detector_linearity.py): to that step
-    for _ in range(8):
+    # past the base's quiet intervals and dithers before its first step (a target beyond
+    # ControllerContext.dither_from reads the reading's noise and the detector's slope at
+    # the start, controllers/detector_linearity.py): to that step
+    from controllers.base import NOISE_MIN, PROBES
+
+    for _ in range(NOISE_MIN + 1 + 2 * PROBES + 2):
         trial = copy.deepcopy(ctl)
         action = iface.env_action(np.zeros(1, np.float32), obs, trial)
         if trial.last_move is not None:
