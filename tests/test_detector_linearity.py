@@ -167,8 +167,10 @@ def _replay():
     return mod
 
 
-def _run(task: str, seed: int, capsys, plant_set: str = "held_out") -> str:
-    assert _replay().main(["closed_loop", plant_set, task, str(seed)]) == 0
+def _run(task: str, seed: int, capsys, plant_set: str = "held_out", suite: int | None = None,
+         controller: str = "closed_loop") -> str:  # fmt: skip
+    extra = [] if suite is None else ["--suite-seed", str(suite)]
+    assert _replay().main([controller, plant_set, task, str(seed), *extra]) == 0
     return capsys.readouterr().out
 
 
@@ -221,6 +223,19 @@ def test_closed_loop_reads_a_bent_detector(task, seed, kappa, tol, capsys):
     out = _run(task, seed, capsys)
     k, decided = _kappa(out)
     assert decided and abs(k - kappa) < tol, out[-300:]
+    assert "hold window met: True" in out, out[-600:]
+
+
+@pytest.mark.parametrize(("seed", "kappa"), [(7, 0.1310), (15, 0.0924)])
+def test_a_target_read_beyond_the_clip_is_held_from_an_anchor(seed, kappa, capsys):
+    """Held-out draw 1 (``--suite-seed 1``), seeds 7 and 15 of the edge move: κ = 0.131 and
+    0.092 read the target, 0.93 θ_lin, at 1.05 and 1.01 θ_lin, beyond the detector's clip.
+    Once κ̂ is decided (within 0.01) the controller settles on the angle that reads 0.97 of
+    the saturation's and steps the offset by the rest over the fitted scan gain: 2.6 and
+    12.2 nm off the target in the hold window, where stop 101 ended 944 and 787 nm off."""
+    out = _run("edge_5um", seed, capsys, suite=1)
+    k, decided = _kappa(out)
+    assert decided and abs(k - kappa) < 0.01, out[-300:]
     assert "hold window met: True" in out, out[-600:]
 
 
