@@ -249,8 +249,8 @@ class ControllerContext:
     @property
     def dither_from(self) -> float:
         """The target m = |θ|/θ_lin [-] from which a detector cubic of ``KAPPA_PRIOR`` would
-        move the reading by more than ``DITHER_SHARE`` of the band: κ·θ³/θ_lin² (the
-        catalogue's ``detector_nonlinearity``) = DITHER_SHARE·tolerance."""
+        move the reading by more than ``DITHER_SHARE`` of the env's tolerance: κ·θ³/θ_lin²
+        (the catalogue's ``detector_nonlinearity``) = DITHER_SHARE·tolerance."""
         return float(np.cbrt(DITHER_SHARE * self.tolerance / (KAPPA_PRIOR * self.angle_range)))
 
     @property

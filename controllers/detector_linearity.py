@@ -19,8 +19,8 @@ the table, constant over the two intervals, cancels). K is the plant's scan gain
 unknown to within its stroke: dithers at two or more distances from the centre separate
 it from κ. κ̂ is the least weighted squares of g − a·(1 + 3κ·m²(κ)), a profile over κ in
 [−0.3, 0.3] with each dither's m² read through the κ tried (since stop 102: a span that
-crosses θ_s, where the cubic stops and the slope is 1, has a second fixed point that the
-damped iteration before it stopped at, −0.084 for −0.09), and its standard error that of
+crosses θ_s, where the cubic stops and the slope is 1, has a second fixed point, which
+the damped iteration used before it could land on), and its standard error that of
 b/(3a) in the linear fit g = a + b·m² there, from the dithers' scatter, but never below a
 relative scatter of
 ``REL_FLOOR`` between dithers nor the reading noise's share. A dither whose way back

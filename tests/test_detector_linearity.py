@@ -124,8 +124,8 @@ def test_dithers_across_the_cubic_clip_are_read_by_the_profile(start, kappa):
     """A table held on a reading near the edge with κ < 0 undecided sits beyond θ_s, where
     the cubic stops (θ_c clipped: slope 1): a dither from there spans both sides. The
     profile over κ reads each span through the κ it tries, so noise-free dithers at the
-    centre and from ``start`` θ_s give κ back to 10⁻⁴ (a fixed-point iteration from 0
-    stopped at −0.084 for −0.09 from 1.02 θ_s, and −0.057 from 1.05 θ_s)."""
+    centre and from ``start`` θ_s give κ back to 10⁻⁴ (stop 101's damped fixed-point
+    iteration from 0 landed beside it from beyond θ_s)."""
     lin = DetectorLinearity(THETA_S, NOISE)
     for _ in range(4):
         dither(lin, 0.0, 4.0, kappa)
@@ -146,17 +146,25 @@ def test_lever_pairs_places_at_least_a_factor_two_apart_in_m2():
     assert not lin.lever(1.5 * m2) and not lin.lever(0.75 * m2)
 
 
-def test_dither_from_is_where_the_prior_cubic_moves_the_reading_by_its_share():
-    """ControllerContext.dither_from: KAPPA_PRIOR·m³·θ_lin = DITHER_SHARE·tolerance (the
-    catalogue's cubic at the largest κ a dither plan prepares for)."""
+def test_dither_from_is_where_the_catalogue_cubic_moves_the_reading_by_its_share():
+    """ControllerContext.dither_from, 0.18 θ_lin on the real turntable: a table at that
+    angle read through the catalogue's detector stage (effects.detector_stage, Eq. 4.1 with
+    the photodiode's cubic of κ = KAPPA_PRIOR) reads DITHER_SHARE of the env's tolerance
+    off the linear detector's reading (to 1 %, Eq. 4.1's tangent)."""
     from controllers.base import DITHER_SHARE, KAPPA_PRIOR, ControllerContext
+    from turntable_env.effects import apply_output
     from turntable_env.envs.config import EnvConfig
 
-    ctx = ControllerContext.from_config(EnvConfig())
+    cfg = EnvConfig()
+    ctx, det = ControllerContext.from_config(cfg), cfg.parameter_set.detector
     m = ctx.dither_from
-    assert 0.0 < m < 1.0
-    assert math.isclose(KAPPA_PRIOR * m**3 * ctx.angle_range, DITHER_SHARE * ctx.tolerance,
-                        rel_tol=1e-12)  # fmt: skip
+    assert 0.17 < m < 0.19, m
+    theta = np.array([m * ctx.angle_range])
+    t = np.zeros(1)
+    bent, _ = apply_output(t, theta, {"detector_nonlinearity": {"kappa": KAPPA_PRIOR}}, det)
+    straight, _ = apply_output(t, theta, {}, det)
+    moved = float(det.angle(bent)[0] - det.angle(straight)[0])
+    assert math.isclose(moved, DITHER_SHARE * ctx.tolerance, rel_tol=0.01), moved
 
 
 def _replay():
@@ -232,7 +240,8 @@ def test_a_target_read_beyond_the_clip_is_held_from_an_anchor(seed, kappa, capsy
     0.092 read the target, 0.93 θ_lin, at 1.05 and 1.01 θ_lin, beyond the detector's clip.
     Once κ̂ is decided (within 0.01) the controller settles on the angle that reads 0.97 of
     the saturation's and steps the offset by the rest over the fitted scan gain: 2.6 and
-    12.2 nm off the target in the hold window, where stop 101 ended 944 and 787 nm off."""
+    12.2 nm off the target in the hold window; stop 101's controllers (``git checkout
+    29f2244 -- controllers``, the same replay) end 944 and 787 nm off."""
     out = _run("edge_5um", seed, capsys, suite=1)
     k, decided = _kappa(out)
     assert decided and abs(k - kappa) < 0.01, out[-300:]
