@@ -114,12 +114,15 @@ def _calibrate_one(job: dict) -> dict:
     write_report(res, Path(job["out"]))
     d = res.diagnosis
     how = [h.get("decided_by", "") for h in res.history[1:]]
+    cov = (d.get("signatures") or {}).get("coverage") or {}
     return {
         "trace": job["name"],
         "injected": injected,
         "expected": expected,
         "selected": res.selected_effects,
         "decided_by": how,
+        # expected effects this trace's protocol gives no signature (signatures.coverage)
+        "untestable": [e for e in expected if cov.get(e, {}).get("testable") is False],
         "before_nm": res.error_before,
         "nominal_nm": d["error_nominal"],
         "after_nm": res.error_after,
@@ -135,11 +138,15 @@ def _calibrate_one(job: dict) -> dict:
 
 def print_row(row: dict) -> dict:
     sel = [f"{n} ({h})" for n, h in zip(row["selected"], row["decided_by"], strict=True)]
+    untestable = [e for e in row.get("untestable", []) if e not in row["selected"]]
+    # why an expected effect is not named: its protocol gives it no signature
+    why = f" ({', '.join(untestable)}: no signature on this protocol)" if untestable else ""
     row["pass"] = verdict(row)
     print(
         f"| {row['trace']} | {', '.join(row['injected']) or 'none'} | "
-        f"{', '.join(row['expected'])} | {', '.join(sel) or 'none'} | {row['before_nm']:.1f} | "
-        f"{row['nominal_nm']:.1f} | {row['after_nm']:.1f} | {row['floor_nm']:.2f} | "
+        f"{', '.join(row['expected'])} | {', '.join(sel) or 'none'}{why} | "
+        f"{row['before_nm']:.1f} | {row['nominal_nm']:.1f} | {row['after_nm']:.1f} | "
+        f"{row['floor_nm']:.2f} | "
         f"{row['target_nm']:.1f} | {'yes' if row['met'] else 'no'} | "
         f"{'yes' if row['flagged'] else 'no'} | {'**yes**' if row['pass'] else 'no'} | "
         f"{row['wall_s']:.0f} | {code_label(row.get('code'))} |",

@@ -57,3 +57,17 @@ def test_a_broken_results_file_is_refused_before_any_work(table, capsys, text, w
     err = capsys.readouterr().err
     assert "results.json" in err and why in err
     assert (out / "results.json").read_text() == text  # untouched
+
+
+@pytest.mark.parametrize("selected", [[], ["friction_asymmetry"]])
+def test_a_row_says_when_its_protocol_gives_the_effect_no_signature(capsys, selected):
+    """A row whose expected effect the trace's protocol gives no signature says so beside
+    what was named, where it was not named; the verdict is the acceptance's either way
+    (an effect not named fails its row)."""
+    mod = experiment("independent_calibration")
+    row = {**_row("asym", 5.0), "injected": ["friction_asymmetry"],
+           "expected": ["friction_asymmetry"], "selected": selected,
+           "decided_by": ["signature"] * len(selected), "untestable": ["friction_asymmetry"]}
+    assert mod.print_row(row)["pass"] is bool(selected)
+    out = capsys.readouterr().out
+    assert ("(friction_asymmetry: no signature on this protocol)" in out) is not selected

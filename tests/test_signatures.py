@@ -27,8 +27,10 @@ from turntable_env.calibration.identify import (
 )
 from turntable_env.calibration.segments import Segment
 from turntable_env.calibration.signatures import (
+    GROUPS,
     Features,
     SignatureLayout,
+    coverage,
     group_scores,
     misfit_variance,
 )
@@ -396,6 +398,44 @@ def test_one_or_two_settings_are_not_scored(n):
     s = group_scores(data, current, data)["direction"]
     assert not s["scored"] and s["nats"] == 0.0 and s["rss_a"] > 1e4
     assert leave_one_out(data, current, data, ("direction",)) == (0.0, "")
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 5])
+def test_coverage_says_testable_where_the_scores_score(n):
+    """A protocol tests a direction effect by its signature exactly where its pairs are
+    scored (the third plant's protocols run one or two settings both ways: friction
+    asymmetry and wear cannot be named by their features there), and says what to add."""
+    names = tuple(f"pair {k}" for k in range(n))
+    data = Features(names, ("direction",) * n, np.full(n, -0.035), np.full(n, 3e-4))
+    scored = n > 0 and group_scores(data, data._replace(value=np.zeros(n)), data)[
+        "direction"]["scored"]  # fmt: skip
+    cov = coverage({"direction": n}, ["friction_asymmetry", "friction_wear"])
+    for e in ("friction_asymmetry", "friction_wear"):
+        assert cov[e]["testable"] is bool(scored)
+        assert cov[e]["groups"] == {"direction": {"features": n, "needed": 3, "scored": scored}}
+        assert bool(cov[e]["add"]) is not scored
+
+
+def test_coverage_of_a_protocol_reads_its_layout(proto):
+    """On the test protocol (two scans up and down, four bursts of one setting, holds):
+    creep, hysteresis and vibration are testable by their features; direction effects
+    not (two pairs); misalignment only with the y channel recorded; the amplifier's
+    effects have no signature group of their own."""
+    t, u, segs, _b = proto
+    x = _position(*proto)
+    effects = ["piezo_creep", "piezo_hysteresis", "vibration", "friction_asymmetry",
+               "axis_misalignment", "amplifier_fast_path"]  # fmt: skip
+
+    def cov(segs, y=None):
+        lay = SignatureLayout(t, u, segs, SIGMA)
+        f = lay.measure(x, y)
+        counts = {g: int(f.group(g).sum()) for g in GROUPS} | {"line": int(lay.line_searchable)}
+        return {e: c["testable"] for e, c in coverage(counts, effects).items()}
+
+    assert cov(segs) == {"piezo_creep": True, "piezo_hysteresis": True, "vibration": True,
+                         "friction_asymmetry": False, "axis_misalignment": False,
+                         "amplifier_fast_path": None}  # fmt: skip
+    assert cov(segs, 0.01 * x)["axis_misalignment"] is True
 
 
 @pytest.mark.parametrize(
@@ -898,3 +938,18 @@ def test_refit_backing_asks_the_features_of_the_two_refits(proto, wear):
     backed, why = _refit_backing(search, "friction_wear", with_, without)
     assert backed is wear
     assert ("backed" if wear else "not backed") in why
+
+
+def test_report_tables_what_the_protocol_can_test():
+    """report.md tables each considered effect's signature groups with their features and
+    the least scored, and what a lab adds where its protocol gives an effect none (one
+    direction pair: friction asymmetry untestable by its features)."""
+    from turntable_env.calibration.calibrate import _md_signatures
+
+    cov = coverage({"direction": 1, "relaxation": 4}, ["friction_asymmetry", "piezo_creep",
+                                                       "amplifier_fast_path"])  # fmt: skip
+    text = "\n".join(_md_signatures({"lines": [], "coverage": cov, "rounds": []}, "nm"))
+    assert "| friction_asymmetry | direction: 1 (3) | **no** | 3 or more settings" in text
+    assert "| piezo_creep | relaxation: 4 (1) | yes | — |" in text
+    assert "| amplifier_fast_path | — | no group of its own (the step sizes) | — |" in text
+    assert "held-out trace error" in text.split("| amplifier_fast_path")[1]

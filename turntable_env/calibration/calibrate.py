@@ -245,6 +245,7 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
             f"{ln.get('searched', 0)} frequencies from {ln.get('lowest_Hz', float('nan')):.1f} Hz)"
             if f == f else "- no hold long enough to search for a spectral line"
         )
+    lines += _md_coverage(sig.get("coverage"))
     for rnd in sig.get("rounds", []):
         dec = rnd["decision"]
         named = dec["named"] or (
@@ -289,7 +290,33 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
                       "features back it on the refits the trace compares): "
                       + "; ".join(f"{k}: {v}" for k, v in
                                   rnd["unsupported"].items()) + "."]  # fmt: skip
+        if rnd.get("untested"):
+            lines += ["", "Judged by the held-out trace error's rules alone, as the amplifier's "
+                      "effects are (this protocol gives them no signature: see the coverage "
+                      f"table above): {', '.join(rnd['untested'])}."]  # fmt: skip
         lines += _md_trace_verdicts(rnd.get("trace_verdicts"), u)
+    return lines
+
+
+def _md_coverage(cov: dict[str, Any] | None) -> list[str]:
+    """report.md lines: what the protocol can test by signature
+    (:func:`~.signatures.coverage`), and what a lab would add where it cannot."""
+    if not cov:
+        return []
+    lines = ["", "What this protocol can test by signature (features on the data, and the "
+             "least a group is scored with):", "",
+             "| effect | its groups: features (needed) | by signature | to test it, add |",
+             "|---|---|---|---|"]  # fmt: skip
+    for e, c in cov.items():
+        groups = ", ".join(f"{g}: {r['features']} ({r['needed']})" for g, r in c["groups"].items())
+        can = {True: "yes", False: "**no**", None: "no group of its own (the step sizes)"}
+        lines.append(f"| {e} | {groups or '—'} | {can[c['testable']]} | "
+                     f"{'; '.join(c['add']) or '—'} |")
+    if any(c["testable"] is False for c in cov.values()):
+        lines += ["", "An effect this protocol gives no signature can still be named by the "
+                  "held-out trace error, but only where it leaves at most half of the "
+                  "structured residual; a trace of the protocol the last column asks for "
+                  "tests it by its features."]  # fmt: skip
     return lines
 
 

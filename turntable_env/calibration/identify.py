@@ -56,11 +56,13 @@ import scipy.stats
 from ..effects import CATALOGUE, WEAR_RUN_IN_START
 from .signatures import (
     EFFECT_GROUPS,
+    GROUPS,
     REPEATED_GROUPS,
     REPEATED_MIN,
     SIGNATURE_GROUPS,
     Features,
     SignatureLayout,
+    coverage,
     group_scores,
     misfit_variance,
 )
@@ -313,6 +315,13 @@ class SignatureSearch:
             np.concatenate([p.value for p in parts]) if parts else np.zeros(0),
             np.concatenate([p.noise for p in parts]) if parts else np.zeros(0),
         )  # fmt: skip
+
+    def coverage(self, effects: Sequence[str]) -> dict[str, dict]:
+        """What the traces' protocols can test of ``effects`` (:func:`.signatures.coverage`
+        over the features of every trace together)."""
+        counts = {g: int(self.data.group(g).sum()) for g in GROUPS}
+        counts["line"] = sum(lay.line_searchable for lay in self.layouts)
+        return coverage(counts, tuple(effects))
 
     def find_lines(self, x: np.ndarray, effects: Effects) -> list[dict[str, float]]:
         """Search each trace's holds for a spectral line in data − model; a line counts

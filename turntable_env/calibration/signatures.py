@@ -94,6 +94,7 @@ __all__ = [
     "SIGNATURE_GROUPS",
     "Features",
     "SignatureLayout",
+    "coverage",
     "group_scores",
     "misfit_variance",
 ]
@@ -104,6 +105,7 @@ MIN_HOLD_S = 8e-3  # s, shortest hold whose relaxation is measured
 LINE_FMIN_HZ = 5.0  # Hz, lowest line searched (below: trends)
 LINE_FMAX_HZ = 1000.0  # Hz, highest (the catalogue's vibration range)
 LINE_MIN_PERIODS = 0.2  # periods of the lowest line searched in the median hold
+LINE_MIN_SAMPLES = 64  # hold samples (past settling) a line search needs
 # the least |gain|/σ of the scan the others' gains are referred to (scan_range)
 RANGE_REFERENCE_Z = 10.0
 GROUPS = ("steps", "direction", "relaxation", "scan", "scan_shape", "scan_range", "line", "y")
@@ -133,6 +135,45 @@ EFFECT_GROUPS: dict[str, tuple[str, ...]] = {
     "sensor_drift": ("relaxation", "scan_shape"),
     "vibration": ("line",),
 }
+
+
+# what a protocol lacks where a group has too few features, and what a lab adds for it
+MISSING = {
+    "direction": f"{REPEATED_MIN} or more settings (amplitude, frequency, ramp ratio) each run "
+                 "both ways, with a hold after each burst",
+    "relaxation": f"holds of {MIN_HOLD_S * 1e3:g} ms or longer after the moves",
+    "scan_shape": "a slow scan up and back down, with a hold but no burst between the two",
+    "scan_range": "scans at two or more places of the detector's range (bursts between them)",
+    "line": f"holds of {SETTLE_S * 1e3:g} ms + {LINE_MIN_SAMPLES} samples or longer in all to "
+            "search for a line in",
+    "y": "the detector's y channel (detector_y_V) and three moves or more",
+}
+
+
+def coverage(counts: dict[str, int], effects: tuple[str, ...] | list[str]) -> dict[str, dict]:
+    """What a protocol can test: per effect, the features of each of its signature groups
+    (:data:`EFFECT_GROUPS` less :data:`NOMINAL_GROUPS`) that the trace has (``counts``:
+    group → features read on the data; ``line``: the traces whose holds can be searched
+    for one, whether or not a line was found, :attr:`SignatureLayout.line_searchable`),
+    whether a group is scored (:data:`REPEATED_MIN` features for a repeated group, one for
+    the others) and whether the effect can be named
+    by its signature at all (one scored group). An effect without one cannot be named by
+    its signature on this trace, only by the held-out trace error at the stricter bar
+    (:func:`.identify.supports`); ``add`` says what protocol would give it one. An effect
+    with no signature group of its own (the amplifier's: the step sizes a nominal refit
+    restores) is ``testable`` None."""
+    out: dict[str, dict] = {}
+    for e in effects:
+        groups = [g for g in EFFECT_GROUPS.get(e, ()) if g in SIGNATURE_GROUPS]
+        rows = {}
+        for g in groups:
+            n = int(counts.get(g, 0))
+            need = REPEATED_MIN if g in REPEATED_GROUPS else 1
+            rows[g] = {"features": n, "needed": need, "scored": n >= need}
+        testable = any(r["scored"] for r in rows.values()) if rows else None
+        add = [MISSING[g] for g, r in rows.items() if not r["scored"]] if testable is False else []
+        out[e] = {"groups": rows, "testable": testable, "add": add}
+    return out
 
 
 class Features(NamedTuple):
@@ -359,6 +400,11 @@ class SignatureLayout:
         ]  # fmt: skip
 
     @property
+    def line_searchable(self) -> bool:
+        """Whether the holds have the samples a line search needs (:meth:`find_line`)."""
+        return self._hold_idx.size >= LINE_MIN_SAMPLES
+
+    @property
     def hold_samples(self) -> np.ndarray:
         """Indices of the samples the line is searched on (the holds past their settling)."""
         return self._hold_idx
@@ -386,7 +432,7 @@ class SignatureLayout:
         min(``LINE_FMAX_HZ``, Nyquist/4), amplitude [nm] and its χ² (power over the noise,
         2 degrees of freedom); sets the frequency :meth:`measure` reads."""
         idx = self._hold_idx
-        if idx.size < 64:
+        if idx.size < LINE_MIN_SAMPLES:
             return {"frequency_Hz": math.nan, "amplitude_nm": 0.0, "chi2": 0.0, "searched": 0}
         t = self.time[idx]
         nuis = self._nuisance()
