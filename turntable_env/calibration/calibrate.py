@@ -290,10 +290,6 @@ def _md_signatures(sig: dict[str, Any] | None, u: str = "nm") -> list[str]:
                       "features back it on the refits the trace compares): "
                       + "; ".join(f"{k}: {v}" for k, v in
                                   rnd["unsupported"].items()) + "."]  # fmt: skip
-        if rnd.get("untested"):
-            lines += ["", "Judged by the held-out trace error's rules alone, as the amplifier's "
-                      "effects are (this protocol gives them no signature: see the coverage "
-                      f"table above): {', '.join(rnd['untested'])}."]  # fmt: skip
         lines += _md_trace_verdicts(rnd.get("trace_verdicts"), u)
     return lines
 

@@ -47,10 +47,7 @@
    a misfit nominal model is never "explained" by an effect — and, where the effect has a
    signature (not the amplifier's), that signature backs it by ≥ 2 nats also with its
    strongest direction pair left out (:func:`~.identify.supports`), or, where it does
-   not, the effect leaves at most half of the structured held-out residual. An effect
-   the trace's protocol gives no signature (no feature of its groups scored,
-   :func:`~.signatures.coverage`: one direction pair, no scan) is judged by the trace's
-   rules alone, as the amplifier's are. The final
+   not, the effect leaves at most half of the structured held-out residual. The final
    model is refitted once more from the prior nominal model with the named effects at
    their fitted values and kept where that lowers the cost (:func:`_from_the_prior`).
 6. **Diagnosis** of the final held-out residual against the floor: its structured part
@@ -1991,12 +1988,7 @@ def _round(
     # what the effect's own signature does not back (:func:`~.identify.supports`) the trace
     # may name only when it explains most of the structure the current model leaves
     backing = {f.name: supports(f) for f in fits}
-    # unless this protocol gives it no signature to ask (no feature of its groups scored:
-    # :func:`~.signatures.coverage`), as the amplifier's: then the trace alone judges it
-    untested = {c for c, v in signature.get("coverage", {}).items() if v["testable"] is False}
-    rnd["untested"] = sorted(untested & set(backing))
-    rnd["unsupported"] = {c: why for c, (ok, why) in backing.items()
-                          if not ok and c not in untested}  # fmt: skip
+    rnd["unsupported"] = {c: why for c, (ok, why) in backing.items() if not ok}
     left = structured_rms(current.heldout_rms, floor)
     share = {c: structured_rms(f.heldout_rms, floor) / left if left > 0 else 1.0
              for c, f in screened if c in rnd["unsupported"]}  # fmt: skip
