@@ -19,7 +19,6 @@ from pathlib import Path
 
 from turntable_env.calibration.identify import SignatureSearch
 from turntable_env.calibration.measurement import load_measurement
-from turntable_env.calibration.signatures import SIGNATURE_GROUPS
 from turntable_env.calibration.trace_fit import SEARCHED, trace_data
 
 RESULTS = Path("experiments/results")
@@ -33,10 +32,7 @@ def coverage_of(path: Path) -> tuple[dict[str, int], dict[str, dict]]:
     y = td.m.detector_y_v if td.has_y else None
     search = SignatureSearch(None, [(td.m.time, td.drive, td.segments, td.m.detector_v, y,
                                      td.scale, td.floor, td.m.detector.table_radius)])  # fmt: skip
-    cov = search.coverage(SEARCHED)
-    counts = {g: int(search.data.group(g).sum()) for g in SIGNATURE_GROUPS}
-    counts["line"] = int(search.layouts[0].line_searchable)
-    return counts, cov
+    return search.counts(), search.coverage(SEARCHED)
 
 
 def _injected(path: Path) -> str:

@@ -316,12 +316,17 @@ class SignatureSearch:
             np.concatenate([p.noise for p in parts]) if parts else np.zeros(0),
         )  # fmt: skip
 
-    def coverage(self, effects: Sequence[str]) -> dict[str, dict]:
-        """What the traces' protocols can test of ``effects`` (:func:`.signatures.coverage`
-        over the features of every trace together)."""
+    def counts(self) -> dict[str, int]:
+        """The data's features per group over every trace, ``line`` the traces whose holds
+        can be searched for one (:attr:`~.signatures.SignatureLayout.line_searchable`)."""
         counts = {g: int(self.data.group(g).sum()) for g in GROUPS}
         counts["line"] = sum(lay.line_searchable for lay in self.layouts)
-        return coverage(counts, tuple(effects))
+        return counts
+
+    def coverage(self, effects: Sequence[str]) -> dict[str, dict]:
+        """What the traces' protocols can test of ``effects`` (:func:`.signatures.coverage`
+        of :meth:`counts`)."""
+        return coverage(self.counts(), tuple(effects))
 
     def find_lines(self, x: np.ndarray, effects: Effects) -> list[dict[str, float]]:
         """Search each trace's holds for a spectral line in data − model; a line counts

@@ -150,6 +150,12 @@ MISSING = {
 }
 
 
+def needed(group: str) -> int:
+    """The least features a group is scored with (:func:`group_scores`): :data:`REPEATED_MIN`
+    for a repeated group, one for the others."""
+    return REPEATED_MIN if group in REPEATED_GROUPS else 1
+
+
 def coverage(counts: dict[str, int], effects: tuple[str, ...] | list[str]) -> dict[str, dict]:
     """What a protocol can test: per effect, the features of each of its signature groups
     (:data:`EFFECT_GROUPS` less :data:`NOMINAL_GROUPS`) that the trace has (``counts``:
@@ -168,7 +174,7 @@ def coverage(counts: dict[str, int], effects: tuple[str, ...] | list[str]) -> di
         rows = {}
         for g in groups:
             n = int(counts.get(g, 0))
-            need = REPEATED_MIN if g in REPEATED_GROUPS else 1
+            need = needed(g)
             rows[g] = {"features": n, "needed": need, "scored": n >= need}
         testable = any(r["scored"] for r in rows.values()) if rows else None
         add = [MISSING[g] for g, r in rows.items() if not r["scored"]] if testable is False else []
@@ -650,7 +656,7 @@ def group_scores(
         if n == 0:
             continue
         repeated = g in REPEATED_GROUPS
-        scored = not repeated or n >= REPEATED_MIN
+        scored = n >= needed(g)
         sd = data.noise[m]
         tau2 = 0.0
         if repeated and scored:
