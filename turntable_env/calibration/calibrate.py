@@ -154,6 +154,7 @@ def _md_trace_sections(result: CalibrationResult) -> list[str]:
         ],
         *_md_hops(d["starts"].get("hops"), "the best start", u),
         *_md_second(d["starts"].get("second"), u),
+        *_md_profile(d["starts"].get("amplifier_profile"), u),
         "",
         "## Parameters",
         "",
@@ -228,6 +229,28 @@ def _md_second(row: dict[str, Any] | None, u: str) -> list[str]:
         f"the same data weight; {'kept' if row['kept'] else 'not kept'} (held-out "
         f"{row['heldout_rms']:.3g} {u}).",
         *_md_hops(row.get("hops"), "the second stage's best start", u),
+    ]  # fmt: skip
+
+
+def _md_profile(row: dict[str, Any] | None, u: str) -> list[str]:
+    """report.md lines of the amplifier profile (:func:`~.trace_fit._amplifier_profile`);
+    none where the nominal fit met its target without it."""
+    if not row:
+        return []
+    freed = ", ".join(f"{c:.5g}" for c in row["freed_costs"])
+    amp = row["amplifier"]
+    return [
+        "", f"Amplifier profile (the nominal fit, {row['heldout_before']:.3g} {u}, stayed "
+        "above the target): the amplifier's slew and current factors held at each point "
+        "while the other nominal factors are fitted (cost under the same data weight):", "",
+        f"| slew factor | current factor | cost | held-out [{u}] |", "|---:|---:|---:|---:|",
+        *[f"| {p['amplifier_slew']:.3g} | {p['amplifier_current']:.3g} | {p['cost']:.5g} | "
+          f"{p['heldout_rms']:.3g} |" for p in row["points"]],
+        "", f"The lowest freed reached costs {freed} (best at slew {amp['amplifier_slew']:.3g}, "
+        f"current {amp['amplifier_current']:.3g}) against the nominal fit's "
+        f"{row['cost_before']:.5g}; {'kept' if row['kept'] else 'not kept'} (held-out "
+        f"{row['heldout_rms']:.3g} {u}).",
+        *_md_hops(row.get("hops"), "the amplifier profile's best fit", u),
     ]  # fmt: skip
 
 
