@@ -29,7 +29,7 @@ from turntable_env.calibration.trace_fit import (
 N = len(TRACE_NOMINAL)
 SIGMA = 0.7  # the amplifier's prior σ (nominal.py), every factor's here
 IA = [TRACE_NOMINAL.index(n) for n in AMPLIFIER_SCALES]
-PLATEAU, DEEP = 1.0, 0.2
+PLATEAU, DEEP = 30.0, 0.2  # the data's cost off and in the basin: deeper than its prior
 
 
 class _Model:
@@ -43,10 +43,11 @@ class _Model:
 
 
 class _Slow:
-    """A basin around the amplifier's ln-factors ``centre`` [prior σ], of half-width
-    ``radius`` σ, flat elsewhere in them; a quadratic bowl in the other factors. A fit
-    that holds the amplifier keeps it; a free fit descends to the basin's centre only
-    from inside it."""
+    """The data's cost: a basin around the amplifier's ln-factors ``centre`` [prior σ], of
+    half-width ``radius`` σ, flat elsewhere in them; plus a quadratic bowl in the other
+    factors. A fit's cost adds the prior rows (x/σ)² of the factors it frees, as
+    :func:`trace_fit.local_fit`'s does. A fit that holds the amplifier keeps it; a free fit
+    descends to the basin's centre only from inside it."""
 
     def __init__(self, centre: tuple[float, float], radius: float = 0.6):
         self.centre = np.asarray(centre) * SIGMA
@@ -55,12 +56,16 @@ class _Slow:
     def inside(self, x: np.ndarray) -> bool:
         return bool(np.max(np.abs(np.asarray(x)[IA] - self.centre)) < self.radius)
 
-    def cost(self, x: np.ndarray) -> float:
+    def data(self, x: np.ndarray) -> float:
         x = np.asarray(x, dtype=float)
         rest = 0.01 * float(np.sum(np.delete(x, IA) ** 2))
         if self.inside(x):
             return DEEP + float(np.sum((x[IA] - self.centre) ** 2)) + rest
         return PLATEAU + rest
+
+    def cost(self, x: np.ndarray) -> float:
+        """The data's cost and every factor's prior row (TraceProblem.objective)."""
+        return self.data(x) + float(np.sum((np.asarray(x) / SIGMA) ** 2))
 
     def fit(self, x: np.ndarray, free: Any = True) -> LocalFit:
         x = np.asarray(x, dtype=float).copy()
@@ -69,8 +74,15 @@ class _Slow:
         x[mask] = 0.0
         if free is True and self.inside(x):
             x[IA] = self.centre
-        c = self.cost(x)
+        c = self.cost(x) if free is True else self.data(x)  # held: no rows for the amplifier
         return LocalFit(x, {}, np.full(N, 0.1), {}, c, c, c, 1)
+
+
+def _at(basin: _Slow) -> np.ndarray:
+    """The basin's centre: the amplifier there, every other factor at the prior."""
+    x = np.zeros(N)
+    x[IA] = basin.centre
+    return x
 
 
 def _landscape(monkeypatch, centre):
@@ -110,9 +122,11 @@ def test_the_profile_holds_the_amplifier_and_reaches_a_basin_beyond_the_box(monk
     assert free2 is True and len(freed) == HOP_STARTS
     assert row["kept"] and basin.inside(kept.x)
     np.testing.assert_allclose(kept.x[IA], basin.centre)
-    assert kept.cost == pytest.approx(DEEP) == row["cost_after"]
+    assert kept.cost == pytest.approx(basin.cost(_at(basin))) == row["cost_after"]
     assert kept.cost < (1.0 - HOP_TOL) * row["cost_before"]
     assert row["amplifier"]["amplifier_current"] == pytest.approx(np.exp(basin.centre[1]))
+    for x, point in zip(held, row["points"], strict=True):  # ranked by the whole cost,
+        assert point["cost"] == pytest.approx(basin.cost(basin.fit(x, False).x))  # priors too
     inside = [basin.inside(x) for x in held]  # the held points in the basin: the lowest costs
     assert sorted(p["cost"] for p, i in zip(row["points"], inside, strict=True) if i) == sorted(
         p["cost"] for p in row["points"])[:sum(inside)]  # fmt: skip
@@ -128,7 +142,7 @@ def test_a_profile_that_finds_nothing_better_is_not_kept(monkeypatch):
     assert row["heldout_rms"] == best.heldout_rms == row["heldout_before"]
 
 
-@pytest.mark.parametrize(("target", "runs"), [(2.0, False), (0.5, True)])
+@pytest.mark.parametrize(("target", "runs"), [(40.0, False), (20.0, True)])
 def test_the_nominal_fit_profiles_the_amplifier_only_above_its_target(monkeypatch, target,
                                                                       runs):  # fmt: skip
     """The prior and every design start end on the plateau (cost 1): above the target the
@@ -139,7 +153,7 @@ def test_the_nominal_fit_profiles_the_amplifier_only_above_its_target(monkeypatc
     nominal, spread = trace_fit._fit_nominal(problem, np.zeros(N), (0.01, target), 32, 2, 1, 0,
                                              None, _quiet)  # fmt: skip
     assert (spread["amplifier_profile"] is not None) is runs
-    assert nominal.cost == pytest.approx(DEEP if runs else PLATEAU)
+    assert nominal.cost == pytest.approx(basin.cost(_at(basin)) if runs else PLATEAU)
 
 
 @pytest.mark.parametrize("kept", [True, False])

@@ -1542,7 +1542,8 @@ def _amplifier_profile(
     :data:`AMPLIFIER_PROFILE` (prior σ; slower units than the datasheet's HVA 900, §4.1.2,
     to beyond the global design's ±:data:`GLOBAL_BOX` σ) while the other nominal factors
     are fitted from the best fit's (``FIRST_NFEV`` iterations, under the data weight in
-    force); the :data:`HOP_STARTS` lowest costs then freed (``START_NFEV``) and, where the
+    force); the :data:`HOP_STARTS` lowest costs (the held factors' prior rows included,
+    as in every other fit's cost) then freed (``START_NFEV``) and, where the
     best of them lowers the cost by :data:`HOP_TOL`, kept and moved on by basin hopping
     (:func:`_basin_hops`). A slower amplifier makes smaller, slower flybacks, which
     friction, preload and stroke absorb from any start near the datasheet: the third
@@ -1563,8 +1564,10 @@ def _amplifier_profile(
     say(f"nominal fit {best.heldout_rms:.3g} {ERROR_UNIT} still above its target: the "
         f"amplifier profile, {len(grid)} points")  # fmt: skip
     held = _local_fits(problem, starts, n_workers, FIRST_NFEV, free_nominal=others)
-    order = [i for i in np.argsort([f.cost for f in held])[:HOP_STARTS]
-             if np.isfinite(held[i].cost)]  # fmt: skip
+    # a held fit's cost has no prior rows for the held factors: add them, so the points
+    # are ranked, and reported, by the cost every other fit is (TraceProblem.objective)
+    costs = [f.cost + float(np.sum((f.x[idx] / mdl.sigma[idx]) ** 2)) for f in held]
+    order = [i for i in np.argsort(costs)[:HOP_STARTS] if np.isfinite(costs[i])]
     freed = _local_fits(problem, [held[i].x for i in order], n_workers, START_NFEV)
     cand = min(freed, key=lambda f: f.cost) if freed else best
     kept = bool(cand.cost < (1.0 - HOP_TOL) * best.cost)
@@ -1572,8 +1575,8 @@ def _amplifier_profile(
         return {n: float(math.exp(x[i])) for n, i in zip(AMPLIFIER_SCALES, idx, strict=True)}
 
     row: dict[str, Any] = {
-        "points": [{**factors(x), "cost": f.cost, "heldout_rms": f.heldout_rms}
-                   for x, f in zip(starts, held, strict=True)],
+        "points": [{**factors(x), "cost": c, "heldout_rms": f.heldout_rms}
+                   for x, f, c in zip(starts, held, costs, strict=True)],
         "freed_costs": [f.cost for f in freed], "cost_before": best.cost,
         "heldout_before": best.heldout_rms, "cost_after": cand.cost, "kept": kept,
         "hops": [], "heldout_rms": best.heldout_rms, "amplifier": factors(cand.x),
