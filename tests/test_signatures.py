@@ -28,11 +28,13 @@ from turntable_env.calibration.identify import (
 from turntable_env.calibration.segments import Segment
 from turntable_env.calibration.signatures import (
     GROUPS,
+    STEP_SCALE_MIN,
     Features,
     SignatureLayout,
     coverage,
     group_scores,
     misfit_variance,
+    step_misfit_sd,
 )
 
 FS = 20e3  # Hz
@@ -387,11 +389,11 @@ def test_three_pairs_are_weighed_as_the_search_weighs_them():
 
 
 @pytest.mark.parametrize("n", [1, 2])
-def test_one_or_two_settings_are_not_scored(n):
-    """One or two direction pairs cannot tell a constant asymmetry from one setting's
-    misfit, nor be checked with a pair left out: they gain 0 nats, however large the
-    change (the third plant's clean trace, one pair, gave friction asymmetry 22 593 nats
-    on its own geometric direction asymmetry at stop 69)."""
+def test_one_or_two_settings_without_steps_to_bound_them_are_not_scored(n):
+    """One or two direction pairs cannot estimate a setting's misfit, nor be checked with a
+    pair left out; without the bursts' step sizes to bound that misfit from they gain 0
+    nats, however large the change (the third plant's clean trace, one pair, gave friction
+    asymmetry 22 593 nats on its own geometric direction asymmetry at stop 69)."""
     names = tuple(f"pair {k}" for k in range(n))
     data = Features(names, ("direction",) * n, np.full(n, -0.035), np.full(n, 3e-4))
     current = data._replace(value=np.zeros(n))
@@ -400,19 +402,92 @@ def test_one_or_two_settings_are_not_scored(n):
     assert leave_one_out(data, current, data, ("direction",)) == (0.0, "")
 
 
+def _steps(rel_misfits: np.ndarray) -> tuple[Features, Features]:
+    """(data, model) steps features: model steps of 100–300 nm, the data off by
+    ``rel_misfits`` of each, noise 0.1 nm."""
+    k = len(rel_misfits)
+    model = np.linspace(100.0, 300.0, k) * np.where(np.arange(k) % 2, -1.0, 1.0)
+    names = tuple(f"burst {i}" for i in range(k))
+    m = Features(names, ("steps",) * k, model, np.full(k, 0.1))
+    return m._replace(value=model * (1.0 + np.asarray(rel_misfits))), m
+
+
+def _join(*parts: Features) -> Features:
+    return Features(sum((p.names for p in parts), ()), sum((p.groups for p in parts), ()),
+                    np.concatenate([p.value for p in parts]),
+                    np.concatenate([p.noise for p in parts]))  # fmt: skip
+
+
+def test_the_step_bound_is_the_robust_scale_of_the_relative_step_misfits_over_root_two():
+    """:func:`step_misfit_sd`: 1.4826 × the MAD of (data − model)/|model| over √2 (two
+    steps each off by σ independently put their ratio (s₊ − s₋)/(s₊ + s₋) off by σ/√2),
+    unmoved by one burst the model misses by its sign, None with fewer than
+    STEP_SCALE_MIN bursts that move 10 σ on data and model."""
+    rng = np.random.default_rng(5)
+    e = rng.normal(0.0, 0.08, 4001)
+    data, model = _steps(e)
+    b = step_misfit_sd(data, model)
+    assert b == pytest.approx(0.08 / math.sqrt(2.0), rel=0.05)
+    # the ratio of two steps each off by e independently scatters by b
+    ep, em = rng.normal(0, 0.08, (2, 200_000))
+    sp, sm = 200.0 * (1 + ep), -200.0 * (1 + em)
+    assert np.std((sp + sm) / (sp - sm)) == pytest.approx(b, rel=0.06)
+    e[0] = -2.0  # a ramp at its stick threshold, missed by its sign
+    assert step_misfit_sd(*_steps(e)) == pytest.approx(b, rel=0.01)
+    few = _steps(np.full(STEP_SCALE_MIN - 1, 0.05))
+    assert step_misfit_sd(*few) is None
+    tiny = _steps(np.zeros(STEP_SCALE_MIN))
+    assert step_misfit_sd(tiny[0]._replace(value=tiny[0].value * 1e-3), tiny[1]) is None
+
+
+@pytest.mark.parametrize(
+    ("pair", "bound", "significant"),
+    [
+        (-0.035, 0.086, False),  # the third plant's clean trace: its geometry, 4.5 V 500 Hz
+        (-0.089, 0.108, False),  # its clean 10 kHz trace, 2 V 500 Hz
+        (+0.503, 0.040, True),  # its 30 % friction asymmetry, 3 V 100 Hz
+    ],
+)
+def test_one_pair_is_scored_against_the_bound_from_the_step_sizes(pair, bound, significant):
+    """One direction pair among bursts whose steps the model misses by a known scale: the
+    pair's misfit is allowed that scale's bound (``misfit_from`` "steps"), so a symmetric
+    plant's own direction ratio within it gains under the 2 nats that back an effect, and
+    an asymmetry of many bounds is significant, with nothing to leave out."""
+    e = np.array([-3.0, -2.0, -1.0, -1.0, 0.0, 1.0, 1.0, 2.0, 3.0]) * bound * math.sqrt(2) / 1.4826
+    steps, steps_model = _steps(e)
+    assert step_misfit_sd(steps, steps_model) == pytest.approx(bound)
+    d = _join(steps, Features(("pair",), ("direction",), np.array([pair]), np.array([4e-3])))
+    cur = _join(steps_model, d.subset(d.group("direction"))._replace(value=np.zeros(1)))
+    cand = _join(steps_model, d.subset(d.group("direction")))
+    s = group_scores(d, cur, cand)["direction"]
+    assert s["scored"] and s["misfit_from"] == "steps"
+    assert s["misfit_sd"] == pytest.approx(bound)
+    assert s["nats"] == pytest.approx(0.5 * pair**2 / (bound**2 + 4e-3**2))
+    assert (s["nats"] > SIGNIFICANT_NATS) is significant
+    if not significant:
+        assert s["nats"] < 2.0
+    assert leave_one_out(d, cur, cand, ("direction",)) == (pytest.approx(s["nats"]), "")
+
+
+@pytest.mark.parametrize("bursts", [0, STEP_SCALE_MIN])
 @pytest.mark.parametrize("n", [0, 1, 2, 3, 5])
-def test_coverage_says_testable_where_the_scores_score(n):
+def test_coverage_says_testable_where_the_scores_score(n, bursts):
     """A protocol tests a direction effect by its signature exactly where its pairs are
     scored (the third plant's protocols run one or two settings both ways: friction
     asymmetry and wear cannot be named by their features there), and says what to add."""
     names = tuple(f"pair {k}" for k in range(n))
-    data = Features(names, ("direction",) * n, np.full(n, -0.035), np.full(n, 3e-4))
-    scored = n > 0 and group_scores(data, data._replace(value=np.zeros(n)), data)[
-        "direction"]["scored"]  # fmt: skip
-    cov = coverage({"direction": n}, ["friction_asymmetry", "friction_wear"])
+    pairs = Features(names, ("direction",) * n, np.full(n, -0.035), np.full(n, 3e-4))
+    steps, steps_model = _steps(np.resize([-0.05, 0.05], bursts))
+    data = _join(steps, pairs)
+    model = _join(steps_model, pairs._replace(value=np.zeros(n)))
+    scored = n > 0 and group_scores(data, model, data)["direction"]["scored"]
+    assert scored is (n >= 3 or (n > 0 and bursts >= STEP_SCALE_MIN))
+    cov = coverage({"direction": n, "steps": bursts}, ["friction_asymmetry", "friction_wear"])
+    need = 1 if bursts >= STEP_SCALE_MIN else 3
     for e in ("friction_asymmetry", "friction_wear"):
         assert cov[e]["testable"] is bool(scored)
-        assert cov[e]["groups"] == {"direction": {"features": n, "needed": 3, "scored": scored}}
+        assert cov[e]["groups"] == {"direction": {"features": n, "needed": need,
+                                                  "scored": scored}}  # fmt: skip
         assert bool(cov[e]["add"]) is not scored
 
 

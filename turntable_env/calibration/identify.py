@@ -60,11 +60,13 @@ from .signatures import (
     REPEATED_GROUPS,
     REPEATED_MIN,
     SIGNATURE_GROUPS,
+    STEP_SCALE_MIN,
     Features,
     SignatureLayout,
     coverage,
     group_scores,
     misfit_variance,
+    step_misfit_sd,
 )
 
 __all__ = [
@@ -463,7 +465,12 @@ class SignatureSearch:
         for g in declared:
             if g in scores and not scores[g]["scored"]:
                 notes.append(f"{g}: {scores[g]['n']} setting(s), not scored (fewer than "
-                             f"{REPEATED_MIN} cannot tell it from one setting's misfit)")
+                             f"{REPEATED_MIN} cannot tell it from one setting's misfit, and "
+                             f"fewer than {STEP_SCALE_MIN} bursts bound that misfit)")
+            elif g in scores and scores[g].get("misfit_from") == "steps":
+                notes.append(f"{g}: {scores[g]['n']} setting(s), each allowed a misfit of "
+                             f"{scores[g]['misfit_sd']:.3g} (the step sizes' misfit, "
+                             "fewer settings than estimate their own)")
         level = significance_nats(n_free)
         if shift:
             notes.append("searched with " + ", ".join(
@@ -506,17 +513,21 @@ class SignatureSearch:
         dominates by its count; in a group of :data:`~.signatures.REPEATED_GROUPS` with
         :data:`JACKKNIFE_MIN` features, (σ² + τ²)/σ² with τ² the current model's common
         misfit variance (:func:`~.signatures.misfit_variance`), so the settings weigh alike
-        as in :func:`~.signatures.group_scores`; inf outside the ``declared`` groups (a
-        candidate is fitted to its signature; what it does elsewhere is reported, and the
-        joint trace refit settles the rest)."""
+        as in :func:`~.signatures.group_scores`, with fewer (σ² + b²)/σ², b the bound from
+        the step sizes (:func:`~.signatures.step_misfit_sd`) where there is one; inf
+        outside the ``declared`` groups (a candidate is fitted to its signature; what it
+        does elsewhere is reported, and the joint trace refit settles the rest)."""
         d = self.data
         w = np.full(len(d.groups), np.inf)
         for g in set(d.groups) & set(declared):
             mk = d.group(g)
             n = int(mk.sum())
             r, sd = d.value[mk] - base.value[mk], d.noise[mk]
+            bound = step_misfit_sd(d, base) if g in REPEATED_GROUPS else None
             if g in REPEATED_GROUPS and n >= JACKKNIFE_MIN:
                 w[mk] = 1.0 + misfit_variance(r, sd, n) / sd**2
+            elif bound is not None:  # too few settings: the bound from the step sizes
+                w[mk] = 1.0 + bound**2 / sd**2
             else:
                 w[mk] = max(1.0, float(np.sum((r / sd) ** 2)) / n)
         return w

@@ -70,8 +70,18 @@ pairs) the misfit is a common variance τ² added to each feature's noise varian
 a factor on it: the misfit of a model of another structure is of one size at every setting,
 where the detector noise of a steady step falls with the samples averaged, so a factor
 would weigh the pair with most samples many times the others and a gain would rest on it.
-Such a group is scored only with :data:`REPEATED_MIN` settings or more (one or two cannot
-tell an effect's signature from one setting's misfit); with fewer it gains 0 nats.
+Such a group estimates its own misfit only with :data:`REPEATED_MIN` settings or more.
+With one or two (since stop 105) the misfit a model of another structure can leave in a
+pair is bounded from the step sizes instead (:func:`step_misfit_sd`): the robust scale of
+the bursts' relative step misfits over √2, the misfit of a ratio of two steps each off by
+that much independently. A model that misses the step sizes by 10 % is not trusted to a
+direction ratio better than 7 %; a symmetric model's two steps of one setting share most
+of their misfit, so the bound is generous. Without :data:`STEP_SCALE_MIN` bursts to bound
+it from, such a group gains 0 nats, as before. On the third independent plant's traces
+(one or two pairs each) the clean traces' direction ratios of −3.5 % and −8.9 % (its own
+geometry, at 4.5 V, 500 Hz and 2 V, 500 Hz) lie within bounds of 8.6 % and 10.8 %, and its
+30 % friction asymmetry's +50 % at 3 V, 100 Hz is 12 bounds of 4.0 % off the nominal fit
+(``python experiments/direction_bound.py``).
 """
 
 from __future__ import annotations
@@ -97,6 +107,7 @@ __all__ = [
     "coverage",
     "group_scores",
     "misfit_variance",
+    "step_misfit_sd",
 ]
 
 SETTLE_S = 2e-3  # s skipped at a hold's start (the ring after a flyback)
@@ -116,6 +127,10 @@ REPEATED_GROUPS = ("direction",)
 # (which a model of another structure leaves somewhere) cannot be told from an effect's
 # signature, nor can any feature be left out (:func:`group_scores`)
 REPEATED_MIN = 3
+# bursts whose relative step misfits bound a repeated group's misfit where it has fewer than
+# REPEATED_MIN features (:func:`step_misfit_sd`), and the least |step|/σ a burst enters with
+STEP_SCALE_MIN = 5
+STEP_SCALE_Z = 10.0
 # the groups no effect is needed for: the nominal model's own (stroke, friction, gain)
 NOMINAL_GROUPS = ("steps", "scan")
 # the groups an effect's signature lies in: decisions are scored on these
@@ -150,10 +165,14 @@ MISSING = {
 }
 
 
-def needed(group: str) -> int:
-    """The least features a group is scored with (:func:`group_scores`): :data:`REPEATED_MIN`
-    for a repeated group, one for the others."""
-    return REPEATED_MIN if group in REPEATED_GROUPS else 1
+def needed(group: str, bursts: int = 0) -> int:
+    """The least features a group is scored with (:func:`group_scores`): for a repeated
+    group :data:`REPEATED_MIN`, or one where ``bursts`` (the trace's net steps read) reach
+    :data:`STEP_SCALE_MIN` to bound its misfit from (:func:`step_misfit_sd`; whether every
+    one of them moves enough to enter is known only with the model); one for the others."""
+    if group not in REPEATED_GROUPS:
+        return 1
+    return 1 if bursts >= STEP_SCALE_MIN else REPEATED_MIN
 
 
 def coverage(counts: dict[str, int], effects: tuple[str, ...] | list[str]) -> dict[str, dict]:
@@ -161,20 +180,20 @@ def coverage(counts: dict[str, int], effects: tuple[str, ...] | list[str]) -> di
     (:data:`EFFECT_GROUPS` less :data:`NOMINAL_GROUPS`) that the trace has (``counts``:
     group → features read on the data; ``line``: the traces whose holds can be searched
     for one, whether or not a line was found, :attr:`SignatureLayout.line_searchable`),
-    whether a group is scored (:data:`REPEATED_MIN` features for a repeated group, one for
-    the others) and whether the effect can be named
-    by its signature at all (one scored group). An effect without one cannot be named by
-    its signature on this trace, only by the held-out trace error at the stricter bar
-    (:func:`.identify.supports`); ``add`` says what protocol would give it one. An effect
-    with no signature group of its own (the amplifier's: the step sizes a nominal refit
-    restores) is ``testable`` None."""
+    whether a group is scored (:func:`needed`: for a repeated group :data:`REPEATED_MIN`
+    features, or one with :data:`STEP_SCALE_MIN` bursts; one for the others) and whether
+    the effect can be named by its signature at all (one scored group). An effect without
+    one cannot be named by its signature on this trace, only by the held-out trace error
+    at the stricter bar (:func:`.identify.supports`); ``add`` says what protocol would give
+    it one. An effect with no signature group of its own (the amplifier's: the step sizes a
+    nominal refit restores) is ``testable`` None."""
     out: dict[str, dict] = {}
     for e in effects:
         groups = [g for g in EFFECT_GROUPS.get(e, ()) if g in SIGNATURE_GROUPS]
         rows = {}
         for g in groups:
             n = int(counts.get(g, 0))
-            need = needed(g)
+            need = needed(g, int(counts.get("steps", 0)))
             rows[g] = {"features": n, "needed": need, "scored": n >= need}
         testable = any(r["scored"] for r in rows.values()) if rows else None
         add = [MISSING[g] for g, r in rows.items() if not r["scored"]] if testable is False else []
@@ -627,6 +646,23 @@ def misfit_variance(residual: np.ndarray, noise: np.ndarray, dof: int) -> float:
     return float(scipy.optimize.brentq(excess, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12))
 
 
+def step_misfit_sd(data: Features, model: Features) -> float | None:
+    """The misfit [-] a model may leave in one direction ratio (|s₊| − |s₋|)/(|s₊| + |s₋|)
+    where the pairs are too few to estimate it (:func:`group_scores`): 1.4826 × the median
+    absolute deviation of the bursts' relative step misfits (data − model)/|model| (the
+    steps group; bursts whose step is :data:`STEP_SCALE_Z` σ or more on both), over √2 —
+    two steps each off by that much independently put their ratio off by 1/√2 of it. A
+    robust scale: a burst the model misses by its sign (a ramp at its stick threshold) does
+    not set it. None with fewer than :data:`STEP_SCALE_MIN` such bursts."""
+    m = data.group("steps")
+    d, p, s = data.value[m], model.value[m], data.noise[m]
+    ok = (np.abs(p) >= STEP_SCALE_Z * s) & (np.abs(d) >= STEP_SCALE_Z * s)
+    if int(ok.sum()) < STEP_SCALE_MIN:
+        return None
+    e = (d[ok] - p[ok]) / np.abs(p[ok])
+    return float(1.4826 * np.median(np.abs(e - np.median(e))) / math.sqrt(2.0))
+
+
 def group_scores(
     data: Features, model_a: Features, model_b: Features, n_free: int = 1
 ) -> dict[str, dict[str, float]]:
@@ -645,8 +681,12 @@ def group_scores(
     search that improves its objective is not scored by another one (stop 70: with three
     pairs, the third plant's friction asymmetry lowered its objective from 3.00 to 0.19
     and was scored −90 005.5 nats on the bare noise of its most precise pair). With fewer
-    features it scores 0 (``scored`` False): one or two settings cannot tell an effect's
-    signature from one setting's misfit, nor be checked with a feature left out.
+    features τ is the richer model's :func:`step_misfit_sd` (``misfit_from`` "steps"): one
+    or two settings cannot estimate a setting's misfit, and on the bare noise the third
+    plant's clean trace gave friction asymmetry 22 593 nats for its own geometry's −3.5 %
+    (stop 69); without enough bursts to bound it from, the group scores 0 (``scored``
+    False). Such a group is not checked with a feature left out (:func:`.identify.
+    leave_one_out`): the bound is what one setting's misfit may be.
     ``delta`` = (RSS_a − RSS_b)/s² (χ² with ``n_free`` degrees of freedom under "b adds
     nothing") and ``nats`` = delta/2."""
     out = {}
@@ -659,8 +699,14 @@ def group_scores(
         scored = n >= needed(g)
         sd = data.noise[m]
         tau2 = 0.0
+        source = "pairs" if repeated else ""
         if repeated and scored:
             tau2 = misfit_variance(data.value[m] - model_b.value[m], sd, max(1, n - n_free))
+        elif repeated:
+            bound = step_misfit_sd(data, model_b)
+            scored = bound is not None
+            tau2, source = (bound**2, "steps") if scored else (0.0, "")
+        if repeated and scored:
             sd = np.sqrt(sd**2 + tau2)
         za = (data.value[m] - model_a.value[m]) / sd
         zb = (data.value[m] - model_b.value[m]) / sd
@@ -668,5 +714,6 @@ def group_scores(
         s2 = max(1.0, rb / (n - n_free)) if n >= n_free + 3 and not repeated else 1.0
         delta = (ra - rb) / s2 if scored else 0.0
         out[g] = {"n": n, "rss_a": ra, "rss_b": rb, "scale": s2, "misfit_sd": math.sqrt(tau2),
-                  "delta": delta, "nats": 0.5 * delta, "scored": scored}  # fmt: skip
+                  "misfit_from": source, "delta": delta, "nats": 0.5 * delta,
+                  "scored": scored}  # fmt: skip
     return out
