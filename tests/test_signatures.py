@@ -444,7 +444,7 @@ def test_the_step_bound_is_the_robust_scale_of_the_relative_step_misfits_over_ro
     ("pair", "bound", "significant"),
     [
         (-0.035, 0.086, False),  # the third plant's clean trace: its geometry, 4.5 V 500 Hz
-        (-0.089, 0.108, False),  # its clean 10 kHz trace, 2 V 500 Hz
+        (-0.088, 0.108, False),  # its clean 10 kHz trace, 2 V 500 Hz
         (+0.503, 0.040, True),  # its 30 % friction asymmetry, 3 V 100 Hz
     ],
 )

@@ -523,11 +523,10 @@ class SignatureSearch:
             mk = d.group(g)
             n = int(mk.sum())
             r, sd = d.value[mk] - base.value[mk], d.noise[mk]
-            bound = step_misfit_sd(d, base) if g in REPEATED_GROUPS else None
             if g in REPEATED_GROUPS and n >= JACKKNIFE_MIN:
                 w[mk] = 1.0 + misfit_variance(r, sd, n) / sd**2
-            elif bound is not None:  # too few settings: the bound from the step sizes
-                w[mk] = 1.0 + bound**2 / sd**2
+            elif g in REPEATED_GROUPS and (bound := step_misfit_sd(d, base)) is not None:
+                w[mk] = 1.0 + bound**2 / sd**2  # too few settings: the step sizes' bound
             else:
                 w[mk] = max(1.0, float(np.sum((r / sd) ** 2)) / n)
         return w
