@@ -25,18 +25,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from signature_round import nominal_x
+from signature_round import rebuild
 
-from turntable_env.calibration.measurement import load_measurement
-from turntable_env.calibration.nominal import NominalModel
 from turntable_env.calibration.signatures import STEP_SCALE_Z, step_misfit_sd
-from turntable_env.calibration.trace_fit import (
-    TRACE_NOMINAL,
-    TraceProblem,
-    on_base,
-    signature_search,
-)
-from turntable_env.plant import Plant
+from turntable_env.calibration.trace_fit import signature_search
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,12 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---:|---:|---:|---|---:|")
     for rd, tr in rows:
         report = json.loads((Path(rd) / "report.json").read_text())
-        base = Plant(report["plant"]["base"], fidelity="reduced")
-        td, _ = on_base(load_measurement(Path(tr)), base)
-        model = NominalModel(base, tuple(n for n in TRACE_NOMINAL
-                                         if n in report["parameters"]["nominal"]))  # fmt: skip
-        search = signature_search(TraceProblem([td], model))
-        m = search.features(nominal_x(report, model), {})
+        problem, x = rebuild(report, Path(tr))
+        search = signature_search(problem)
+        m = search.features(x, {})
         d = search.data
         st = d.group("steps")
         enter = int(np.sum((np.abs(m.value[st]) >= STEP_SCALE_Z * d.noise[st])

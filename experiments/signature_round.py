@@ -60,6 +60,17 @@ def nominal_x(report: dict, model: NominalModel) -> np.ndarray:
     return np.array([math.log(float(table[n]["value"])) for n in model.names])
 
 
+def rebuild(report: dict, trace: Path) -> tuple[TraceProblem, np.ndarray]:
+    """The trace problem of a report's trace and the report's nominal fit x on it (its
+    base plant and nominal factors; report.json's ``plant.base`` and
+    ``parameters.nominal``)."""
+    base = Plant(report["plant"]["base"], fidelity="reduced")
+    td, _ = on_base(load_measurement(trace), base)
+    model = NominalModel(base, tuple(n for n in TRACE_NOMINAL
+                                     if n in report["parameters"]["nominal"]))  # fmt: skip
+    return TraceProblem([td], model), nominal_x(report, model)
+
+
 def _variants(ap: argparse.ArgumentParser, spec: list[str] | None) -> list[dict]:
     """[{}] and one effects mapping per ``PARAMETER=V`` of ``--effect NAME ...``; a bad
     name, parameter or value is the parser's error (exit 2, one line)."""
@@ -122,12 +133,7 @@ def main(argv: list[str] | None = None) -> int:
                 part = part[k]
     except (ValueError, KeyError, TypeError) as exc:
         ap.error(f"{path}: not a calibration report ({type(exc).__name__}: {exc})")
-    base = Plant(report["plant"]["base"], fidelity="reduced")
-    td, _ = on_base(load_measurement(args.trace), base)
-    model = NominalModel(base, tuple(n for n in TRACE_NOMINAL
-                                     if n in report["parameters"]["nominal"]))  # fmt: skip
-    problem = TraceProblem([td], model)
-    x = nominal_x(report, model)
+    problem, x = rebuild(report, args.trace)
     search = signature_search(problem)
     search.find_lines(x, {})
     base_features = search.features(x, {})

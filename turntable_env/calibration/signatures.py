@@ -80,7 +80,7 @@ of their misfit, so the bound is generous. Without :data:`STEP_SCALE_MIN` bursts
 it from, such a group gains 0 nats, as before. On the third independent plant's traces
 (one or two pairs each) the clean traces' pairs, −3.5 % and −8.8 % off the nominal fit (its
 own geometry, at 4.5 V, 500 Hz and 2 V, 500 Hz), lie within bounds of 8.6 % and 10.8 %
-(``python experiments/direction_bound.py``), and its 30 % friction asymmetry's +50 % at
+(``python experiments/direction_bound.py``), and its 30 % friction asymmetry's +51 % at
 3 V, 100 Hz gains friction asymmetry 41.6 nats against a bound of 5.5 % (docs/calibration.md,
 stop 105).
 """
