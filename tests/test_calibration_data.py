@@ -138,6 +138,9 @@ def test_save_refuses_what_the_loader_would_and_writes_nothing(tmp_path, change,
         (lambda t: t.replace("0.001,0.5,", "0.001,abc,"), 9, "'drive_B_V' = 'abc'"),
         (lambda t: t.replace("0.001,0.5,", "0.001,nan,"), 9, "not finite"),
         (lambda t: t.replace("0.002,1.0,", "0.0005,1.0,"), 10, "'t_s'.*not increasing"),
+        # a stamp far too late is named beside the one it stops (the cell that is wrong)
+        (lambda t: t.replace("0.001,0.5,", "1e300,0.5,"), 10,
+         r"'t_s' = '0.002' is not increasing \(line 9 before it: '1e300'\)"),
         (lambda t: t.replace("0.003,-2.0,", "0.003,-12.0,"), 11, "'drive_B_V'.*±10"),
         (lambda t: t.replace("0.003,-2.0,0.020,0.002", "0.003,-2.0,0.020"), 11, "3 cells"),
         # digits of other scripts are not ASCII decimals (full-width 4, Arabic-Indic 5)

@@ -113,8 +113,23 @@ def test_non_finite_action_raises_naming_action(bad):
     env.reset(seed=0)
     a = np.zeros(5, dtype=np.float32)
     a[2] = bad
-    with pytest.raises(ValueError, match="action"):
+    with pytest.raises(ValueError, match=r"action=.*must be finite \((nan|inf|-inf) at index 2\)"):
         env.step(a)
+
+
+@pytest.mark.parametrize(
+    "action", [np.zeros(100), np.zeros((300, 300)), np.full(40, 1j), np.array([object()] * 9)]
+)
+def test_a_refused_action_is_named_on_one_short_line(action):
+    """The message is one line whatever the array (numpy's repr of a long or 2-D array
+    spans many): the value shortened, and what is wrong with it."""
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"^action=") as err:
+        env.step(action)
+    text = str(err.value)
+    assert "\n" not in text and len(text) < 160, text
+    assert "expected (5,)" in text or "real numbers" in text
 
 
 def test_out_of_range_action_is_clipped():

@@ -99,6 +99,18 @@ def test_a_new_report_replaces_the_old_one_whole(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # nothing left over
 
 
+def test_a_report_directory_given_as_a_link_is_refused_as_a_link(tmp_path):
+    """A report directory is replaced whole, which would replace a link and leave its
+    target: refused, and the message says it is a link (not "not a directory")."""
+    from turntable_env.files import check_writable
+
+    (tmp_path / "real").mkdir()
+    (tmp_path / "rep").symlink_to(tmp_path / "real")
+    with pytest.raises(ValueError, match=r"--report=.*rep': a symbolic link \(to .*real'\)"):
+        check_writable("--report", tmp_path / "rep", directory=True)
+    assert (tmp_path / "rep").is_symlink() and not any((tmp_path / "real").iterdir())
+
+
 def test_report_json_is_strict_json_with_null_for_what_was_not_computed(tmp_path):
     """A figure the calibration could not compute (a line search over no frequency gives
     NaN) is null in report.json, which any JSON parser reads; json.dumps alone writes a

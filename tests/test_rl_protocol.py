@@ -2,6 +2,7 @@
 env id, runs for several seeds go to Ray (or local processes), curves across seeds."""
 
 import inspect
+import re
 import shutil
 import subprocess
 import sys
@@ -261,6 +262,25 @@ def test_overrides_replace_sb3_arguments_and_merge_policy_kwargs():
     assert yaml.safe_load(yaml.safe_dump(got)) == got  # YAML-safe
     with pytest.raises(ValueError, match="n_envs"):
         apply_overrides(base, {"n_envs": 4})
+
+
+@pytest.mark.parametrize("form", ["127.0.0.1:{port}", "ray://127.0.0.1:{port}"])
+def test_a_cluster_address_nobody_answers_is_refused_before_any_job(form):
+    """ray.init retries an unreachable address for minutes: the address is refused at
+    once, named, before a job starts (a port just freed, so nothing listens on it)."""
+    pytest.importorskip("ray")
+    import socket
+
+    from turntable_env.scale import map_tasks
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = form.format(port=port)
+    ran = []
+    with pytest.raises(ValueError, match=rf"address='{re.escape(address)}': no Ray cluster"):
+        map_tasks(ran.append, [1], backend="ray", address=address)
+    assert not ran
 
 
 def test_map_tasks_keeps_the_jobs_order_in_processes():

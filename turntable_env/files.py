@@ -114,7 +114,10 @@ def check_writable(
                 f"run reads; the output is replaced whole: give another {name}"
             )
     if directory:
-        if p.is_symlink() or (p.exists() and not p.is_dir()):
+        if p.is_symlink():  # replaced whole, the link would go and its target stay
+            raise ValueError(f"{name}={str(p)!r}: a symbolic link (to "
+                             f"{os.readlink(p)!r}): give the directory itself")  # fmt: skip
+        if p.exists() and not p.is_dir():
             raise ValueError(f"{name}={str(p)!r}: exists and is not a directory")
         if p.is_dir():
             _check_replaceable(name, p)

@@ -19,6 +19,7 @@ import contextlib
 import importlib.util
 import multiprocessing
 import os
+import socket
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -51,7 +52,30 @@ def resolve_backend(backend: str, address: str | None = None) -> str:
             raise ValueError(f"address={address!r}: joining a cluster needs Ray (the scale extra)")
         if backend == "processes":
             raise ValueError(f"address={address!r}: a cluster needs backend 'ray' or 'auto'")
+        _check_reachable(address)
     return "ray" if ray and backend != "processes" else "processes"
+
+
+# seconds a cluster's head may take to accept a connection before its address is refused
+CONNECT_TIMEOUT = 5.0
+
+
+def _check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """A cluster address ``host:port`` or ``ray://host:port`` must accept a TCP connection
+    within ``timeout`` s: ``ray.init`` retries an address nobody answers for minutes,
+    with SIGTERM held off meanwhile, so the address is refused here, before any job
+    starts (ValueError naming it and the socket's error). ``"auto"``, ``"local"`` and
+    forms without a numeric port are left to Ray."""
+    host, sep, port = address.strip().removeprefix("ray://").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except (OSError, OverflowError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise ValueError(f"address={address!r}: no Ray cluster answers at {host}:{port} "
+                         f"({why})") from None  # fmt: skip
 
 
 def map_tasks(

@@ -512,7 +512,7 @@ def _parse(text: str, p: Path) -> Measurement:
 
     buf = array.array("d")  # the samples, row by row: 8 bytes a number, no list of rows
     n_rows = 0
-    prev_t = -math.inf
+    prev_t, prev_at = -math.inf, (0, "")  # the last time stamp [s]; its line and cell as written
     for j in range(i + 1, len(lines)):
         if not lines[j].strip():
             continue
@@ -544,10 +544,10 @@ def _parse(text: str, p: Path) -> Measurement:
             raise ValueError(f"{p}:{j + 1}: column {tw!r} = {cells[t_col]!r} is negative")
         if rec["t_s"] <= prev_t:
             raise ValueError(
-                f"{p}:{j + 1}: column {tw!r} = {cells[t_col]!r} is not increasing"
-                + _epoch_hint(rec["t_s"])
+                f"{p}:{j + 1}: column {tw!r} = {cells[t_col]!r} is not increasing (line "
+                f"{prev_at[0]} before it: {prev_at[1]!r})" + _epoch_hint(rec["t_s"])
             )
-        prev_t = rec["t_s"]
+        prev_t, prev_at = rec["t_s"], (j + 1, cells[t_col])
         for c in drive_cols:
             if abs(rec[c]) > INPUT_LIMIT:
                 raise ValueError(
