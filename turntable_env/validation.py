@@ -34,10 +34,11 @@ __all__ = [
 
 def describe(value: object) -> str:
     """A value as an error message shows it: numpy scalars as plain numbers (``0.00495``,
-    not ``np.float64(0.00495)``), at most 60 characters."""
+    not ``np.float64(0.00495)``), on one line (a long or 2-D array's repr spans many),
+    at most 60 characters."""
     if isinstance(value, np.generic) and not isinstance(value, np.bool_):
         value = value.item()
-    text = repr(value)
+    text = " ".join(line.strip() for line in repr(value).splitlines())
     return text if len(text) <= 60 else text[:57] + "..."
 
 

@@ -167,30 +167,24 @@ def make_config(options: Mapping[str, Any]) -> EnvConfig:
     return EnvConfig(**options)
 
 
-def _short(value: Any, width: int = 80) -> str:
-    """``repr(value)`` on one line (numpy's line breaks folded) of at most ``width`` characters."""
-    text = " ".join(repr(value).split())
-    return text if len(text) <= width else text[: width - 3] + "..."
-
-
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     """The action as float64, clipped to [-1, 1]; anything but real numbers (complex,
     strings, mappings, integers beyond float), NaN/inf or a wrong shape → ValueError, one
     line naming the value (shortened) and what is wrong."""
     if isinstance(action, Mapping | str | bytes):
-        raise ValueError(f"action={_short(action)}: must be an array of real numbers")
+        raise ValueError(f"action={describe(action)}: must be an array of real numbers")
     try:
         raw = np.asarray(action)
         if raw.dtype.kind not in "biuf":
             raise TypeError
         a = raw.astype(np.float64)
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"action={_short(action)}: must be an array of real numbers") from None
+        raise ValueError(f"action={describe(action)}: must be an array of real numbers") from None
     if a.shape != shape:
-        raise ValueError(f"action={_short(action)}: shape {a.shape}, expected {shape}")
+        raise ValueError(f"action={describe(action)}: shape {a.shape}, expected {shape}")
     if not np.isfinite(a).all():
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
-        raise ValueError(f"action={_short(action)}: must be finite ({a[bad]} at index "
+        raise ValueError(f"action={describe(action)}: must be finite ({a[bad]} at index "
                          f"{bad[0] if len(bad) == 1 else bad})")  # fmt: skip
     return np.clip(a, -1.0, 1.0)
 
