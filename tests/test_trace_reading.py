@@ -529,6 +529,12 @@ def test_a_protocol_without_holds_or_y_channel_cannot_identify_creep_or_misalign
     assert why["axis_misalignment"] == ""  # the file records the y channel
     td, _w = _prepare(replace(m, detector_y_v=None))
     assert identifiable_effects([td])["axis_misalignment"] == "no y channel"
+    # a y column that never changes (not even by its noise) is a channel not connected:
+    # not read as a perfectly aligned detector, and said so
+    for level in (0.0, 0.37):
+        td, w = _prepare(replace(m, detector_y_v=np.full_like(m.detector_v, level)))
+        assert identifiable_effects([td])["axis_misalignment"] == "no y channel"
+        assert any("'detector_y_V' is constant" in x for x in w), w
     td_noholds = type(td)(**{**td.__dict__, "segments": [s for s in td.segments
                                                           if s.kind != "hold"]})  # fmt: skip
     why = identifiable_effects([td_noholds])

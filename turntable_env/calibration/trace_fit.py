@@ -426,7 +426,17 @@ def _prepare(m: Measurement, input_scale: float = 1.0) -> tuple[TraceData, list[
         warnings.append(f"{Path(m.source).name or 'trace'}: {clipped}")
     if not anch.fit.any() or not anch.heldout.any():
         raise ValueError(f"{m.source}: the drive has no segment to fit or to hold out")
-    td = TraceData(m, reading, segs, anch, scale, floor * scale, src, m.detector_y_v is not None)
+    has_y = m.detector_y_v is not None
+    if has_y and not np.any(np.diff(m.detector_y_v)):
+        # a photodiode channel reads noise whatever the spot does: one that never changes
+        # is not connected (or held), and read as a y signal it would say "aligned"
+        warnings.append(
+            f"{Path(m.source).name or 'trace'}: column 'detector_y_V' is constant at "
+            f"{float(m.detector_y_v[0]):.6g} V (no noise, no motion): a channel not "
+            "connected? It is not used, so axis misalignment is not tested"
+        )
+        has_y = False
+    td = TraceData(m, reading, segs, anch, scale, floor * scale, src, has_y)
     return td, warnings
 
 
