@@ -283,6 +283,24 @@ def test_a_cluster_address_nobody_answers_is_refused_before_any_job(form):
     assert not ran
 
 
+def test_an_address_that_answered_is_not_dialled_again():
+    """The caller, map_tasks and session each resolve the backend: one connection."""
+    pytest.importorskip("ray")
+    import socket
+
+    from turntable_env.scale import resolve_backend
+
+    with socket.socket() as srv:
+        srv.bind(("127.0.0.1", 0))
+        srv.listen(4)
+        srv.settimeout(1.0)
+        address = f"127.0.0.1:{srv.getsockname()[1]}"
+        assert [resolve_backend("ray", address) for _ in range(3)] == ["ray"] * 3
+        srv.accept()[0].close()  # the one connection
+        with pytest.raises(TimeoutError):
+            srv.accept()
+
+
 def test_map_tasks_keeps_the_jobs_order_in_processes():
     import math
 

@@ -16,6 +16,7 @@ The results come back in the jobs' order, so a parallel run equals the serial on
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.util
 import multiprocessing
 import os
@@ -60,12 +61,15 @@ def resolve_backend(backend: str, address: str | None = None) -> str:
 CONNECT_TIMEOUT = 5.0
 
 
+@functools.lru_cache(maxsize=8)
 def _check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
     """A cluster address ``host:port`` or ``ray://host:port`` must accept a TCP connection
     within ``timeout`` s: ``ray.init`` retries an address nobody answers for minutes,
     with SIGTERM held off meanwhile, so the address is refused here, before any job
     starts (ValueError naming it and the socket's error). ``"auto"``, ``"local"`` and
-    forms without a numeric port are left to Ray."""
+    forms without a numeric port are left to Ray. An address that answered is not
+    dialled again in this process (the caller's check, :func:`map_tasks` and
+    :func:`session` each resolve the backend); a refusal is not cached."""
     host, sep, port = address.strip().removeprefix("ray://").rpartition(":")
     if not sep or not host or not port.isdigit():
         return
