@@ -172,3 +172,117 @@ def test_report_states_the_profile_and_whether_it_was_kept(kept):
     assert ("; kept (held-out 42.1 nm)" in text) is kept
     assert ("not kept (held-out 49.5 nm)" in text) is not kept
     assert _md_profile(None, "nm") == []
+
+
+K = TRACE_NOMINAL.index(next(n for n in TRACE_NOMINAL if n not in AMPLIFIER_SCALES))
+
+
+class _Hidden(_Slow):
+    """A slower amplifier's basin that needs another factor (index ``K``) below −1.5 σ:
+    the friction or preload a slower unit's smaller flybacks call for. The profile's points
+    start from the best fit's other factors (0 σ) and never enter it; a design point with
+    x[K] there does. Off the basin the data cost ``off`` and the held-out error 20 nm; in
+    it the data cost DEEP and the held-out error ``inside_nm``."""
+
+    def __init__(self, centre, off: float, inside_nm: float):
+        super().__init__(centre)
+        self.off, self.inside_nm = off, inside_nm
+
+    def inside(self, x: np.ndarray) -> bool:
+        return super().inside(x) and float(np.asarray(x)[K]) < -1.5 * SIGMA
+
+    def data(self, x: np.ndarray) -> float:
+        return DEEP if self.inside(x) else self.off
+
+    def fit(self, x: np.ndarray, free: Any = True) -> LocalFit:
+        x = np.asarray(x, dtype=float).copy()
+        keep = x[K]
+        f = super().fit(x, free)
+        f.x[K] = keep  # the factor that opens the basin stays where it started
+        c = self.cost(f.x) if free is True else self.data(f.x)
+        h = self.inside_nm if self.inside(f.x) else 20.0
+        return LocalFit(f.x, {}, f.std_x, {}, c, h, h, 1)
+
+
+def _hidden(monkeypatch, off, inside_nm, z):
+    basin = _Hidden((-2.0, -3.0), off, inside_nm)
+    problem, _b, _seen = _landscape(monkeypatch, (0.0, 0.0))
+    monkeypatch.setattr(trace_fit, "_local_fits", lambda _p, starts, *_a, free_nominal=True, **_k:
+                        [basin.fit(x, free_nominal) for x in starts])  # fmt: skip
+    monkeypatch.setattr(trace_fit, "_objectives",
+                        lambda p, pts, *_a: np.array([basin.cost(x) for x in pts]))  # fmt: skip
+    monkeypatch.setattr(trace_fit, "trace_comparison",
+                        lambda _p, _w, _wo: SimpleNamespace(z=z, blocks=12))  # fmt: skip
+    pts = np.zeros((8, N))
+    pts[:, K] = 1.0 * SIGMA
+    pts[5, K] = -2.0 * SIGMA  # one design point with the factor the basin needs
+    design = trace_fit._Design(np.zeros(N), 1.0, pts, np.zeros(8), 2)
+    return problem, basin, design
+
+
+@pytest.mark.parametrize(
+    ("off", "inside_nm", "z", "kept", "why"),
+    [(30.0, 5.0, 5.0, True, "cost"),  # a deeper basin: kept by the cost
+     (5.0, 5.0, 5.0, True, "held-out"),  # costlier priors, held-out 4× better at z 5
+     (5.0, 19.5, 5.0, False, ""),  # a 2.5 % held-out gain: below min_improvement
+     (5.0, 5.0, 2.0, False, "")],  # a gain the residual's scatter allows (z < 3)
+)
+def test_the_held_search_reaches_a_basin_the_profile_cannot(monkeypatch, off, inside_nm, z,
+                                                            kept, why):  # fmt: skip
+    """The held search screens the design's points at every profile pair, fits from the
+    lowest with the amplifier held, frees the best, and keeps it by the cost or, as an
+    effect is named, by a held-out gain ≥ min_improvement at z ≥ Z_HELDOUT."""
+    problem, basin, design = _hidden(monkeypatch, off, inside_nm, z)
+    best = basin.fit(np.zeros(N))
+    prof, row = trace_fit._amplifier_profile(problem, best, 1, (0, HOPS), _quiet)
+    assert prof is best and not row["kept"]  # the profile's starts miss the basin
+    out, held = trace_fit._held_search(problem, best, design, 1, 0.05, _quiet)
+    assert held["points"] == 8 * len(AMPLIFIER_PROFILE) ** 2
+    assert held["kept"] is kept and (out is not best) is kept
+    assert held["amplifier"]["amplifier_current"] == pytest.approx(np.exp(-3.0 * SIGMA))
+    assert held["gain"] == pytest.approx(1.0 - inside_nm / 20.0)
+    if why == "cost":
+        assert held["cost_after"] < (1.0 - HOP_TOL) * held["cost_before"]
+    if why == "held-out":  # the slower unit's priors cost more than the fit gains
+        assert held["cost_after"] > held["cost_before"] and held["z"] >= trace_fit.Z_HELDOUT
+    assert held["heldout_rms"] == (inside_nm if kept else best.heldout_rms)
+
+
+@pytest.mark.parametrize(("cost_after", "kept", "why"),
+                         [(12.0, True, "by the cost"), (25.0, True, "by the held-out data"),
+                          (25.0, False, "not kept")])  # fmt: skip
+def test_report_states_the_held_search_and_why_it_was_kept(cost_after, kept, why):
+    from turntable_env.calibration.calibrate import _md_profile
+
+    pts = [{"amplifier_slew": 0.5, "amplifier_current": 0.124, "cost": 60.2, "heldout_rms": 44.0}]
+    held = {"points": 576, "screened": [500.0], "held_costs": [30.5, 41.0],
+            "cost_before": 20.1, "heldout_before": 23.4, "cost_after": cost_after,
+            "heldout_after": 11.2, "heldout_held": 11.0, "fit_before": 18.7, "fit_after": 19.2,
+            "gain": 0.521, "z": 6.3, "blocks": 40, "min_improvement": 0.05, "z_min": 3.0,
+            "kept": kept, "heldout_rms": 11.2 if kept else 23.4,
+            "amplifier": {"amplifier_slew": 0.31, "amplifier_current": 0.12}}  # fmt: skip
+    row = {"points": pts, "freed_costs": [55.0], "cost_before": 20.1, "heldout_before": 23.4,
+           "cost_after": 55.0, "kept": False, "hops": [], "heldout_rms": 23.4,
+           "amplifier": {"amplifier_slew": 1.0, "amplifier_current": 0.7}, "held_search": held}
+    text = "\n".join(_md_profile(row, "nm"))
+    assert "Held search (the profile left 23.4 nm): 576 design points" in text
+    assert "costs 30.5, 41; the best freed reached cost" in text
+    assert "held-out 11.2 against 23.4 nm (+52.1%, z +6.3 over 40 blocks" in text
+    assert text.endswith(f"fit portion 19.2 against 18.7 nm: {why}.")
+
+
+def test_the_nominal_fit_runs_the_held_search_where_the_profile_leaves_it_above_target(
+        monkeypatch):  # fmt: skip
+    """Neither the design's starts, the hops, the second stage nor the profile enter the
+    hidden basin; the held search, fed the first design, does, and its fit is the
+    nominal model (the data's cost off the basin, 60, outweighs the design points' priors,
+    as on a trace: a held fit's data cost ≥ 444 there)."""
+    problem, basin, _design = _hidden(monkeypatch, 60.0, 5.0, 6.0)
+    monkeypatch.setattr(trace_fit, "_reweight", lambda *_a: None)
+    monkeypatch.setattr(trace_fit, "local_fit", lambda _p, x, *_a, **_k: basin.fit(x))
+    nominal, spread = trace_fit._fit_nominal(problem, np.zeros(N), (0.01, 10.0), 32, 2, 1, 0,
+                                             None, _quiet)  # fmt: skip
+    held = spread["amplifier_profile"]["held_search"]
+    assert not spread["amplifier_profile"]["kept"] and held["kept"]
+    assert held["points"] == 32 * len(AMPLIFIER_PROFILE) ** 2
+    assert basin.inside(nominal.x) and nominal.heldout_rms == 5.0
