@@ -207,6 +207,7 @@ class _Hidden(_Slow):
 def _hidden(monkeypatch, off, inside_nm, z):
     basin = _Hidden((-2.0, -3.0), off, inside_nm)
     problem, _b, _seen = _landscape(monkeypatch, (0.0, 0.0))
+    problem.objective = lambda x, *_e: basin.cost(x)
     monkeypatch.setattr(trace_fit, "_local_fits", lambda _p, starts, *_a, free_nominal=True, **_k:
                         [basin.fit(x, free_nominal) for x in starts])  # fmt: skip
     monkeypatch.setattr(trace_fit, "_objectives",
@@ -236,8 +237,9 @@ def test_the_held_search_reaches_a_basin_the_profile_cannot(monkeypatch, off, in
     best = basin.fit(np.zeros(N))
     prof, row = trace_fit._amplifier_profile(problem, best, 1, (0, HOPS), _quiet)
     assert prof is best and not row["kept"]  # the profile's starts miss the basin
-    out, held = trace_fit._held_search(problem, best, design, 1, 0.05, _quiet)
-    assert held["points"] == 8 * len(AMPLIFIER_PROFILE) ** 2
+    monkeypatch.setattr(trace_fit, "_reweight", lambda *_a: None)
+    out, held = trace_fit._held_search(problem, best, design, 0.01, 1, (0, HOPS), 0.05, _quiet)
+    assert held["points"] == (1 + 8) * len(AMPLIFIER_PROFILE) ** 2  # the prior too
     assert held["kept"] is kept and (out is not best) is kept
     assert held["amplifier"]["amplifier_current"] == pytest.approx(np.exp(-3.0 * SIGMA))
     assert held["gain"] == pytest.approx(1.0 - inside_nm / 20.0)
@@ -284,5 +286,5 @@ def test_the_nominal_fit_runs_the_held_search_where_the_profile_leaves_it_above_
                                              None, _quiet)  # fmt: skip
     held = spread["amplifier_profile"]["held_search"]
     assert not spread["amplifier_profile"]["kept"] and held["kept"]
-    assert held["points"] == 32 * len(AMPLIFIER_PROFILE) ** 2
+    assert held["points"] == (1 + 32) * len(AMPLIFIER_PROFILE) ** 2
     assert basin.inside(nominal.x) and nominal.heldout_rms == 5.0

@@ -1447,8 +1447,8 @@ def _fit_nominal(
             problem.model.names):  # fmt: skip
         best, profile = _amplifier_profile(problem, best, n_workers, (seed, hops), say)
         if best.heldout_rms > target:
-            best, profile["held_search"] = _held_search(problem, best, design, n_workers,
-                                                        min_improvement, say)  # fmt: skip
+            best, profile["held_search"] = _held_search(
+                problem, best, design, floor, n_workers, (seed, hops), min_improvement, say)
     _reweight(problem, best, floor)
     if n_workers > 1:  # the polish's finite differences over the workers
         with ProcessPoolExecutor(n_workers, initializer=_init_worker, initargs=(problem,)) as ex:
@@ -1606,8 +1606,8 @@ def _amplifier_profile(
 
 
 def _held_search(
-    problem: TraceProblem, best: LocalFit, design: _Design, n_workers: int,
-    min_improvement: float, say: Callable[[str], None],
+    problem: TraceProblem, best: LocalFit, design: _Design, floor: float, n_workers: int,
+    plan: tuple[int, int], min_improvement: float, say: Callable[[str], None],
 ) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
     """A search at slower amplifiers for a nominal fit the profile left above its target:
     the first global design's points with the amplifier's two ln-factors set to each pair
@@ -1627,34 +1627,46 @@ def _held_search(
     held-out portion better by ``min_improvement`` at a signed-rank z ≥ :data:`Z_HELDOUT`
     (:func:`trace_comparison`). (the best fit, the report's row)."""
     mdl = problem.model
+    seed, hops = plan
     idx = [mdl.names.index(n) for n in AMPLIFIER_SCALES]
     others = [n for n in mdl.names if n not in AMPLIFIER_SCALES]
     held_x = np.array([(a, b) for a in AMPLIFIER_PROFILE for b in AMPLIFIER_PROFILE])
-    pts = np.repeat(design.pts, len(held_x), axis=0)  # each design point at every pair
-    pts[:, idx] = np.tile(held_x * mdl.sigma[idx], (len(design.pts), 1))
+    base = np.vstack([design.x_prior, design.pts])  # the prior and the design's points
+    pts = np.repeat(base, len(held_x), axis=0)  # each at every pair
+    pts[:, idx] = np.tile(held_x * mdl.sigma[idx], (len(base), 1))
     pts = np.clip(pts, mdl.low, mdl.high)
     say(f"nominal fit {best.heldout_rms:.3g} {ERROR_UNIT} still above its target: a held "
         f"search over slower amplifiers, {len(pts)} points")  # fmt: skip
+    w_data, problem.weight = problem.weight, design.w_prior  # as the design was searched
     # ranked as a held fit's cost is, without the held factors' prior rows: the slower
     # unit's prior is the hypothesis under test, not a reason to pass over its points
     vals = _objectives(problem, pts, n_workers, None) - np.sum((pts[:, idx] / mdl.sigma[idx])
                                                                 ** 2, axis=1)  # fmt: skip
-    order = [i for i in np.argsort(vals)[:HELD_STARTS] if np.isfinite(vals[i])]
+    # each design point at its best pair, the HELD_STARTS best design points: starts from
+    # different regions of the other factors, not one point at several amplifiers
+    per = vals.reshape(len(base), len(held_x))
+    pick = np.argmin(np.where(np.isfinite(per), per, np.inf), axis=1)
+    order = [int(i) * len(held_x) + int(pick[i]) for i in np.argsort(per.min(axis=1))[:HELD_STARTS]
+             if np.isfinite(per[i, pick[i]])]  # fmt: skip
     held = _local_fits(problem, [pts[i] for i in order], n_workers, FIRST_NFEV,
                        free_nominal=others)  # fmt: skip
-    held = _local_fits(problem, [f.x for f in held], n_workers, START_NFEV, free_nominal=others)
     row: dict[str, Any] = {"points": len(pts), "screened": [float(vals[i]) for i in order],
                            "held_costs": [], "cost_before": best.cost,
                            "heldout_before": best.heldout_rms, "kept": False,
-                           "heldout_rms": best.heldout_rms}  # fmt: skip
+                           "heldout_rms": best.heldout_rms, "hops": []}  # fmt: skip
     if not held:
+        problem.weight = w_data
         return best, row
+    _reweight(problem, min(held, key=lambda f: f.cost), floor)  # the held search's own weight
+    held = _local_fits(problem, [f.x for f in held], n_workers, START_NFEV, free_nominal=others)
     row["held_costs"] = [f.cost for f in held]
-    top = min(held, key=lambda f: f.cost)
+    top, row["hops"] = _basin_hops(problem, min(held, key=lambda f: f.cost), n_workers, seed,
+                                   say, hops, free_nominal=others)  # fmt: skip
     cand = _local_fits(problem, [top.x], n_workers, START_NFEV)[0]
     test = trace_comparison(problem, cand, best)
     gain = 1.0 - cand.heldout_rms / best.heldout_rms
-    by_cost = cand.cost < (1.0 - HOP_TOL) * best.cost
+    row["cost_before"] = problem.objective(best.x)  # under the same weight
+    by_cost = cand.cost < (1.0 - HOP_TOL) * row["cost_before"]
     by_heldout = gain >= min_improvement and test.z >= Z_HELDOUT
     row.update(cost_after=cand.cost, heldout_held=top.heldout_rms,
                heldout_after=cand.heldout_rms, fit_before=best.fit_rms, fit_after=cand.fit_rms,
@@ -1663,19 +1675,20 @@ def _held_search(
                amplifier={n: float(math.exp(cand.x[i]))
                           for n, i in zip(AMPLIFIER_SCALES, idx, strict=True)})  # fmt: skip
     say(f"  held search: held costs {', '.join(f'{c:.4g}' for c in row['held_costs'])}; "
-        f"freed cost {cand.cost:.4g} against {best.cost:.4g}, held-out "
+        f"freed cost {cand.cost:.4g} against {row['cost_before']:.4g}, held-out "
         f"{cand.heldout_rms:.3g} against {best.heldout_rms:.3g} {ERROR_UNIT} ({gain:+.1%}, z "
         f"{test.z:+.1f}){' — kept' if row['kept'] else ''}")  # fmt: skip
     if row["kept"]:
         row["heldout_rms"] = cand.heldout_rms
         return cand, row
+    problem.weight = w_data
     return best, row
 
 
 def _basin_hops(
     problem: TraceProblem, best: LocalFit, n_workers: int, seed: int,
     say: Callable[[str], None], hops: int = HOPS, free_effects: Sequence[str] = (),
-    min_hops: int = 0,
+    min_hops: int = 0, free_nominal: bool | Sequence[str] = True,
 ) -> tuple[LocalFit, list[dict[str, Any]]]:  # fmt: skip
     """Monotonic basin hopping (Wales & Doye 1997; Leary 2000) from the best start, under
     the data weight in force: each hop evaluates a scrambled Sobol cloud of
@@ -1684,7 +1697,8 @@ def _basin_hops(
     its :data:`HOP_STARTS` best points (over the workers, ``START_NFEV`` iterations, the
     ``free_effects`` fitted too) and keeps the best optimum when it lowers the cost by
     :data:`HOP_TOL`; two failed hops in a row (once ``min_hops`` have run), or ``hops`` of
-    them (default :data:`HOPS`), end it.
+    them (default :data:`HOPS`), end it. Nominal factors not in ``free_nominal`` (names;
+    True: all) stay where the best fit has them, in the cloud and the fits.
     The stick–slip objective is piecewise (a step gained or lost), its local optima many
     and close: the first independent plant's 10 kHz trace ended its four starts at costs
     23–137, the best at 29.4 nm held out; two kept hops of five took it to cost 14.3 and
@@ -1695,15 +1709,16 @@ def _basin_hops(
     mdl = problem.model
     rows: list[dict[str, Any]] = []
     failed = 0
+    moves = np.ones(len(mdl)) if free_nominal is True else np.isin(mdl.names, free_nominal)
     for k in range(hops):
         radius = HOP_RADII[k % len(HOP_RADII)]
         sob = scipy.stats.qmc.Sobol(len(mdl), scramble=True, seed=seed + 1 + k)
         u = sob.random_base2(max(0, math.ceil(math.log2(HOP_POINTS))))[:HOP_POINTS]
-        pts = np.clip(best.x + (2.0 * u - 1.0) * radius * mdl.sigma, mdl.low, mdl.high)
+        pts = np.clip(best.x + (2.0 * u - 1.0) * radius * mdl.sigma * moves, mdl.low, mdl.high)
         vals = _objectives(problem, pts, n_workers, None, best.effects)
         order = [i for i in np.argsort(vals)[:HOP_STARTS] if np.isfinite(vals[i])]
         fits = _local_fits(problem, [pts[i] for i in order], n_workers, START_NFEV,
-                           best.effects, free_effects)  # fmt: skip
+                           best.effects, free_effects, free_nominal=free_nominal)  # fmt: skip
         cand = min(fits, key=lambda f: f.cost) if fits else None
         better = cand is not None and cand.cost < (1.0 - HOP_TOL) * best.cost
         rows.append({"radius_sigma": radius, "cost_before": best.cost,
