@@ -251,31 +251,6 @@ def _md_profile(row: dict[str, Any] | None, u: str) -> list[str]:
         f"{row['cost_before']:.5g}; {'kept' if row['kept'] else 'not kept'} (held-out "
         f"{row['heldout_rms']:.3g} {u}).",
         *_md_hops(row.get("hops"), "the amplifier profile's best fit", u),
-        *_md_held(row.get("held_search"), u),
-    ]  # fmt: skip
-
-
-def _md_held(row: dict[str, Any] | None, u: str) -> list[str]:
-    """report.md lines of the held search at slower amplifiers
-    (:func:`~.trace_fit._held_search`); none where the profile met the target."""
-    if not row:
-        return []
-    if not row["held_costs"]:
-        return ["", f"Held search: none of its {row['points']} points could be simulated."]
-    amp = row["amplifier"]
-    held = ", ".join(f"{c:.5g}" for c in row["held_costs"])
-    why = ("by the cost" if row["cost_after"] < row["cost_before"] else
-           "by the held-out data") if row["kept"] else "not kept"  # fmt: skip
-    return [
-        "", f"Held search (the profile left {row['heldout_before']:.3g} {u}): "
-        f"{row['points']} design points at the profile's amplifiers screened, held fits "
-        f"from the lowest reached costs {held}; the best freed reached cost "
-        f"{row['cost_after']:.5g} (slew {amp['amplifier_slew']:.3g}, current "
-        f"{amp['amplifier_current']:.3g}) against {row['cost_before']:.5g}, held-out "
-        f"{row['heldout_after']:.3g} against {row['heldout_before']:.3g} {u} "
-        f"({row['gain']:+.1%}, z {row['z']:+.1f} over {row['blocks']} blocks; kept at a "
-        f"gain ≥ {row['min_improvement']:.0%} and z ≥ {row['z_min']:g}, or a lower cost); "
-        f"fit portion {row['fit_after']:.3g} against {row['fit_before']:.3g} {u}: {why}.",
     ]  # fmt: skip
 
 

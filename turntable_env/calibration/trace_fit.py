@@ -175,7 +175,6 @@ HOP_TOL = 0.01
 # each pair of these [prior σ] — slower units than the datasheet's, to beyond the global
 # design's box — while the rest are fitted; its best HOP_STARTS fits are then freed
 AMPLIFIER_PROFILE = (-1.0, -2.0, -3.0)
-HELD_STARTS = 4  # :func:`_held_search`'s least-squares starts at a held slower amplifier
 # the share of the structured held-out residual (√(rms² − floor²)) an effect its own
 # signature does not back may leave and still be named by the trace error: it must explain
 # most of what the current model leaves (friction wear of β = 0.3 on the virtual lab, the
@@ -1353,7 +1352,7 @@ def calibrate_traces(
 
     target = max(3.0 * floor, 0.02 * motion)  # the acceptance's bar (module docstring)
     nominal, spread = _fit_nominal(problem, x_prior, (floor, target), global_points, starts,
-                                   n_workers, seed, bar, say, hops, min_improvement)  # fmt: skip
+                                   n_workers, seed, bar, say, hops)  # fmt: skip
     if (undetermined := undetermined_starts(spread)) is not None:
         warnings.append(undetermined)
     for n in names:
@@ -1413,7 +1412,7 @@ def calibrate_traces(
 def _fit_nominal(
     problem: TraceProblem, x_prior: np.ndarray, bars: tuple[float, float], global_points: int,
     starts: int, n_workers: int, seed: int, bar: Any, say: Callable[[str], None],
-    hops: int = HOPS, min_improvement: float = 0.05,
+    hops: int = HOPS,
 ) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
     """The nominal model: the global stage's best points and the prior, each refined by
     least squares (``FIRST_NFEV`` iterations, the starts over ``n_workers`` processes);
@@ -1425,9 +1424,7 @@ def _fit_nominal(
     may end in a better basin (the first plant's stepping-only trace: 72 → 30 nm). The
     best is then moved on by basin hopping (:func:`_basin_hops`); where it stays above
     the target, the search is run again on the design doubled (:func:`_second_stage`),
-    then over slower amplifiers (:func:`_amplifier_profile`, and where that leaves it above
-    the target :func:`_held_search`, judged on held-out data by ``min_improvement`` as an
-    effect is), before the re-weighting and polish. ``bars``: (noise floor, target) [nm]."""
+    before the re-weighting and polish. ``bars``: (noise floor, target) [nm]."""
     floor, target = bars
     w_prior = problem.weight
     pts, vals = np.zeros((0, len(x_prior))), np.zeros(0)
@@ -1446,9 +1443,6 @@ def _fit_nominal(
     if global_points > 0 and best.heldout_rms > target and set(AMPLIFIER_SCALES) <= set(
             problem.model.names):  # fmt: skip
         best, profile = _amplifier_profile(problem, best, n_workers, (seed, hops), say)
-        if best.heldout_rms > target:
-            best, profile["held_search"] = _held_search(
-                problem, best, design, floor, n_workers, (seed, hops), min_improvement, say)
     _reweight(problem, best, floor)
     if n_workers > 1:  # the polish's finite differences over the workers
         with ProcessPoolExecutor(n_workers, initializer=_init_worker, initargs=(problem,)) as ex:
@@ -1605,90 +1599,10 @@ def _amplifier_profile(
     return best, row
 
 
-def _held_search(
-    problem: TraceProblem, best: LocalFit, design: _Design, floor: float, n_workers: int,
-    plan: tuple[int, int], min_improvement: float, say: Callable[[str], None],
-) -> tuple[LocalFit, dict[str, Any]]:  # fmt: skip
-    """A search at slower amplifiers for a nominal fit the profile left above its target:
-    the first global design's points with the amplifier's two ln-factors set to each pair
-    of :data:`AMPLIFIER_PROFILE` (prior σ) are screened, least squares runs from the
-    :data:`HELD_STARTS` lowest with the amplifier held (``FIRST_NFEV``, then
-    ``START_NFEV``), and the lowest-cost of those is freed (``START_NFEV``); points and
-    held fits are ranked without the held factors' prior rows. The profile's own points
-    start from the best fit, whose friction, preload and stroke have absorbed a slower
-    unit's smaller flybacks: on the second independent plant's slower amplifier (a 0.4×
-    bandwidth stage, 0.6 V/µs) every one of them ended at cost ≥ 444 against the fast
-    fit's 20.1, where a whole search at the plant's speed reached 11.1 nm held out on one
-    Sobol seed of three (docs/calibration.md, stop 106). A slower unit's priors cost more
-    than the datasheet's, and
-    two hypotheses of the unit that fit the fit portion about equally are told apart by
-    the data they did not see: the freed fit is kept where it lowers the cost by
-    :data:`HOP_TOL`, or where, as an effect must (:func:`_accept_one`), it predicts the
-    held-out portion better by ``min_improvement`` at a signed-rank z ≥ :data:`Z_HELDOUT`
-    (:func:`trace_comparison`). (the best fit, the report's row)."""
-    mdl = problem.model
-    seed, hops = plan
-    idx = [mdl.names.index(n) for n in AMPLIFIER_SCALES]
-    others = [n for n in mdl.names if n not in AMPLIFIER_SCALES]
-    held_x = np.array([(a, b) for a in AMPLIFIER_PROFILE for b in AMPLIFIER_PROFILE])
-    base = np.vstack([design.x_prior, design.pts])  # the prior and the design's points
-    pts = np.repeat(base, len(held_x), axis=0)  # each at every pair
-    pts[:, idx] = np.tile(held_x * mdl.sigma[idx], (len(base), 1))
-    pts = np.clip(pts, mdl.low, mdl.high)
-    say(f"nominal fit {best.heldout_rms:.3g} {ERROR_UNIT} still above its target: a held "
-        f"search over slower amplifiers, {len(pts)} points")  # fmt: skip
-    w_data, problem.weight = problem.weight, design.w_prior  # as the design was searched
-    # ranked as a held fit's cost is, without the held factors' prior rows: the slower
-    # unit's prior is the hypothesis under test, not a reason to pass over its points
-    vals = _objectives(problem, pts, n_workers, None) - np.sum((pts[:, idx] / mdl.sigma[idx])
-                                                                ** 2, axis=1)  # fmt: skip
-    # each design point at its best pair, the HELD_STARTS best design points: starts from
-    # different regions of the other factors, not one point at several amplifiers
-    per = vals.reshape(len(base), len(held_x))
-    pick = np.argmin(np.where(np.isfinite(per), per, np.inf), axis=1)
-    order = [int(i) * len(held_x) + int(pick[i]) for i in np.argsort(per.min(axis=1))[:HELD_STARTS]
-             if np.isfinite(per[i, pick[i]])]  # fmt: skip
-    held = _local_fits(problem, [pts[i] for i in order], n_workers, FIRST_NFEV,
-                       free_nominal=others)  # fmt: skip
-    row: dict[str, Any] = {"points": len(pts), "screened": [float(vals[i]) for i in order],
-                           "held_costs": [], "cost_before": best.cost,
-                           "heldout_before": best.heldout_rms, "kept": False,
-                           "heldout_rms": best.heldout_rms, "hops": []}  # fmt: skip
-    if not held:
-        problem.weight = w_data
-        return best, row
-    _reweight(problem, min(held, key=lambda f: f.cost), floor)  # the held search's own weight
-    held = _local_fits(problem, [f.x for f in held], n_workers, START_NFEV, free_nominal=others)
-    row["held_costs"] = [f.cost for f in held]
-    top, row["hops"] = _basin_hops(problem, min(held, key=lambda f: f.cost), n_workers, seed,
-                                   say, hops, free_nominal=others)  # fmt: skip
-    cand = _local_fits(problem, [top.x], n_workers, START_NFEV)[0]
-    test = trace_comparison(problem, cand, best)
-    gain = 1.0 - cand.heldout_rms / best.heldout_rms
-    row["cost_before"] = problem.objective(best.x)  # under the same weight
-    by_cost = cand.cost < (1.0 - HOP_TOL) * row["cost_before"]
-    by_heldout = gain >= min_improvement and test.z >= Z_HELDOUT
-    row.update(cost_after=cand.cost, heldout_held=top.heldout_rms,
-               heldout_after=cand.heldout_rms, fit_before=best.fit_rms, fit_after=cand.fit_rms,
-               gain=gain, z=test.z, blocks=test.blocks, min_improvement=min_improvement,
-               z_min=Z_HELDOUT, kept=bool(by_cost or by_heldout),
-               amplifier={n: float(math.exp(cand.x[i]))
-                          for n, i in zip(AMPLIFIER_SCALES, idx, strict=True)})  # fmt: skip
-    say(f"  held search: held costs {', '.join(f'{c:.4g}' for c in row['held_costs'])}; "
-        f"freed cost {cand.cost:.4g} against {row['cost_before']:.4g}, held-out "
-        f"{cand.heldout_rms:.3g} against {best.heldout_rms:.3g} {ERROR_UNIT} ({gain:+.1%}, z "
-        f"{test.z:+.1f}){' — kept' if row['kept'] else ''}")  # fmt: skip
-    if row["kept"]:
-        row["heldout_rms"] = cand.heldout_rms
-        return cand, row
-    problem.weight = w_data
-    return best, row
-
-
 def _basin_hops(
     problem: TraceProblem, best: LocalFit, n_workers: int, seed: int,
     say: Callable[[str], None], hops: int = HOPS, free_effects: Sequence[str] = (),
-    min_hops: int = 0, free_nominal: bool | Sequence[str] = True,
+    min_hops: int = 0,
 ) -> tuple[LocalFit, list[dict[str, Any]]]:  # fmt: skip
     """Monotonic basin hopping (Wales & Doye 1997; Leary 2000) from the best start, under
     the data weight in force: each hop evaluates a scrambled Sobol cloud of
@@ -1697,8 +1611,7 @@ def _basin_hops(
     its :data:`HOP_STARTS` best points (over the workers, ``START_NFEV`` iterations, the
     ``free_effects`` fitted too) and keeps the best optimum when it lowers the cost by
     :data:`HOP_TOL`; two failed hops in a row (once ``min_hops`` have run), or ``hops`` of
-    them (default :data:`HOPS`), end it. Nominal factors not in ``free_nominal`` (names;
-    True: all) stay where the best fit has them, in the cloud and the fits.
+    them (default :data:`HOPS`), end it.
     The stick–slip objective is piecewise (a step gained or lost), its local optima many
     and close: the first independent plant's 10 kHz trace ended its four starts at costs
     23–137, the best at 29.4 nm held out; two kept hops of five took it to cost 14.3 and
@@ -1709,16 +1622,15 @@ def _basin_hops(
     mdl = problem.model
     rows: list[dict[str, Any]] = []
     failed = 0
-    moves = np.ones(len(mdl)) if free_nominal is True else np.isin(mdl.names, free_nominal)
     for k in range(hops):
         radius = HOP_RADII[k % len(HOP_RADII)]
         sob = scipy.stats.qmc.Sobol(len(mdl), scramble=True, seed=seed + 1 + k)
         u = sob.random_base2(max(0, math.ceil(math.log2(HOP_POINTS))))[:HOP_POINTS]
-        pts = np.clip(best.x + (2.0 * u - 1.0) * radius * mdl.sigma * moves, mdl.low, mdl.high)
+        pts = np.clip(best.x + (2.0 * u - 1.0) * radius * mdl.sigma, mdl.low, mdl.high)
         vals = _objectives(problem, pts, n_workers, None, best.effects)
         order = [i for i in np.argsort(vals)[:HOP_STARTS] if np.isfinite(vals[i])]
         fits = _local_fits(problem, [pts[i] for i in order], n_workers, START_NFEV,
-                           best.effects, free_effects, free_nominal=free_nominal)  # fmt: skip
+                           best.effects, free_effects)  # fmt: skip
         cand = min(fits, key=lambda f: f.cost) if fits else None
         better = cand is not None and cand.cost < (1.0 - HOP_TOL) * best.cost
         rows.append({"radius_sigma": radius, "cost_before": best.cost,
