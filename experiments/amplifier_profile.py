@@ -13,7 +13,8 @@ speed, each point fitted with the same budget. The catalogue's ``amplifier_dynam
 instead holds the nominal model at its fit (or at the prior) while it moves the slew scale,
 and a slower amplifier's smaller steps are what friction, preload and stroke already
 absorbed there. Prints one line per point: the held-out error of the nominal fit [nm] and
-the fit portion's, the noise floor and the wall time; ``--json`` writes the same.
+the fit portion's, the noise floor and the wall time; ``--json`` writes the same, with each
+point's fitted nominal factors (on the scaled base).
 
 The amplifier scales are the base's, not the catalogue effect's, so a point may lie
 outside the effect's range (slew ≥ 0.3, current ≥ 0.3). Since stop 56 the calibration's
@@ -77,6 +78,8 @@ def profile_point(
         "floor_nm": float(d["noise_floor"]),
         "target_nm": float(d["target"]),
         "wall_s": time.perf_counter() - t0,
+        # the fitted nominal factors on the scaled base (report.json parameters.nominal)
+        "factors": {n: float(v["value"]) for n, v in res.parameters["nominal"].items()},
     }
 
 
