@@ -70,3 +70,30 @@ def test_bad_input_exits_2_before_any_fit(script, tmp_path, capsys, argv, names)
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert names in err[-1]
+
+
+def test_a_point_reports_the_fitted_factors_of_the_held_amplifier_fit(script, monkeypatch):
+    """``profile_point``: the calibration frees every nominal factor but the amplifier's
+    two (held at the point, on the base), and the point's ``factors`` are that fit's
+    nominal factors as report.json gives them (``parameters.nominal``, each ``value``)."""
+    from types import SimpleNamespace
+
+    from turntable_env.calibration.trace_fit import AMPLIFIER_SCALES
+
+    seen = {}
+    fitted = {n: 0.5 + 0.1 * k for k, n in enumerate(script.PROFILE_NOMINAL)}
+
+    def calibrate(files, *, base, nominal, **kw):
+        seen.update(base=base, nominal=nominal, **kw)
+        return SimpleNamespace(
+            parameters={"nominal": {n: {"value": v, "std": 0.01} for n, v in fitted.items()}},
+            diagnosis={"error_nominal": 11.1, "error_fit_portion": 19.2, "noise_floor": 2.82,
+                       "target": 18.6})  # fmt: skip
+
+    monkeypatch.setattr(script, "calibrate_traces", calibrate)
+    row = script.profile_point("trace.csv", 0.3, 0.1, 1, 2)
+    assert seen["nominal"] == script.PROFILE_NOMINAL
+    assert not set(AMPLIFIER_SCALES) & set(seen["nominal"]) and seen["seed"] == 2
+    assert seen["base"].params == script.base_with_amplifier(0.3, 0.1).params
+    assert row["factors"] == fitted
+    assert (row["heldout_nm"], row["fit_portion_nm"]) == (11.1, 19.2)
