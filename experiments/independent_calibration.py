@@ -1,7 +1,7 @@
 """Calibrate an independent plant's traces and print the before/after table (issues 19, 31).
 
     python experiments/independent_calibration.py [--plant first|second|third] [--traces DIR]
-        [--only NAME ...] [--base real|thesis|calibrated] [--out DIR]
+        [--only NAME ...] [--base SET|FILE] [--out DIR]
         [--backend auto|ray|processes [--address auto]]
 
 ``--plant first`` is ``turntable_env/testing/independent_plant.py`` (its traces by
@@ -50,6 +50,7 @@ from pathlib import Path
 from turntable_env.calibration.calibrate import calibrate, write_report
 from turntable_env.calibration.measurement import Measurement, load_measurement
 from turntable_env.files import write_atomic
+from turntable_env.plant import set_or_plant
 from turntable_env.provenance import code_label, code_version
 from turntable_env.scale import BACKENDS, map_tasks
 
@@ -132,6 +133,7 @@ def _calibrate_one(job: dict) -> dict:
         "structured": res.residual_structured,
         "flagged": d["unexplained"],
         "wall_s": wall,
+        "base": d["base"],  # the prior: a set's name or the earlier calibration's file
         "code": code_version(),  # where it ran (the tables mix rows of several commits)
     }
 
@@ -161,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--traces", default=None, help="trace directory (default: by --plant)")
     ap.add_argument("--only", nargs="*", default=None, help="trace names (default: all)")
     ap.add_argument("--base", default="real",
-                    help="the prior parameter set, as turntable calibrate --base (default real)")
+                    help="the prior: a set or a lab's earlier calibration (calibrated.toml, "
+                         "report.json), as turntable calibrate --base (default real)")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--seed", type=int, default=0,
                     help="the calibration's seed, as turntable calibrate --seed (default 0)")
@@ -175,6 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     ap.add_argument("--address", default=None, help="Ray cluster to join (default: local)")
     args = ap.parse_args(argv)
+    try:  # read before any trace is written or calibrated
+        base = set_or_plant(args.base)
+    except ValueError as e:
+        ap.error(f"--base: {e}")
     default_dir, writer = PLANTS[args.plant]
     traces = Path(args.traces or default_dir)
     if not (traces / "truth.json").exists():
@@ -188,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     jobs = [
         {"name": name, "file": str(traces / f"{name}.csv"), "info": truth[f"{name}.csv"],
-         "base": args.base, "workers": args.workers, "seed": args.seed, "corners": args.corners,
+         "base": base, "workers": args.workers, "seed": args.seed, "corners": args.corners,
          "out": str(out / name)}
         for name in names
     ]  # fmt: skip

@@ -95,6 +95,9 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["virtual-lab", "--effects", "piezo_creep=0_0", "--out", "v.csv"], "piezo_creep"),
         (["virtual-lab", "--effects", "piezo_creep.=0.02", "--out", "v.csv"], "after the dot"),
         (["calibrate", "--thesis", "lab.csv", "--report", "rep"], "--thesis"),  # stop 74
+        # a lab's earlier calibration as the prior (stop 108): read before any work
+        (["calibrate", "lab.csv", "--base", "earlier.toml", "--report", "rep"], "--base"),
+        (["calibrate", "lab.csv", "--base", "earlier/", "--report", "rep"], "earlier"),
     ],
 )
 def test_bad_values_exit_2_with_one_line_naming_the_option(argv, names, capsys, tmp_path,

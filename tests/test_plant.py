@@ -405,6 +405,36 @@ def test_named_plants_and_sets_are_refused_by_an_unknown_name():
         parameter_set("wishful")
 
 
+def test_load_reads_a_set_a_plant_file_or_a_report_and_names_what_it_refuses(
+    tmp_path, monkeypatch
+):
+    """Plant.load (``turntable calibrate --base``): a set's name is the set's plant, a
+    ``*.toml`` a calibration's plant file, anything else a report; a missing path, a bad
+    file and a set's name that is also a path here are refused by name."""
+    from turntable_env.plant import calibrated_set_toml
+
+    monkeypatch.chdir(tmp_path)
+    assert Plant.load("real") == Plant("real")
+    assert Plant.load("calibrated") == Plant.named("calibrated")
+    plant = Plant(factors={"friction": 0.3, "preload": 0.25}, uncertainty={"friction": 0.02})
+    (tmp_path / "lab.toml").write_text(calibrated_set_toml(plant, source="test"))
+    (tmp_path / "rep").mkdir()
+    (tmp_path / "rep" / "report.json").write_text(json.dumps({"plant": plant.to_dict()}))
+    for source in ("lab.toml", tmp_path / "lab.toml", "rep", "rep/report.json"):
+        back = Plant.load(source)
+        assert back == plant and back.factors == plant.factors and back.source
+    with pytest.raises(ValueError, match=r"'missing\.toml': no such file"):
+        Plant.load("missing.toml")
+    (tmp_path / "bad.toml").write_text("[plant\n")
+    with pytest.raises(ValueError, match=r"bad\.toml"):
+        Plant.load("bad.toml")
+    (tmp_path / "thesis").mkdir()
+    with pytest.raises(ValueError, match="both a parameter set and a path"):
+        Plant.load("thesis")
+    with pytest.raises(ValueError, match="plant=3"):
+        Plant.load(3)
+
+
 # --- the independent plant behind the plant layer (issue 32, item 5) -------------------------
 def _sawtooth(periods=6, f=500.0, amplitude=3.0):
     """Breakpoints on the 62.5 ns grid: a ramp to ``amplitude`` [V input] over 0.9 of each

@@ -22,7 +22,7 @@ from typing import Any, NoReturn
 
 from . import __version__
 from .files import Terminated, check_writable, plain_json, terminate_cleanly, write_atomic
-from .plant import MAX_SENSOR_NOISE, PARAMETER_SETS, parameter_set
+from .plant import MAX_SENSOR_NOISE, PARAMETER_SETS, parameter_set, set_or_plant
 from .scale import BACKENDS
 from .validation import parse_decimal
 
@@ -358,8 +358,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             )
         res = calibrate_summary(summary[0], seed=args.seed, workers=args.workers)
     else:
+        try:  # a set, or a lab's earlier calibration of the rig (read before any work)
+            base = set_or_plant(args.base) if args.base is not None else "real"
+        except ValueError as exc:
+            raise ValueError(f"--base: {exc}") from None
         res = calibrate(
-            files, base=args.base or "real", workers=args.workers,
+            files, base=base, workers=args.workers,
             global_points=args.global_points or 64, seed=args.seed,
         )  # fmt: skip
     paths = write_report(res, args.report)
@@ -576,9 +580,11 @@ def _add_calibrate(sub: Any) -> None:
     pc.add_argument("--thesis", action="store_true", help="the thesis's chapter-4 figures")
     pc.add_argument("--report", required=True, help="output directory")
     pc.add_argument(
-        "--base", default=None, choices=["real", "thesis", "calibrated"],
-        help="parameter set the nominal factors scale (default real; calibrated: the thesis "
-        "rig's set); measurement files only",
+        "--base", default=None, metavar="SET|FILE",
+        help="the plant the nominal factors scale and the priors centre on: a set (real, "
+        "the default; thesis; calibrated, the thesis rig's) or a lab's earlier calibration "
+        "of the same rig (its calibrated.toml, report.json or report directory); "
+        "measurement files only",
     )  # fmt: skip
     pc.add_argument(
         "--workers", type=_int(1, 1024), default=None,

@@ -1322,9 +1322,7 @@ def calibrate_traces(
 
     warnings: list[str] = []
     traces = []
-    base_plant = base if isinstance(base, Plant) else Plant(base, fidelity="reduced")
-    if base_plant.fidelity != "reduced":
-        base_plant = base_plant.replace(fidelity="reduced")
+    base_plant = (base if isinstance(base, Plant) else Plant(base)).replace(fidelity="reduced")
     for f in files:
         td, w = on_base(f if isinstance(f, Measurement) else load_measurement(f), base_plant)
         traces.append(td)
@@ -1377,6 +1375,7 @@ def calibrate_traces(
         identifiability={k: (v or "identifiable") for k, v in ident.items()},
         error_nominal=nominal.heldout_rms, error_fit_portion=current.fit_rms,
         drive_recording=[td.reading.recording for td in traces],
+        base=base if isinstance(base, str) else (base.source or "a Plant"),  # the prior's
     )  # fmt: skip
     params, plant = _fitted(model, current, selected, warnings)
     diag["identified"] = _identified(params, warnings)

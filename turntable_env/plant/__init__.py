@@ -62,6 +62,7 @@ from .value import (
     as_plant,
     calibrated_parameters,
     parameter_set,
+    set_or_plant,
 )
 
 __all__ = [
@@ -86,6 +87,7 @@ __all__ = [
     "parameter_set",
     "plant_toml",
     "reduced_model",
+    "set_or_plant",
     "turntable_model",
 ]
 

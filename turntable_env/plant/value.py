@@ -35,6 +35,7 @@ __all__ = [
     "as_plant",
     "calibrated_parameters",
     "parameter_set",
+    "set_or_plant",
 ]
 
 FIDELITIES = ("reduced", "translation", "full", "independent")
@@ -358,6 +359,29 @@ class Plant:
         return cls.from_dict(report_plant_dict(p), source=str(p))
 
     @classmethod
+    def load(cls, source: str | os.PathLike[str]) -> Plant:
+        """The plant ``source`` names: a parameter set or a named plant
+        (:data:`PARAMETER_SETS`, as :func:`as_plant`), a named-plant file
+        (``*.toml``, :meth:`from_toml`: a calibration's ``calibrated.toml``) or a
+        calibration report (``report.json`` or its directory, :meth:`from_report`).
+        ValueError naming ``source`` for anything else — a missing file, a bad file, or a
+        set's name that is also a path here (``./NAME`` for the path)."""
+        if isinstance(source, str) and source in PARAMETER_SETS:
+            if os.path.exists(source):  # both: say which is meant, never guess
+                raise ValueError(
+                    f"plant {source!r}: both a parameter set and a path here; give the path "
+                    f"as './{source}'"
+                )
+            return as_plant(source)
+        p = check_path("plant", source)
+        if not p.exists():
+            raise ValueError(
+                f"plant {str(p)!r}: no such file or directory (a set: {', '.join(PARAMETER_SETS)};"
+                " or a calibration's calibrated.toml, report.json or report directory)"
+            )
+        return cls.from_toml(p) if p.suffix.lower() == ".toml" else cls.from_report(p)
+
+    @classmethod
     def named(cls, name: str) -> Plant:
         """A named plant of the store, whole — base set, rig, factors, effects, fidelity,
         detector noise and the calibration's uncertainties (``"calibrated"``:
@@ -413,6 +437,15 @@ def as_plant(plant: Plant | ParameterSet | str) -> Plant:
             return Plant(plant)
         raise ValueError(f"plant={plant!r}: must be one of {', '.join(PARAMETER_SETS)}")
     raise ValueError(f"plant={plant!r}: must be a Plant, a ParameterSet or a set name")
+
+
+def set_or_plant(source: str | os.PathLike[str]) -> str | Plant:
+    """A base as the calibrator takes it (``turntable calibrate --base``): a set's name as
+    the name (``Plant(name, fidelity=...)`` builds it), anything else the plant
+    :meth:`Plant.load` reads — a lab's earlier calibration. ValueError as there."""
+    if isinstance(source, str) and source in PARAMETER_SETS and not os.path.exists(source):
+        return source
+    return Plant.load(source)
 
 
 def calibrated_parameters(path: str | os.PathLike[str] | None = None) -> ParameterSet:
