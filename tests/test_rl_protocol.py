@@ -352,3 +352,61 @@ def test_hyperparameter_search_runs_trials_as_ray_tasks_and_resumes(tmp_path):
     assert res.best_value == pytest.approx(done["value"].max())
     entry = load_hyperparams("sac", res.best_file)
     assert entry == apply_overrides(load_hyperparams("sac", hp), res.best_overrides)
+
+
+ORPHAN_SCRIPT = """
+import os, sys, time
+from pathlib import Path
+from turntable_env.scale import map_tasks
+
+def job(d):
+    Path(d, "worker.pid").write_text(str(os.getpid()))
+    time.sleep(float(sys.argv[2]))
+    Path(d, "done").write_text("a job that outlived its run")
+
+if __name__ == "__main__":
+    map_tasks(job, [sys.argv[1]], backend="processes", workers=1)
+"""
+
+
+def test_a_killed_runs_process_workers_end_with_it(tmp_path):
+    """map_tasks' process workers watch their parent: SIGKILL the run mid-job and its
+    worker ends too, before the job could write its result (stop 107's orphaned
+    calibration rewrote a row's report.json); a run left alone finishes its job."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "run.py"
+    script.write_text(ORPHAN_SCRIPT)
+    env = {**os.environ, "PYTHONPATH": os.getcwd()}
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    subprocess.run([sys.executable, str(script), str(whole), "0"], check=True, env=env,
+                   timeout=120)  # fmt: skip
+    assert (whole / "done").exists()  # the harness does reach its write
+    killed = tmp_path / "killed"
+    killed.mkdir()
+    run = subprocess.Popen([sys.executable, str(script), str(killed), "20"], env=env)
+    pid_file = killed / "worker.pid"
+    deadline = time.monotonic() + 120
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert pid_file.exists(), "the worker never started"
+    worker = int(pid_file.read_text())
+    run.send_signal(signal.SIGKILL)
+    run.wait(timeout=30)
+    deadline = time.monotonic() + 15  # a liveness bound, far under the job's 20 s
+    while time.monotonic() < deadline:
+        try:
+            os.kill(worker, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    else:
+        os.kill(worker, signal.SIGKILL)
+        raise AssertionError("the orphaned worker still ran 15 s after its run was killed")
+    time.sleep(0.5)
+    assert not (killed / "done").exists()

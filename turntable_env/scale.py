@@ -9,7 +9,9 @@ starts a local instance on this machine by default, ``address`` joins a cluster
 (``"auto"`` on a cluster node, ``"ray://head:10001"`` from outside); without Ray, or with
 ``backend="processes"``, the jobs go to a ``concurrent.futures.ProcessPoolExecutor`` of
 spawned processes (``fn`` must be importable, or defined in a script that guards its
-``main()``).
+``main()``), each of which ends itself once the process that started it has gone
+(:func:`_watch_parent`: a run killed, even by SIGKILL, leaves no worker finishing a job and
+writing its results after it).
 The results come back in the jobs' order, so a parallel run equals the serial one.
 """
 
@@ -21,6 +23,8 @@ import importlib.util
 import multiprocessing
 import os
 import socket
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -114,8 +118,27 @@ def map_tasks(
     n = workers or len(os.sched_getaffinity(0))
     # spawn, not fork: a fork after torch, the kernels or BLAS started threads can deadlock
     spawn = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(n, len(jobs)), mp_context=spawn) as pool:
+    with ProcessPoolExecutor(max_workers=min(n, len(jobs)), mp_context=spawn,
+                             initializer=_watch_parent, initargs=(os.getpid(),)) as pool:
         return list(pool.map(fn, jobs))
+
+
+PARENT_POLL_S = 0.5  # s between a process worker's checks that its parent still runs
+
+
+def _watch_parent(parent: int) -> None:
+    """Initializer of :func:`map_tasks`' process workers: a daemon thread ends the worker
+    (exit status 143) once its parent ``parent`` (a PID) is gone and it has been re-parented.
+    Without it a worker whose parent was killed runs its job to the end and writes what a
+    later run of the same command may already have written (stop 107: an orphaned
+    calibration rewrote a row's report.json)."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(143)
+
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
 
 
 @contextlib.contextmanager
