@@ -16,6 +16,7 @@ import pytest
 
 from turntable_env.calibration.calibrate import calibrate
 from turntable_env.calibration.nominal import NominalModel
+from turntable_env.calibration.trace_fit import trace_base
 from turntable_env.calibration.virtual_lab import run_virtual_lab
 from turntable_env.params import FACTORS
 from turntable_env.plant import Plant, calibrated_set_toml
@@ -55,3 +56,20 @@ def test_the_labs_calibration_as_base_starts_at_the_noise_floor(lab_file):
     assert on_lab.diagnosis["base"] == str(lab_file) and on_sheet.diagnosis["base"] == "real"
     for k in ("friction", "preload"):  # the fit stays at the lab's values (absolute)
         assert on_lab.plant.factors[k] == pytest.approx(LAB.factors[k], rel=0.03)
+
+
+def test_a_base_with_an_ideal_source_gets_its_amplifier_back_with_a_warning():
+    """A summary-level fit's plant may run an ideal source; as a trace calibration's base
+    its amplifier model comes back (the fitted slew and current must act), said in a
+    warning; the factors are kept, and a named set is the reduced model, unwarned."""
+    warnings: list[str] = []
+    ideal = LAB.replace(ideal_amplifier=True)
+    base = trace_base(ideal, warnings)
+    assert not base.ideal_amplifier and base.fidelity == "reduced"
+    assert base.factors == LAB.factors
+    assert len(warnings) == 1 and "ideal source" in warnings[0]
+    model = NominalModel(base, ("amplifier_slew",))
+    slow, fast = (model.plant(np.array([v])).params.amplifier for v in (-1.0, 1.0))
+    assert slow != fast  # the amplifier's factor reaches the plant that runs
+    quiet: list[str] = []
+    assert trace_base("real", quiet) == Plant("real", fidelity="reduced") and not quiet

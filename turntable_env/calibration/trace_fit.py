@@ -130,6 +130,7 @@ __all__ = [
     "identifiable_effects",
     "on_base",
     "signature_search",
+    "trace_base",
     "trace_comparison",
     "trace_data",
     "undetermined_starts",
@@ -371,6 +372,22 @@ def at_base_gain(m: Measurement, amplifier: Any) -> tuple[Measurement, list[str]
         f"{amplifier.gain:g}: the drive is taken ×{k:.4g} as its input, so the tubes see the "
         "file's gain; the amplifier's dynamics are the fitted slew and current scales"
     ]
+
+
+def trace_base(base: str | Plant, warnings: list[str]) -> Plant:
+    """The plant a trace calibration scales: a set's name or a Plant (a lab's earlier
+    calibration, :meth:`Plant.load`) as the reduced per-axis model. A base that runs an
+    ideal source (a summary-level fit's, ``ideal_amplifier``) gets its amplifier model
+    back, with a warning: a trace fits the amplifier's slew and current, which an ideal
+    source would leave without effect."""
+    plant = (base if isinstance(base, Plant) else Plant(base)).replace(fidelity="reduced")
+    if plant.ideal_amplifier:
+        warnings.append(
+            "base: its ideal source replaced by its amplifier model (§4.1.2): a trace "
+            "calibration fits the amplifier's slew and current"
+        )
+        plant = plant.replace(ideal_amplifier=False)
+    return plant
 
 
 def on_base(m: Measurement, base: Plant) -> tuple[TraceData, list[str]]:
@@ -1322,7 +1339,7 @@ def calibrate_traces(
 
     warnings: list[str] = []
     traces = []
-    base_plant = (base if isinstance(base, Plant) else Plant(base)).replace(fidelity="reduced")
+    base_plant = trace_base(base, warnings)
     for f in files:
         td, w = on_base(f if isinstance(f, Measurement) else load_measurement(f), base_plant)
         traces.append(td)
