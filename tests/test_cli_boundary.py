@@ -56,6 +56,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["simulate", "--out", "/tmp"], "--out"),
         (["simulate", "--out", NOT_A_DIR], "--out"),
         (["bench", "--duration", "nan"], "--duration"),
+        (["bench", "--duration", "1e-9", "--quick"], "--duration"),  # no drive period to count
         (["bench", "--batch", "-1"], "--batch"),
         (["benchmark", "--seeds", "1"], "--seeds"),
         (["benchmark", "--suite-seed", "-1"], "--suite-seed"),
@@ -79,6 +80,7 @@ def _run(argv: list[str], capsys) -> tuple[int, str, str]:
         (["virtual-lab", "--out", "/tmp"], "--out"),
         (["calibrate", "--thesis", "--report", NOT_A_DIR], "--report"),
         (["calibrate", "missing.csv", "--report", "rep"], "missing.csv"),
+        (["calibrate", "", "--report", "rep"], "an empty path"),  # not "." (stop 109's probe)
         # a control character in a name is written escaped: still one line
         (["calibrate", "miss\ning.csv", "--report", "rep"], "miss\\ning.csv"),
         (["simulate", "--amplitude", "1\n2"], "--amplitude"),

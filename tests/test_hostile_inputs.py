@@ -181,6 +181,33 @@ def test_sigterm_while_writing_leaves_no_temporary_directory(tmp_path):
     assert not d.exists() and list(tmp_path.iterdir()) == []
 
 
+def test_sigterm_swallowed_in_a_c_callback_still_ends_the_run(tmp_path):
+    """numba's compile calls Python through ctypes; a SIGTERM whose Terminated is raised
+    in such a callback is swallowed by ctypes ("Exception ignored"), and ``timeout turntable
+    virtual-lab`` on a cold cache ran to the end and wrote its file (stop 109's probe). It
+    is delivered again once the callback returns: exit 143, the output directory's
+    temporary gone, nothing printed after, no "Exception ignored" lines."""
+    d = tmp_path / "rx"
+    code = (
+        "import ctypes, os, signal, time\n"
+        "from turntable_env.files import output_directory, terminate_cleanly\n"
+        "def cb():\n"
+        "    os.kill(os.getpid(), signal.SIGTERM)\n"
+        "    time.sleep(0.05)\n"
+        "callback = ctypes.CFUNCTYPE(None)(cb)\n"
+        f"with terminate_cleanly(), output_directory({str(d)!r}) as tmp:\n"
+        "    (tmp / 'report.json').write_text('{}')\n"
+        "    callback()\n"
+        "    time.sleep(30)\n"
+        "    print('finished', flush=True)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=120)
+    err = r.stderr.decode()
+    assert r.returncode == 128 + signal.SIGTERM, err[-2000:]
+    assert b"finished" not in r.stdout and "Exception ignored" not in err, err[-2000:]
+    assert not d.exists() and list(tmp_path.iterdir()) == []
+
+
 def test_the_calibration_workers_die_on_sigterm_as_the_group_does():
     """The calibration's forked workers do not keep the parent's SIGTERM handler: raised
     inside a worker's wait on the task queue it left the queue's lock held, and
@@ -224,6 +251,14 @@ def _summary(tmp_path: Path, old: str, new: str) -> Path:
         ("gain = 45.0", "gain = nan", "[amplifier]: gain = nan"),
         ("current_limit_A = 0.025", "current_limit_A = -1e9", "current_limit_A"),
         ("input_limit_V = 10.0", 'input_limit_V = 10.0\nbogus = "x"', "bogus is not part"),
+        # a figure its relative errors divide by (stop 109's probe: NaN residuals, 5 lines)
+        ("detector_dV = 0.53", "detector_dV = 0.0", "detector_dV = 0.0"),
+        # under the protocol's 1 Hz: refused by the file's key, not by a protocol block's index
+        ("frequency_Hz = 100.0", "frequency_Hz = 1e-300", "frequency_Hz = 1e-300"),
+        # two observations are two figures of one name, refused as two steppings of one are
+        ("[[observation]]", "[[observation]]\nsource = \"x\"\naxis = \"B\"\namplitude_V = 2.0\n"
+         "frequency_Hz = 100.0\namplifier = \"unadapted\"\n[[observation]]",
+         "appear more than once"),
     ],
 )
 def test_bad_summary_files_are_refused_naming_key_and_value(old, new, needle, tmp_path, capsys):
@@ -787,3 +822,16 @@ def test_every_shipped_run_config_passes_the_check():
         cfg = run_config(d, str(d))
         check_run_config(cfg)
         interface_of(cfg)
+
+
+@pytest.mark.parametrize("duration", [1e-9, 0.0099, 60.5, float("nan")])
+def test_a_bench_shorter_than_one_drive_period_is_refused(duration):
+    """``run_bench`` counts steps per drive period and ns per step evaluation: a run shorter
+    than one period of the standard scenario's drive has none (stop 109's probe: a
+    ZeroDivisionError traceback from ``turntable bench --duration 1e-300``), so the duration
+    is refused, naming it, before anything is simulated."""
+    from turntable_env.bench import DURATION_RANGE, STANDARD, run_bench
+
+    assert DURATION_RANGE[0] == pytest.approx(1.0 / STANDARD["frequency"])
+    with pytest.raises(ValueError, match="duration"):
+        run_bench(duration=duration, quick=True)

@@ -109,6 +109,8 @@ def test_detector_reads_the_mirror_tilt_and_its_gain():
         ({"d31_factor": 5.0}, "d31_factor"),
         ({"drive_mode": "diagonal"}, "drive_mode"),
         ({"axial_strain_sign": 0}, "axial_strain_sign"),
+        ({"axial_strain_sign": True}, "axial_strain_sign"),  # == 1, not a sign (stop 109)
+        ({"axial_strain_sign": 1.0}, "axial_strain_sign"),
         ({"mirror_tilt": 0.1}, "mirror_tilt"),
         ({"presliding_factor": -1.0}, "presliding_factor"),
         ({"tube_inertia": "guess"}, "tube_inertia"),

@@ -236,7 +236,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from .bench import env_throughput, format_env_table, format_table, run_bench
+    from .bench import DURATION_RANGE, env_throughput, format_env_table, format_table, run_bench
 
     if args.env_only:
         if args.duration is not None or args.quick:  # not silently ignored
@@ -244,6 +244,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         res, table = env_throughput(num_envs=args.batch), format_env_table
     else:
         duration = args.duration if args.duration is not None else 1.0  # s
+        if duration < DURATION_RANGE[0]:  # one drive period at least, before any work
+            raise ValueError(f"--duration={duration:g}: must be >= {DURATION_RANGE[0]:g} s "
+                             f"(one period of the standard scenario's drive)")
         res = run_bench(duration=duration, batch=args.batch, quick=args.quick)
         table = format_table
     if args.json:  # with the commit and the machine the figures were measured on
@@ -337,6 +340,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         raise ValueError("files: give measurement files (CSV), a summary file (TOML) or --thesis")
     seen: dict[str, str] = {}
     for f in files:
+        if not f.strip():  # "" would read as the working directory
+            raise ValueError(f"files: {f!r}: an empty path; give a measurement or summary file")
         key = os.path.realpath(f)
         if key in seen:
             raise ValueError(f"files: {f!r} given twice (as {seen[key]!r} too)")

@@ -31,7 +31,9 @@ import os
 import shutil
 import signal
 import stat
+import sys
 import tempfile
+import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -251,6 +253,9 @@ def output_directory(out: str | Path) -> Iterator[Path]:
             shutil.rmtree(old, ignore_errors=True)
 
 
+REDELIVER_S = 0.05  # s after a swallowed SIGTERM at which it is delivered again
+
+
 class Terminated(SystemExit):
     """SIGTERM, raised where the program is so that clean-ups run (exit status 143)."""
 
@@ -273,12 +278,29 @@ def terminate_cleanly() -> Iterator[None]:
     def handler(signum: int, frame: object) -> None:
         raise Terminated(128 + signum)
 
+    hook = sys.unraisablehook
+
+    def unraisable(args: Any) -> None:
+        """A Terminated raised inside a C callback (numba's compile calls Python through
+        ctypes: ``_raw_object_cache_notify``) is swallowed there and the run went on to the
+        end (stop 109's probe): SIGTERM is delivered again once the callback has returned
+        (:data:`REDELIVER_S` later, from a timer thread: at once it would be raised inside
+        this hook, still in the callback), so the handler raises it where it propagates."""
+        if isinstance(args.exc_value, Terminated):
+            timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), signal.SIGTERM))
+            timer.daemon = True
+            timer.start()
+            return
+        hook(args)
+
     try:
         signal.signal(signal.SIGTERM, handler)
     except ValueError:  # not the main thread
         yield
         return
+    sys.unraisablehook = unraisable
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         signal.signal(signal.SIGTERM, previous)

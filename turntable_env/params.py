@@ -313,8 +313,9 @@ class RigParams:
                 raise ValueError(f"rig.{name}={v!r}: outside its physical range {lo:g}…{hi:g}")
         if self.drive_mode not in RIG_CHOICES["drive_mode"][0]:
             raise ValueError(f"rig.drive_mode={self.drive_mode!r}: 'asymmetric' or 'symmetric'")
-        if self.axial_strain_sign not in (1, -1):
-            raise ValueError(f"rig.axial_strain_sign={self.axial_strain_sign!r}: +1 or -1")
+        s = self.axial_strain_sign  # an int: True and 1.0 equal 1 but are not a sign
+        if isinstance(s, bool) or not isinstance(s, int) or s not in (1, -1):
+            raise ValueError(f"rig.axial_strain_sign={s!r}: +1 or -1")
         if not 0.5 <= check_finite("mirror_tilt", self.mirror_tilt) <= 1.0:
             raise ValueError(f"rig.mirror_tilt={self.mirror_tilt!r}: must be in [0.5, 1]")
 

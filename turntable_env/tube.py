@@ -125,8 +125,9 @@ class TubeParams:
             check_positive("quality_factor", self.quality_factor)
         if not isinstance(self.axial_coupling, bool):
             raise ValueError(f"axial_coupling={self.axial_coupling!r}: must be a bool")
-        if self.axial_strain_sign not in (1, -1):
-            raise ValueError(f"axial_strain_sign={self.axial_strain_sign!r}: must be +1 or -1")
+        s = self.axial_strain_sign  # an int: True and 1.0 equal 1 but are not a sign
+        if isinstance(s, bool) or not isinstance(s, int) or s not in (1, -1):
+            raise ValueError(f"axial_strain_sign={s!r}: must be +1 or -1")
         check_positive("stroke_scale", self.stroke_scale)
         # constructing the quadrant validates diameter_convention
         _ = self.quadrant

@@ -60,6 +60,7 @@ __all__ = ["AXES", "TIME_UNITS", "VOLTAGE_UNITS", "Measurement", "load_measureme
 
 AXES = ("A", "B", "C", "Z")
 INPUT_LIMIT = 10.0  # V, amplifier input range (§4.1.1: LabView signal between ±10 V)
+DRIVE_FREQUENCY_RANGE = (1.0, 1e5)  # Hz, a stepping waveform's frequency a protocol may hold
 DETECTOR_LIMIT = 15.0  # V, photodiode electronics supply
 MAX_FILE_BYTES = 256 * 2**20  # bytes a measurement file may hold
 MAX_LINE_CHARS = 4096  # characters per line

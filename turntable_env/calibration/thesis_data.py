@@ -27,6 +27,7 @@ from typing import Any
 
 from ..detector import Detector
 from ..inputs import Fields, load_toml
+from .measurement import DRIVE_FREQUENCY_RANGE
 
 __all__ = [
     "THESIS_DATA_FILE",
@@ -113,7 +114,8 @@ def thesis_step_sizes(path: str | Path = THESIS_DATA_FILE) -> dict[str, float]:
 
 def _drive(s: Fields, keys: tuple[str, ...]) -> dict[str, Any]:
     """A figure's drive, each entry checked: axis, input amplitude (0, 10] V, frequency
-    (0, 100 kHz], amplifier mode, steps 1…:data:`MAX_STEPS`."""
+    1 Hz–100 kHz (:data:`~.measurement.DRIVE_FREQUENCY_RANGE`, a protocol's), amplifier mode,
+    steps 1…:data:`MAX_STEPS`."""
     out: dict[str, Any] = {}
     for k in keys:
         if k == "axis":
@@ -121,7 +123,7 @@ def _drive(s: Fields, keys: tuple[str, ...]) -> dict[str, Any]:
         elif k == "amplitude_V":
             out[k] = s.number(k, low=0.0, high=10.0, open_low=True)
         elif k == "frequency_Hz":
-            out[k] = s.number(k, low=0.0, high=1e5, open_low=True)
+            out[k] = s.number(k, low=DRIVE_FREQUENCY_RANGE[0], high=DRIVE_FREQUENCY_RANGE[1])
         elif k == "amplifier":
             out[k] = s.text(k, choices=AMPLIFIER_MODES)
         elif k == "steps":
@@ -161,6 +163,9 @@ def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
         drive["pattern"] = pattern
         dv = s.number("detector_dV", low=-100.0, high=100.0)
         res = s.number("resolution_V", low=0.0, high=100.0, open_low=True)
+        if abs(dv) < res:  # the relative errors of this figure (and its return) divide by it
+            raise ValueError(f"{s.where}: detector_dV = {dv!r}: its magnitude must be at least "
+                             f"resolution_V = {res!r} (the figure's relative error refers to it)")
         src = s.text("source", default="")
         s.number("step_um", low=0.0, high=1e6, open_low=True)
         out.append(SummaryTarget(f"detector_dV_{pattern}", "net detector voltage over the steps",
@@ -170,10 +175,6 @@ def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
                 SummaryTarget(f"return_{pattern}", "detector voltage after the cycle minus "
                               "before", 0.0, "V", res, drive, src, scale=dv)
             )
-    names = [t.name for t in out]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ValueError(f"{p}: figures {dup} appear more than once")
     observations = data.tables("observation") if "observation" in data.table else []
     if observations:
         if not steppings:
@@ -193,4 +194,8 @@ def thesis_targets(path: str | Path = THESIS_DATA_FILE) -> list[SummaryTarget]:
             )
     if not out:
         raise ValueError(f"{p}: no figure ([[amplifier_step]], [[stepping]], [[observation]])")
+    names = [t.name for t in out]  # observations included: each is one figure
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"{p}: figures {dup} appear more than once")
     return out

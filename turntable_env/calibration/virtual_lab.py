@@ -36,7 +36,7 @@ from ..drive import StepSetting
 from ..params import ParameterSet
 from ..plant import Plant, output_capacitance
 from ..validation import check_int, check_nonnegative
-from .measurement import INPUT_LIMIT, MAX_SAMPLES, Measurement
+from .measurement import DRIVE_FREQUENCY_RANGE, INPUT_LIMIT, MAX_SAMPLES, Measurement
 from .trace import simulate_trace
 
 __all__ = ["PROTOCOLS", "check_protocol", "protocol_blocks", "protocol_drive", "run_virtual_lab"]
@@ -152,7 +152,7 @@ def check_protocol(protocol: str | Sequence[Block], sample_dt: float = 5e-5) -> 
             total += _number(f"{w} seconds", blk[2], 0.0, MAX_PROTOCOL_S)
         else:
             _number(f"{w} amplitude", blk[1], -INPUT_LIMIT, INPUT_LIMIT)
-            f = _number(f"{w} frequency", blk[2], 1.0, 1e5)
+            f = _number(f"{w} frequency", blk[2], *DRIVE_FREQUENCY_RANGE)
             n = blk[3]
             if isinstance(n, bool) or not isinstance(n, int | np.integer) or not (
                     1 <= n <= MAX_PROTOCOL_PERIODS):  # fmt: skip
